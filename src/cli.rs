@@ -1,0 +1,422 @@
+//! Command line: `build` (trees, quality table, cache, export), `poses` (forward kinematics) and
+//! `bench packing` (quality and time against the sphere budget, cache load, tree builders).
+//! Every option is defined once here and validated into the library's typed options.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use serde::Serialize;
+
+use crate::ist::cache::TreeCache;
+use crate::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin, TreeBuilder};
+use crate::packing::PackingParams;
+use crate::robot::{PackagePath, RobotModel};
+
+/// The demo robot shipped in `urdf/`, the default of every command.
+pub const DEMO_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/demo_arm.urdf");
+
+#[derive(Parser)]
+#[command(
+    name = "ist_monitor",
+    version,
+    about = "Robot-to-point-cloud distance with inner sphere trees"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Pack every link with inner spheres, build the trees and print their quality.
+    Build(BuildArgs),
+    /// Print the pose of every link in the root frame for given joint values.
+    Poses(PosesArgs),
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(Bench),
+}
+
+#[derive(Args)]
+struct RobotArgs {
+    /// URDF file (default: the demo robot in urdf/).
+    #[arg(long, default_value = DEMO_URDF)]
+    urdf: PathBuf,
+    /// Where package://NAME is found; repeatable.
+    #[arg(long = "package-path", value_name = "NAME=DIR")]
+    package_paths: Vec<PackagePath>,
+}
+
+impl RobotArgs {
+    fn load(&self) -> Result<RobotModel> {
+        RobotModel::load(&self.urdf, &self.package_paths)
+            .with_context(|| format!("loading robot {}", self.urdf.display()))
+    }
+}
+
+#[derive(Args)]
+struct PackingArgs {
+    /// Sphere budget per link.
+    #[arg(long, default_value_t = PackingParams::default().max_spheres)]
+    max_spheres: u32,
+    /// Smallest sphere radius, m.
+    #[arg(long, default_value_t = PackingParams::default().min_radius_m)]
+    min_radius: f32,
+    /// Stop packing a link at this volume coverage (0..1].
+    #[arg(long, default_value_t = PackingParams::default().target_coverage)]
+    target_coverage: f64,
+    /// Prototypes of the first grid per collision element.
+    #[arg(long, default_value_t = PackingParams::default().prototypes)]
+    prototypes: u32,
+    /// Hierarchy build.
+    #[arg(long, value_enum, default_value_t = TreeBuilder::NeuralGas)]
+    tree: TreeBuilder,
+}
+
+impl PackingArgs {
+    fn options(&self) -> Result<BuildOptions> {
+        if self.max_spheres == 0 {
+            bail!("--max-spheres must be at least 1");
+        }
+        if !(self.min_radius > 0.0 && self.min_radius.is_finite()) {
+            bail!("--min-radius must be a positive number of metres");
+        }
+        if !(self.target_coverage > 0.0 && self.target_coverage <= 1.0) {
+            bail!("--target-coverage must lie in (0, 1]");
+        }
+        if self.prototypes == 0 {
+            bail!("--prototypes must be at least 1");
+        }
+        Ok(BuildOptions {
+            packing: PackingParams {
+                max_spheres: self.max_spheres,
+                min_radius_m: self.min_radius,
+                target_coverage: self.target_coverage,
+                prototypes: self.prototypes,
+                ..PackingParams::default()
+            },
+            tree: self.tree,
+            ..BuildOptions::default()
+        })
+    }
+}
+
+#[derive(Args)]
+struct BuildArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    #[command(flatten)]
+    packing: PackingArgs,
+    /// Cache folder (default: $IST_MONITOR_CACHE, $XDG_CACHE_HOME/ist_monitor or ~/.cache/ist_monitor).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Build everything anew and store nothing.
+    #[arg(long)]
+    no_cache: bool,
+    /// Print the table as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Write {"<link>": [[x, y, z, r], ...]} (link frames, metres) to this file.
+    #[arg(long, value_name = "FILE")]
+    export_spheres: Option<PathBuf>,
+    /// Check every sphere and node against the meshes (exact, in f64).
+    #[arg(long)]
+    validate: bool,
+}
+
+#[derive(Args)]
+struct PosesArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// Joint values, NAME=VALUE,... (radians or metres); joints not named are 0.
+    #[arg(long, value_delimiter = ',', value_parser = parse_joint)]
+    joints: Vec<(String, f64)>,
+}
+
+#[derive(Subcommand)]
+enum Bench {
+    /// Coverage, surface gap and build time against the sphere budget; cache load time; tree
+    /// builders compared by the sum of node volumes.
+    Packing(BenchPackingArgs),
+}
+
+#[derive(Args)]
+struct BenchPackingArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// Sphere budgets per link to sweep.
+    #[arg(long, value_delimiter = ',', default_values_t = [1000u32, 4000, 16000])]
+    budgets: Vec<u32>,
+    /// Repetitions of the timed cache load.
+    #[arg(long, default_value_t = 20)]
+    runs: usize,
+}
+
+fn parse_joint(s: &str) -> Result<(String, f64), String> {
+    let (name, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected NAME=VALUE, got '{s}'"))?;
+    let value: f64 = value
+        .parse()
+        .map_err(|e| format!("joint {name}: '{value}' is not a number: {e}"))?;
+    if !value.is_finite() {
+        return Err(format!("joint {name}: value must be finite"));
+    }
+    Ok((name.to_owned(), value))
+}
+
+pub fn run() -> Result<()> {
+    match Cli::parse().command {
+        Command::Build(args) => build(args),
+        Command::Poses(args) => poses(args),
+        Command::Bench(Bench::Packing(args)) => bench_packing(args),
+    }
+}
+
+#[derive(Serialize)]
+struct LinkRow<'a> {
+    name: &'a str,
+    spheres: usize,
+    coverage: f64,
+    gap_m: f64,
+    gap_sampled_m: f64,
+    build_s: f64,
+    tree_volume_m3: f64,
+    origin: Origin,
+}
+
+fn build_trees(
+    model: &RobotModel,
+    options: &BuildOptions,
+    cache: Option<&TreeCache>,
+) -> Result<Vec<(LinkTree, Origin)>> {
+    let bar = indicatif::ProgressBar::new(model.links.len() as u64).with_message("links");
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {msg} {pos}/{len} [{elapsed}] {wide_bar}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let trees = ist::build_robot(model, options, cache, &|_| bar.inc(1))?;
+    bar.finish_and_clear();
+    Ok(trees)
+}
+
+fn build(args: BuildArgs) -> Result<()> {
+    let options = args.packing.options()?;
+    let model = args.robot.load()?;
+    if !model.skipped_links.is_empty() && !args.json {
+        eprintln!(
+            "links without collision geometry (skipped): {}",
+            model.skipped_links.join(", ")
+        );
+    }
+    let cache = (!args.no_cache).then(|| {
+        TreeCache::new(
+            args.cache_dir
+                .clone()
+                .unwrap_or_else(TreeCache::default_dir),
+        )
+    });
+    let start = Instant::now();
+    let trees = build_trees(&model, &options, cache.as_ref())?;
+    let total_s = start.elapsed().as_secs_f64();
+    if args.validate {
+        for ((tree, _), geometry) in trees.iter().zip(&model.links) {
+            validate_link(tree, geometry, 1e-6)?;
+        }
+    }
+    let rows: Vec<LinkRow> = trees
+        .iter()
+        .map(|(t, origin)| LinkRow {
+            name: &t.link,
+            spheres: t.quality.spheres,
+            coverage: t.quality.coverage,
+            gap_m: t.quality.gap_m,
+            gap_sampled_m: t.quality.gap_sampled_m,
+            build_s: t.quality.build_s,
+            tree_volume_m3: t.quality.tree_volume_m3,
+            origin: *origin,
+        })
+        .collect();
+    if let Some(path) = &args.export_spheres {
+        export_spheres(path, &trees)?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({ "links": rows }))?
+        );
+        return Ok(());
+    }
+    println!(
+        "robot {} ({}), {} links",
+        model.name,
+        model.urdf_path.display(),
+        rows.len()
+    );
+    println!(
+        "{:<24} {:>8} {:>9} {:>8} {:>9} {:>7}",
+        "link", "spheres", "coverage", "h [mm]", "build [s]", "from"
+    );
+    for r in &rows {
+        println!(
+            "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9.2} {:>7}",
+            r.name,
+            r.spheres,
+            100.0 * r.coverage,
+            1e3 * r.gap_m,
+            r.build_s,
+            match r.origin {
+                Origin::Built => "built",
+                Origin::Cache => "cache",
+            }
+        );
+    }
+    println!(
+        "total {total_s:.2} s{}",
+        if args.validate { ", validated" } else { "" }
+    );
+    Ok(())
+}
+
+fn export_spheres(path: &Path, trees: &[(LinkTree, Origin)]) -> Result<()> {
+    let map: serde_json::Map<String, serde_json::Value> = trees
+        .iter()
+        .map(|(t, _)| {
+            let spheres: Vec<[f32; 4]> = t
+                .spheres
+                .iter()
+                .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+                .collect();
+            (t.link.clone(), serde_json::json!(spheres))
+        })
+        .collect();
+    std::fs::write(path, serde_json::to_string(&map)?)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+fn poses(args: PosesArgs) -> Result<()> {
+    let model = args.robot.load()?;
+    let k = &model.kinematics;
+    let q = k.values_from_names(&args.joints, Some(0.0))?;
+    let poses = k.link_poses(&q);
+    println!(
+        "{:<24} {:>9} {:>9} {:>9}   (root frame {}, m)",
+        "link",
+        "x",
+        "y",
+        "z",
+        k.root_link()
+    );
+    for (name, pose) in k.link_names().iter().zip(&poses) {
+        let t = pose.translation.vector;
+        println!("{name:<24} {:>9.4} {:>9.4} {:>9.4}", t.x, t.y, t.z);
+    }
+    Ok(())
+}
+
+fn median_and_spread(mut samples: Vec<f64>) -> (f64, f64, f64) {
+    samples.sort_by(f64::total_cmp);
+    let at = |q: f64| samples[((samples.len() - 1) as f64 * q).round() as usize];
+    (at(0.5), at(0.1), at(0.9))
+}
+
+fn bench_packing(args: BenchPackingArgs) -> Result<()> {
+    let model = args.robot.load()?;
+    println!(
+        "robot {} ({} links), {} threads",
+        model.name,
+        model.links.len(),
+        rayon::current_num_threads()
+    );
+    let dir = tempfile_dir()?;
+    for &budget in &args.budgets {
+        let mut options = BuildOptions::default();
+        options.packing.max_spheres = budget;
+        let cache = TreeCache::new(dir.join(budget.to_string()));
+        let start = Instant::now();
+        let trees = ist::build_robot(&model, &options, Some(&cache), &|_| {})?;
+        let wall = start.elapsed().as_secs_f64();
+        let worst_cov = trees
+            .iter()
+            .map(|(t, _)| t.quality.coverage)
+            .fold(1.0, f64::min);
+        let worst_gap = trees
+            .iter()
+            .map(|(t, _)| t.quality.gap_m)
+            .fold(0.0, f64::max);
+        println!(
+            "\nbudget {budget}/link: all links built in {wall:.2} s; worst coverage {:.1}%, worst h {:.3} mm",
+            100.0 * worst_cov,
+            1e3 * worst_gap
+        );
+        println!(
+            "{:<24} {:>8} {:>9} {:>8} {:>9}",
+            "link", "spheres", "coverage", "h [mm]", "build [s]"
+        );
+        for (t, _) in &trees {
+            let q = &t.quality;
+            println!(
+                "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9.2}",
+                t.link,
+                q.spheres,
+                100.0 * q.coverage,
+                1e3 * q.gap_m,
+                q.build_s
+            );
+        }
+        // Cache load against its floor, reading the same files' bytes.
+        let mut load = Vec::new();
+        let mut read = Vec::new();
+        for _ in 0..args.runs {
+            let t = Instant::now();
+            let loaded = ist::build_robot(&model, &options, Some(&cache), &|_| {})?;
+            load.push(t.elapsed().as_secs_f64());
+            if loaded.iter().any(|(_, o)| *o != Origin::Cache) {
+                bail!("cache miss in the load benchmark");
+            }
+            let t = Instant::now();
+            let mut bytes = 0;
+            for link in &model.links {
+                bytes += std::fs::read(cache.path(&ist::cache::key(link, &options)))?.len();
+            }
+            read.push(t.elapsed().as_secs_f64());
+            std::hint::black_box(bytes);
+        }
+        let (m, lo, hi) = median_and_spread(load);
+        let (rm, rlo, rhi) = median_and_spread(read);
+        println!(
+            "cache load (hash meshes, read, verify, decode; {} runs): median {:.2} ms [p10 {:.2}, p90 {:.2}]; \
+             peer raw file read: {:.2} ms [{:.2}, {:.2}]; ratio {:.1}×",
+            args.runs, 1e3 * m, 1e3 * lo, 1e3 * hi, 1e3 * rm, 1e3 * rlo, 1e3 * rhi, m / rm
+        );
+        // Tree builders on the same spheres.
+        let mut sums = [0.0f64; 2];
+        for (t, _) in &trees {
+            for (k, builder) in [TreeBuilder::NeuralGas, TreeBuilder::MedianSplit]
+                .into_iter()
+                .enumerate()
+            {
+                let (nodes, _) = ist::build::build_tree(t.spheres.clone(), builder);
+                sums[k] += ist::build::tree_volume(&nodes);
+            }
+        }
+        println!(
+            "sum of node volumes over all links: neural gas {:.4} m³, median split {:.4} m³ (ratio {:.3})",
+            sums[0],
+            sums[1],
+            sums[0] / sums[1]
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    Ok(())
+}
+
+fn tempfile_dir() -> Result<PathBuf> {
+    let dir = std::env::temp_dir().join(format!("ist_monitor_bench_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    Ok(dir)
+}

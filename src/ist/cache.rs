@@ -1,0 +1,271 @@
+//! On-disk cache of inner sphere trees, one file per link, named by its key.
+//!
+//! The key is a BLAKE3 hash of the format version, the build options, the link name and its collision
+//! meshes as packed (link-frame vertices and triangles, tessellation error), so any change of
+//! mesh content, scale, origin or parameter misses the cache. A file holds:
+//! `magic "ISTCACHE" | version u32 | key [32] | name len u32 | name | quality (8 × f64) |
+//! node count u32 | sphere count u32 | nodes | spheres | BLAKE3 of all before [32]`, little
+//! endian. A file that fails any check (length, checksum, magic, version, key, link name) is
+//! reported as an error, never trusted; the caller warns and rebuilds. Writes go to a temporary
+//! file first and are renamed into place, so a crashed write leaves no half file.
+
+use std::path::{Path, PathBuf};
+
+use super::{BuildOptions, IstNode, LinkQuality, LinkTree};
+use crate::packing::InnerSphere;
+use crate::robot::LinkGeometry;
+
+const MAGIC: &[u8; 8] = b"ISTCACHE";
+/// Bump when the file layout or anything that changes the trees for the same key changes.
+pub const FORMAT_VERSION: u32 = 1;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CacheError {
+    #[error("tree cache {path}: {message}")]
+    Corrupt { path: PathBuf, message: String },
+    #[error("tree cache {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+/// The cache folder.
+pub struct TreeCache {
+    dir: PathBuf,
+}
+
+/// The cache key of a link under `options`.
+pub fn key(link: &LinkGeometry, options: &BuildOptions) -> [u8; 32] {
+    let mut h = blake3::Hasher::new();
+    h.update(&FORMAT_VERSION.to_le_bytes());
+    h.update(
+        serde_json::to_string(options)
+            .unwrap_or_default()
+            .as_bytes(),
+    );
+    // Links with the same mesh (a left and a right finger) get files of their own.
+    h.update(&(link.name.len() as u64).to_le_bytes());
+    h.update(link.name.as_bytes());
+    for e in &link.elements {
+        h.update(&(e.mesh.vertices.len() as u64).to_le_bytes());
+        h.update(bytemuck::cast_slice(&e.mesh.vertices));
+        h.update(&(e.mesh.triangles.len() as u64).to_le_bytes());
+        h.update(bytemuck::cast_slice(&e.mesh.triangles));
+        h.update(&e.tessellation_error_m.to_le_bytes());
+    }
+    *h.finalize().as_bytes()
+}
+
+fn hex(key: &[u8; 32]) -> String {
+    key.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+impl TreeCache {
+    pub fn new(dir: PathBuf) -> Self {
+        Self { dir }
+    }
+
+    /// `$IST_MONITOR_CACHE`, else `$XDG_CACHE_HOME/ist_monitor`, else `~/.cache/ist_monitor`.
+    pub fn default_dir() -> PathBuf {
+        if let Some(dir) = std::env::var_os("IST_MONITOR_CACHE") {
+            return dir.into();
+        }
+        if let Some(dir) = std::env::var_os("XDG_CACHE_HOME") {
+            return Path::new(&dir).join("ist_monitor");
+        }
+        let home = std::env::var_os("HOME").unwrap_or_else(|| ".".into());
+        Path::new(&home).join(".cache").join("ist_monitor")
+    }
+
+    pub fn path(&self, key: &[u8; 32]) -> PathBuf {
+        self.dir.join(format!("{}.ist", hex(key)))
+    }
+
+    /// The tree stored under `key`, None when there is none, an error when the file is bad.
+    pub fn load(&self, key: &[u8; 32], link: &str) -> Result<Option<LinkTree>, CacheError> {
+        let path = self.path(key);
+        let bytes = match std::fs::read(&path) {
+            Ok(b) => b,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(source) => return Err(CacheError::Io { path, source }),
+        };
+        decode(&bytes, key, link)
+            .map(Some)
+            .map_err(|message| CacheError::Corrupt { path, message })
+    }
+
+    pub fn store(&self, key: &[u8; 32], tree: &LinkTree) -> Result<(), CacheError> {
+        let path = self.path(key);
+        let io = |source| CacheError::Io {
+            path: path.clone(),
+            source,
+        };
+        std::fs::create_dir_all(&self.dir).map_err(io)?;
+        let tmp = path.with_extension(format!("tmp{}", std::process::id()));
+        std::fs::write(&tmp, encode(key, tree)).map_err(io)?;
+        std::fs::rename(&tmp, &path).map_err(io)
+    }
+}
+
+fn quality_fields(q: &LinkQuality) -> [f64; 8] {
+    [
+        q.spheres as f64,
+        q.coverage,
+        q.gap_m,
+        q.gap_sampled_m,
+        q.mesh_volume_m3,
+        q.tree_volume_m3,
+        q.build_s,
+        0.0,
+    ]
+}
+
+pub fn encode(key: &[u8; 32], tree: &LinkTree) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(key);
+    out.extend_from_slice(&(tree.link.len() as u32).to_le_bytes());
+    out.extend_from_slice(tree.link.as_bytes());
+    for v in quality_fields(&tree.quality) {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&(tree.nodes.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(tree.spheres.len() as u32).to_le_bytes());
+    out.extend_from_slice(bytemuck::cast_slice(&tree.nodes));
+    out.extend_from_slice(bytemuck::cast_slice(&tree.spheres));
+    let checksum = blake3::hash(&out);
+    out.extend_from_slice(checksum.as_bytes());
+    out
+}
+
+/// A little-endian reader over a byte slice that fails instead of panicking.
+struct Reader<'a> {
+    bytes: &'a [u8],
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+        if self.bytes.len() < n {
+            return Err("file is truncated".into());
+        }
+        let (head, tail) = self.bytes.split_at(n);
+        self.bytes = tail;
+        Ok(head)
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        Ok(u32::from_le_bytes(
+            self.take(4)?.try_into().map_err(|_| "short")?,
+        ))
+    }
+    fn f64(&mut self) -> Result<f64, String> {
+        Ok(f64::from_le_bytes(
+            self.take(8)?.try_into().map_err(|_| "short")?,
+        ))
+    }
+}
+
+pub fn decode(bytes: &[u8], key: &[u8; 32], link: &str) -> Result<LinkTree, String> {
+    if bytes.len() < MAGIC.len() + 32 {
+        return Err("file is truncated".into());
+    }
+    let (body, checksum) = bytes.split_at(bytes.len() - 32);
+    if blake3::hash(body).as_bytes() != checksum {
+        return Err("checksum mismatch (corrupt file)".into());
+    }
+    let mut r = Reader { bytes: body };
+    if r.take(8)? != MAGIC {
+        return Err("not a tree cache file".into());
+    }
+    let version = r.u32()?;
+    if version != FORMAT_VERSION {
+        return Err(format!(
+            "format version {version}, expected {FORMAT_VERSION} (outdated)"
+        ));
+    }
+    if r.take(32)? != key {
+        return Err("key does not match its file name".into());
+    }
+    let name_len = r.u32()? as usize;
+    let name = std::str::from_utf8(r.take(name_len)?).map_err(|e| e.to_string())?;
+    if name != link {
+        return Err(format!("holds link {name}, expected {link}"));
+    }
+    let mut q = [0.0f64; 8];
+    for v in &mut q {
+        *v = r.f64()?;
+    }
+    let n_nodes = r.u32()? as usize;
+    let n_spheres = r.u32()? as usize;
+    let nodes: Vec<IstNode> = bytemuck::allocation::pod_collect_to_vec(r.take(n_nodes * 32)?);
+    let spheres: Vec<InnerSphere> =
+        bytemuck::allocation::pod_collect_to_vec(r.take(n_spheres * 16)?);
+    if !r.bytes.is_empty() {
+        return Err("trailing bytes".into());
+    }
+    Ok(LinkTree {
+        link: link.to_owned(),
+        nodes,
+        spheres,
+        quality: LinkQuality {
+            spheres: q[0] as usize,
+            coverage: q[1],
+            gap_m: q[2],
+            gap_sampled_m: q[3],
+            mesh_volume_m3: q[4],
+            tree_volume_m3: q[5],
+            build_s: q[6],
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tree() -> LinkTree {
+        LinkTree {
+            link: "l".into(),
+            nodes: vec![IstNode {
+                center: [0.0; 3],
+                radius: 1.0,
+                first_child: 0,
+                child_count: 1,
+                children_are_spheres: 1,
+                pad: 0,
+            }],
+            spheres: vec![InnerSphere {
+                center: [0.0; 3],
+                radius: 0.5,
+            }],
+            quality: LinkQuality {
+                spheres: 1,
+                coverage: 0.5,
+                gap_m: 0.1,
+                gap_sampled_m: 0.09,
+                mesh_volume_m3: 1.0,
+                tree_volume_m3: 4.0,
+                build_s: 0.1,
+            },
+        }
+    }
+
+    #[test]
+    fn round_trip_and_every_corruption_is_caught() {
+        let key = [7u8; 32];
+        let bytes = encode(&key, &tree());
+        assert_eq!(decode(&bytes, &key, "l"), Ok(tree()));
+        for i in 0..bytes.len() {
+            let mut bad = bytes.clone();
+            bad[i] ^= 0x10;
+            assert!(
+                decode(&bad, &key, "l").is_err(),
+                "flip at byte {i} not caught"
+            );
+        }
+        assert!(decode(&bytes[..bytes.len() - 1], &key, "l").is_err());
+        assert!(decode(&bytes, &[8u8; 32], "l").is_err());
+        assert!(decode(&bytes, &key, "other").is_err());
+    }
+}

@@ -1,0 +1,11 @@
+//! ist_monitor: minimum distance between a robot and point clouds with inner sphere trees.
+//!
+//! The data flows through the modules in this order: `robot` (URDF, collision meshes,
+//! kinematics) → `packing` (Protosphere inner spheres, surface gap) → `ist` (tree, quality,
+//! cache, validation). `cli` wires them into the `ist_monitor` command.
+
+pub mod cli;
+pub mod geometry;
+pub mod ist;
+pub mod packing;
+pub mod robot;

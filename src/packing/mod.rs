@@ -1,0 +1,415 @@
+//! Sphere packing stage: fills a closed collision mesh (link frame) with non-overlapping inner
+//! spheres by the Protosphere method (Weller & Zachmann, "ProtoSphere: A GPU-Assisted
+//! Prototype Guided Sphere Packing Algorithm for Arbitrary Objects", 2010).
+//!
+//! Every prototype is a point inside the object. Its clearance is the distance to the nearest
+//! obstacle: the mesh surface or an inner sphere already placed. A prototype *settles* by moving
+//! away from its nearest obstacle point q, `p ← p + ε(t)·(p − q)/|p − q|·clearance`, with a
+//! cooling ε(t), which climbs the clearance field to a local maximum, the centre of a locally
+//! largest empty sphere. The settled prototypes with the largest clearance become spheres (all
+//! those within `ACCEPT_RATIO` of the best that do not overlap each other), and only the
+//! prototypes whose clearance the new spheres reduced settle again. Prototypes start one per
+//! cell of a grid over the link; when the spheres become small against the cells, the cells that
+//! still hold free space are split in eight and get prototypes of their own. Packing stops at the
+//! sphere budget, the minimal radius or the target coverage.
+//!
+//! Prototypes settle in parallel (rayon). Each settling step is one point-to-mesh query (parry3d,
+//! BVH, f32) and one nearest-sphere query ([`grid::SphereGrid`]). A sphere's radius is its
+//! prototype's clearance shrunk by a few f32 roundings, so spheres lie inside the mesh and apart
+//! from each other; `ist::validate` checks this in f64 against the exact mesh.
+
+pub mod gap;
+pub mod grid;
+
+use bytemuck::{Pod, Zeroable};
+use parry3d::math::Vector;
+use parry3d::query::PointQuery;
+use parry3d::shape::{TriMesh, TriMeshFlags};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::robot::ClosedMesh;
+use grid::{distance, SphereGrid};
+
+/// One inner sphere in its link's frame (metres). WGSL mirror: `vec4<f32>` (xyz, radius).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, Serialize, Deserialize)]
+pub struct InnerSphere {
+    pub center: [f32; 3],
+    pub radius: f32,
+}
+const _: () = assert!(std::mem::size_of::<InnerSphere>() == 16);
+
+/// Packing parameters (per link).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PackingParams {
+    /// Sphere budget of one link (split among its collision elements by volume).
+    pub max_spheres: u32,
+    /// Spheres smaller than this are not placed (the first sphere of an element always is), m.
+    pub min_radius_m: f32,
+    /// Stop once the spheres fill this fraction of the mesh volume.
+    pub target_coverage: f64,
+    /// Prototypes of the first grid, spread over the element's bounding box.
+    pub prototypes: u32,
+    /// Settling steps of a prototype.
+    pub settle_iterations: u32,
+}
+
+impl Default for PackingParams {
+    fn default() -> Self {
+        Self {
+            max_spheres: 4096,
+            min_radius_m: 0.0003,
+            target_coverage: 0.99,
+            prototypes: 4096,
+            settle_iterations: 24,
+        }
+    }
+}
+
+/// Prototypes within this fraction of the round's largest clearance become spheres together.
+const ACCEPT_RATIO: f32 = 0.8;
+/// The cells are split once the largest clearance falls below this fraction of a cell.
+const REFINE_RATIO: f32 = 0.35;
+/// Prototypes allowed per sphere still to place, when a refinement spawns new ones.
+const PROTOTYPES_PER_SPHERE: usize = 4;
+/// Live cells kept per prototype allowed, when the cells are split.
+const CELLS_PER_PROTOTYPE: usize = 2;
+
+/// A closed mesh as a solid for point queries (the one boundary to parry3d's glam types).
+pub struct Solid {
+    trimesh: TriMesh,
+}
+
+impl Solid {
+    pub fn new(mesh: &ClosedMesh) -> Self {
+        let vertices = mesh
+            .vertices
+            .iter()
+            .map(|v| Vector::new(v[0], v[1], v[2]))
+            .collect();
+        // The mesh was checked closed and non-degenerate, so parry accepts it.
+        let trimesh = TriMesh::with_flags(vertices, mesh.triangles.clone(), TriMeshFlags::ORIENTED)
+            .unwrap_or_else(|e| panic!("closed mesh rejected by parry3d: {e:?}"));
+        Self { trimesh }
+    }
+
+    /// Signed distance to the surface (positive inside) and the closest surface point.
+    #[inline]
+    pub fn signed_distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
+        let projection = self
+            .trimesh
+            .project_local_point(Vector::new(p[0], p[1], p[2]), false);
+        let q = [projection.point.x, projection.point.y, projection.point.z];
+        let d = distance(p, q);
+        (if projection.is_inside { d } else { -d }, q)
+    }
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum State {
+    Unsettled,
+    Settled,
+    Retired,
+}
+
+#[derive(Clone, Copy)]
+struct Prototype {
+    pos: [f32; 3],
+    clearance: f32,
+    state: State,
+}
+
+/// What a packing produced, with the grid over its spheres for the gap measurement.
+pub struct Packing {
+    pub grid: SphereGrid,
+    /// Prototypes settled, summed over rounds (a measure of the work done).
+    pub settles: usize,
+}
+
+/// The nearest obstacle of a point inside the solid: clearance (negative inside a sphere), the
+/// obstacle point, and the sphere when the obstacle is one.
+#[inline]
+fn clearance(
+    solid: &Solid,
+    grid: &SphereGrid,
+    p: [f32; 3],
+) -> Option<(f32, [f32; 3], Option<u32>)> {
+    let (d_mesh, q) = solid.signed_distance(p);
+    if d_mesh <= 0.0 {
+        return None;
+    }
+    Some(match grid.nearest(p, d_mesh) {
+        Some((d, i)) => {
+            let s = grid.spheres()[i as usize];
+            let len = distance(p, s.center).max(f32::MIN_POSITIVE);
+            let q = std::array::from_fn(|k| s.center[k] + (p[k] - s.center[k]) * s.radius / len);
+            (d, q, Some(i))
+        }
+        None => (d_mesh, q, None),
+    })
+}
+
+/// Climbs the clearance field from `p`; returns the best position and its clearance, or None
+/// when the prototype left the solid or found no room.
+fn settle(
+    solid: &Solid,
+    grid: &SphereGrid,
+    start: [f32; 3],
+    iterations: u32,
+) -> Option<(f32, [f32; 3])> {
+    let mut p = start;
+    let mut best: Option<(f32, [f32; 3])> = None;
+    for t in 0..iterations {
+        let (c, q, sphere) = clearance(solid, grid, p)?;
+        if best.is_none_or(|(b, _)| c > b) {
+            best = Some((c, p));
+        }
+        if c <= 0.0 {
+            // Swallowed by a sphere: jump just outside it, away from its centre.
+            let s = grid.spheres()[sphere? as usize];
+            let away = std::array::from_fn::<f32, 3, _>(|k| p[k] - s.center[k]);
+            let len = distance(away, [0.0; 3]);
+            let dir = if len > s.radius * 1e-3 {
+                away.map(|x| x / len)
+            } else {
+                // At the centre: any direction; this one is fixed so results repeat.
+                [0.57735, 0.57735, 0.57735]
+            };
+            p = std::array::from_fn(|k| s.center[k] + dir[k] * s.radius * 1.05);
+            continue;
+        }
+        // Cooling: large steps first, then small ones to settle on the ridge.
+        let epsilon = 0.6 * (1.0 - t as f32 / iterations as f32) + 0.05;
+        let len = distance(p, q).max(f32::MIN_POSITIVE);
+        p = std::array::from_fn(|k| p[k] + (p[k] - q[k]) / len * epsilon * c);
+    }
+    best.filter(|(c, _)| *c > 0.0)
+}
+
+/// A deterministic offset in [-0.25, 0.25) of a cell, from its coordinates.
+fn jitter(cell: [i64; 3], axis: usize) -> f32 {
+    let mut h = (cell[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (cell[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ (cell[2] as u64).wrapping_mul(0x1656_67B1_9E37_79F9)
+        ^ (axis as u64).wrapping_mul(0x27D4_EB2F_1656_67C5);
+    h ^= h >> 29;
+    h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    h ^= h >> 32;
+    (h >> 40) as f32 / (1u64 << 24) as f32 * 0.5 - 0.25
+}
+
+/// Packs one closed mesh with at most `budget` spheres.
+pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing {
+    let solid = Solid::new(mesh);
+    let (lo, hi) = mesh.bounds();
+    let mut grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
+    let box_volume: f64 = (0..3).map(|k| (hi[k] - lo[k]) as f64).product();
+    let mut cell = (box_volume / params.prototypes.max(1) as f64).cbrt() as f32;
+
+    // First grid: every cell centre (jittered) inside the solid; cells that reach the solid are
+    // kept for refinement.
+    let counts =
+        std::array::from_fn::<usize, 3, _>(|k| ((hi[k] - lo[k]) / cell).ceil().max(1.0) as usize);
+    let first: Vec<[i64; 3]> = (0..counts[2])
+        .flat_map(|z| {
+            (0..counts[1])
+                .flat_map(move |y| (0..counts[0]).map(move |x| [x as i64, y as i64, z as i64]))
+        })
+        .collect();
+    let centre = |c: [i64; 3], jittered: bool| -> [f32; 3] {
+        std::array::from_fn(|k| {
+            let offset = if jittered { jitter(c, k) } else { 0.0 };
+            lo[k] + (c[k] as f32 + 0.5 + offset) * cell
+        })
+    };
+    let mut cells: Vec<[f32; 3]> = Vec::new();
+    let mut prototypes: Vec<Prototype> = Vec::new();
+    let half_diagonal = |size: f32| size * 0.866_025_4;
+    let seeded: Vec<([i64; 3], f32, [f32; 3])> = first
+        .par_iter()
+        .map(|&c| {
+            let p = centre(c, true);
+            (c, solid.signed_distance(p).0, p)
+        })
+        .collect();
+    for (c, d, p) in seeded {
+        if d > -half_diagonal(cell) {
+            cells.push(centre(c, false));
+        }
+        if d > 0.0 {
+            prototypes.push(Prototype {
+                pos: p,
+                clearance: 0.0,
+                state: State::Unsettled,
+            });
+        }
+    }
+
+    let target_volume = params.target_coverage * mesh.volume_m3;
+    let mut sphere_volume = 0.0f64;
+    let mut settles = 0usize;
+    let mut round: Vec<InnerSphere> = Vec::new();
+    while grid.spheres().len() < budget && sphere_volume < target_volume {
+        settles += prototypes
+            .iter()
+            .filter(|p| p.state == State::Unsettled)
+            .count();
+        prototypes
+            .par_iter_mut()
+            .filter(|p| p.state == State::Unsettled)
+            .for_each(
+                |p| match settle(&solid, &grid, p.pos, params.settle_iterations) {
+                    Some((c, pos)) if c >= params.min_radius_m || grid.spheres().is_empty() => {
+                        *p = Prototype {
+                            pos,
+                            clearance: c,
+                            state: State::Settled,
+                        }
+                    }
+                    _ => p.state = State::Retired,
+                },
+            );
+        let mut order: Vec<u32> = (0..prototypes.len() as u32)
+            .filter(|&i| prototypes[i as usize].state == State::Settled)
+            .collect();
+        order.sort_unstable_by(|&a, &b| {
+            prototypes[b as usize]
+                .clearance
+                .total_cmp(&prototypes[a as usize].clearance)
+                .then(a.cmp(&b))
+        });
+        let best = order
+            .first()
+            .map(|&i| prototypes[i as usize].clearance)
+            .unwrap_or(0.0);
+        let can_refine = cell * 0.5 >= params.min_radius_m && !cells.is_empty();
+        if (order.is_empty() || best < REFINE_RATIO * cell) && can_refine {
+            cell *= 0.5;
+            let room = PROTOTYPES_PER_SPHERE * (budget - grid.spheres().len());
+            let spawned = refine(&solid, &grid, &mut cells, cell, params.min_radius_m, room);
+            prototypes.retain(|p| p.state != State::Retired);
+            prototypes.extend(spawned.into_iter().take(room).map(|(_, pos)| Prototype {
+                pos,
+                clearance: 0.0,
+                state: State::Unsettled,
+            }));
+            continue;
+        }
+        if order.is_empty() {
+            break;
+        }
+
+        // Accept the largest settled prototypes that do not overlap each other.
+        round.clear();
+        let room = budget - grid.spheres().len();
+        for &i in &order {
+            let p = &mut prototypes[i as usize];
+            if p.clearance < ACCEPT_RATIO * best || round.len() >= room {
+                break;
+            }
+            let radius = p.clearance * (1.0 - 4.0 * f32::EPSILON) - 2e-7;
+            let candidate = InnerSphere {
+                center: p.pos,
+                radius,
+            };
+            if radius > 0.0
+                && round
+                    .iter()
+                    .all(|s| distance(s.center, candidate.center) >= s.radius + candidate.radius)
+            {
+                round.push(candidate);
+            }
+            p.state = State::Unsettled;
+        }
+        for s in &round {
+            grid.insert(*s);
+            sphere_volume += crate::geometry::ball_volume(s.radius as f64);
+        }
+        // Prototypes whose clearance a new sphere reduced must settle again.
+        let new = &round;
+        prototypes
+            .par_iter_mut()
+            .filter(|p| p.state == State::Settled)
+            .for_each(|p| {
+                if new
+                    .iter()
+                    .any(|s| distance(p.pos, s.center) - s.radius < p.clearance)
+                {
+                    p.state = State::Unsettled;
+                }
+            });
+        if best < params.min_radius_m && !grid.spheres().is_empty() && !can_refine {
+            break;
+        }
+    }
+    Packing { grid, settles }
+}
+
+/// Splits every live cell in eight, keeps the children that may still hold free space, and
+/// returns the children whose centre has room for a sphere, largest room first.
+fn refine(
+    solid: &Solid,
+    grid: &SphereGrid,
+    cells: &mut Vec<[f32; 3]>,
+    size: f32,
+    min_radius: f32,
+    room: usize,
+) -> Vec<(f32, [f32; 3])> {
+    let half = size * 0.5;
+    let half_diagonal = size * 0.866_025_4;
+    let children: Vec<(f32, [f32; 3])> = cells
+        .par_iter()
+        .flat_map_iter(|c| {
+            (0..8).map(move |i| {
+                std::array::from_fn::<f32, 3, _>(|k| {
+                    c[k] + if i >> k & 1 == 1 { half } else { -half }
+                })
+            })
+        })
+        .map(|p| {
+            let (d_mesh, _) = solid.signed_distance(p);
+            let room = match grid.nearest(p, d_mesh) {
+                Some((d, _)) => d,
+                None => d_mesh,
+            };
+            (room, p)
+        })
+        .filter(|(room, _)| *room > -half_diagonal)
+        .collect();
+    // Keep the roomiest cells: no more than the remaining budget can use.
+    let mut children = children;
+    children.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    children.truncate(CELLS_PER_PROTOTYPE * room.max(1));
+    *cells = children.iter().map(|(_, p)| *p).collect();
+    children.retain(|(room, _)| *room > min_radius);
+    children
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::mesh::tessellate_box;
+
+    #[test]
+    fn a_cube_gets_one_big_sphere_first_and_fills_up() {
+        let t = tessellate_box([0.1, 0.1, 0.1]);
+        let mesh = ClosedMesh::new(t.vertices, t.triangles, "cube").expect("closed");
+        let params = PackingParams::default();
+        let one = pack(&mesh, 1, &params);
+        let s = one.grid.spheres()[0];
+        assert!((s.radius - 0.05).abs() < 5e-4, "first sphere {s:?}");
+        let many = pack(&mesh, 500, &params);
+        let spheres = many.grid.spheres();
+        assert_eq!(spheres.len(), 500);
+        let volume: f64 = spheres
+            .iter()
+            .map(|s| crate::geometry::ball_volume(s.radius as f64))
+            .sum();
+        assert!(
+            volume / mesh.volume_m3 > 0.6,
+            "coverage {}",
+            volume / mesh.volume_m3
+        );
+    }
+}

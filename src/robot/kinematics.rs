@@ -1,0 +1,352 @@
+//! Forward kinematics in f64: joint values → `root_from_link` for every link of the URDF tree.
+//!
+//! The tree is checked once when built (one root, one parent joint per link, no cycle, every
+//! joint naming existing links) and its joints are stored in an order where a joint's parent
+//! link is always posed before it, so a pose update is one pass over the joints: for joint j,
+//! `root_from_child = root_from_parent · origin_j · motion_j(q)`. Revolute and continuous joints
+//! rotate about their axis, prismatic ones translate along it, fixed ones do not move. Floating,
+//! planar and spherical joints are held at their origin (a warning says so). A mimic joint
+//! follows `multiplier · q_master + offset`.
+
+use std::collections::HashMap;
+
+use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
+
+use super::RobotError;
+
+/// How a joint moves its child link.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum JointMotion {
+    Fixed,
+    Revolute(Unit<Vector3<f64>>),
+    Prismatic(Unit<Vector3<f64>>),
+}
+
+/// Where a joint's value comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum JointSource {
+    /// No value: fixed joints and held joints.
+    None,
+    /// The `i`-th entry of the joint value vector.
+    Variable(usize),
+    /// `multiplier · q[variable] + offset`.
+    Mimic {
+        variable: usize,
+        multiplier: f64,
+        offset: f64,
+    },
+}
+
+#[derive(Debug, Clone)]
+pub struct Joint {
+    pub name: String,
+    pub parent: usize,
+    pub child: usize,
+    pub parent_from_joint: Isometry3<f64>,
+    pub motion: JointMotion,
+    pub source: JointSource,
+}
+
+/// The kinematic tree of a robot.
+#[derive(Debug, Clone)]
+pub struct Kinematics {
+    link_names: Vec<String>,
+    root: usize,
+    /// Joints in an order where each parent link is posed before the child.
+    joints: Vec<Joint>,
+    /// Names of the joints whose values drive the robot (the entries of `q`).
+    variables: Vec<String>,
+}
+
+/// `parent_from_joint` of a URDF origin (fixed-axis roll, pitch, yaw).
+pub fn pose_from_urdf(pose: &urdf_rs::Pose) -> Isometry3<f64> {
+    let [x, y, z] = *pose.xyz;
+    let [roll, pitch, yaw] = *pose.rpy;
+    Isometry3::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+    )
+}
+
+impl Kinematics {
+    /// Builds and checks the tree. `path` names the URDF in errors.
+    pub fn from_urdf(robot: &urdf_rs::Robot, path: &str) -> Result<Self, RobotError> {
+        let topology = |message: String| RobotError::Topology {
+            path: path.to_owned(),
+            message,
+        };
+        let link_names: Vec<String> = robot.links.iter().map(|l| l.name.clone()).collect();
+        let link_index: HashMap<&str, usize> = link_names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.as_str(), i))
+            .collect();
+        if link_index.len() != link_names.len() {
+            return Err(topology("two links share a name".into()));
+        }
+        if link_names.is_empty() {
+            return Err(topology("the robot has no links".into()));
+        }
+        let find = |joint: &str, link: &str| {
+            link_index.get(link).copied().ok_or_else(|| {
+                topology(format!(
+                    "joint {joint} names link {link}, which does not exist"
+                ))
+            })
+        };
+        let mut parent_joint: Vec<Option<usize>> = vec![None; link_names.len()];
+        let mut raw = Vec::with_capacity(robot.joints.len());
+        for (j, joint) in robot.joints.iter().enumerate() {
+            let parent = find(&joint.name, &joint.parent.link)?;
+            let child = find(&joint.name, &joint.child.link)?;
+            if let Some(other) = parent_joint[child] {
+                return Err(topology(format!(
+                    "link {} has two parent joints, {} and {}",
+                    joint.child.link, robot.joints[other].name, joint.name
+                )));
+            }
+            parent_joint[child] = Some(j);
+            let values = joint.origin.xyz.iter().chain(joint.origin.rpy.iter());
+            let axis = *joint.axis.xyz;
+            if values.chain(axis.iter()).any(|v| !v.is_finite()) {
+                return Err(RobotError::NonFinite {
+                    path: path.to_owned(),
+                    element: format!("joint {} origin or axis", joint.name),
+                });
+            }
+            raw.push((parent, child));
+        }
+        let roots: Vec<usize> = (0..link_names.len())
+            .filter(|&l| parent_joint[l].is_none())
+            .collect();
+        let root = match roots.as_slice() {
+            [root] => *root,
+            [] => return Err(topology("no root link: the joints form a cycle".into())),
+            many => {
+                return Err(topology(format!(
+                    "{} root links ({}); a URDF is one tree",
+                    many.len(),
+                    many.iter()
+                        .map(|&l| link_names[l].as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )))
+            }
+        };
+        // Order joints breadth-first from the root; joints never reached lie on a cycle.
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); link_names.len()];
+        for (j, &(parent, _)) in raw.iter().enumerate() {
+            children[parent].push(j);
+        }
+        let mut order = Vec::with_capacity(raw.len());
+        let mut frontier = vec![root];
+        while let Some(link) = frontier.pop() {
+            for &j in &children[link] {
+                order.push(j);
+                frontier.push(raw[j].1);
+            }
+        }
+        if order.len() != raw.len() {
+            let reached: std::collections::HashSet<usize> = order.iter().copied().collect();
+            let cycle: Vec<&str> = (0..raw.len())
+                .filter(|j| !reached.contains(j))
+                .map(|j| robot.joints[j].name.as_str())
+                .collect();
+            return Err(topology(format!(
+                "joints {} form a cycle detached from the root",
+                cycle.join(", ")
+            )));
+        }
+
+        let mut variables = Vec::new();
+        let mut variable_of: HashMap<&str, usize> = HashMap::new();
+        let mut motions = Vec::with_capacity(raw.len());
+        for joint in &robot.joints {
+            let axis = Vector3::from(*joint.axis.xyz);
+            let unit = || {
+                Unit::try_new(axis, 1e-12).ok_or_else(|| RobotError::NonFinite {
+                    path: path.to_owned(),
+                    element: format!("joint {} axis is zero", joint.name),
+                })
+            };
+            use urdf_rs::JointType as T;
+            let motion = match joint.joint_type {
+                T::Revolute | T::Continuous => JointMotion::Revolute(unit()?),
+                T::Prismatic => JointMotion::Prismatic(unit()?),
+                T::Fixed => JointMotion::Fixed,
+                T::Floating | T::Planar | T::Spherical => {
+                    log::warn!(
+                        "{path}: joint {} is {:?}; it is held at its origin",
+                        joint.name,
+                        joint.joint_type
+                    );
+                    JointMotion::Fixed
+                }
+            };
+            if motion != JointMotion::Fixed && joint.mimic.is_none() {
+                variable_of.insert(joint.name.as_str(), variables.len());
+                variables.push(joint.name.clone());
+            }
+            motions.push(motion);
+        }
+        let mut joints = Vec::with_capacity(raw.len());
+        for &j in &order {
+            let joint = &robot.joints[j];
+            let source = match (&joint.mimic, motions[j]) {
+                (_, JointMotion::Fixed) => JointSource::None,
+                (None, _) => JointSource::Variable(variable_of[joint.name.as_str()]),
+                (Some(mimic), _) => {
+                    let variable = *variable_of.get(mimic.joint.as_str()).ok_or_else(|| {
+                        topology(format!(
+                            "joint {} mimics {}, which is not a moving, non-mimic joint",
+                            joint.name, mimic.joint
+                        ))
+                    })?;
+                    JointSource::Mimic {
+                        variable,
+                        multiplier: mimic.multiplier.unwrap_or(1.0),
+                        offset: mimic.offset.unwrap_or(0.0),
+                    }
+                }
+            };
+            joints.push(Joint {
+                name: joint.name.clone(),
+                parent: raw[j].0,
+                child: raw[j].1,
+                parent_from_joint: pose_from_urdf(&joint.origin),
+                motion: motions[j],
+                source,
+            });
+        }
+        Ok(Self {
+            link_names,
+            root,
+            joints,
+            variables,
+        })
+    }
+
+    pub fn link_names(&self) -> &[String] {
+        &self.link_names
+    }
+    pub fn root_link(&self) -> &str {
+        &self.link_names[self.root]
+    }
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.link_names.iter().position(|n| n == name)
+    }
+    /// The joints whose values form `q`, in order.
+    pub fn variables(&self) -> &[String] {
+        &self.variables
+    }
+
+    /// Joint values from `name = value` pairs. Unknown names are an error; joints not named are
+    /// an error unless `default` is given.
+    pub fn values_from_names(
+        &self,
+        named: &[(String, f64)],
+        default: Option<f64>,
+    ) -> Result<Vec<f64>, RobotError> {
+        let mut q: Vec<Option<f64>> = vec![None; self.variables.len()];
+        for (name, value) in named {
+            let i = self
+                .variables
+                .iter()
+                .position(|v| v == name)
+                .ok_or_else(|| RobotError::UnknownJoint(name.clone()))?;
+            q[i] = Some(*value);
+        }
+        q.iter()
+            .zip(&self.variables)
+            .map(|(v, name)| {
+                v.or(default)
+                    .ok_or_else(|| RobotError::MissingJoint(name.clone()))
+            })
+            .collect()
+    }
+
+    /// `root_from_link` for every link, indexed like [`Self::link_names`].
+    pub fn link_poses(&self, q: &[f64]) -> Vec<Isometry3<f64>> {
+        let mut poses = vec![Isometry3::identity(); self.link_names.len()];
+        for joint in &self.joints {
+            let value = match joint.source {
+                JointSource::None => 0.0,
+                JointSource::Variable(i) => q[i],
+                JointSource::Mimic {
+                    variable,
+                    multiplier,
+                    offset,
+                } => multiplier * q[variable] + offset,
+            };
+            let motion = match joint.motion {
+                JointMotion::Fixed => Isometry3::identity(),
+                JointMotion::Revolute(axis) => Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_axis_angle(&axis, value),
+                ),
+                JointMotion::Prismatic(axis) => Isometry3::from_parts(
+                    Translation3::from(axis.into_inner() * value),
+                    UnitQuaternion::identity(),
+                ),
+            };
+            poses[joint.child] = poses[joint.parent] * joint.parent_from_joint * motion;
+        }
+        poses
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn chain(extra: &str) -> Result<Kinematics, RobotError> {
+        let xml = format!(
+            r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/>
+            <joint name="j1" type="revolute"><parent link="a"/><child link="b"/>
+              <origin xyz="1 0 0"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+            <joint name="j2" type="prismatic"><parent link="b"/><child link="c"/>
+              <origin xyz="0 0 0"/><axis xyz="1 0 0"/><limit lower="0" upper="1" effort="1" velocity="1"/>
+              <mimic joint="j1" multiplier="2" offset="0.5"/></joint>{extra}</robot>"#
+        );
+        let robot = urdf_rs::read_from_string(&xml).expect("xml");
+        Kinematics::from_urdf(&robot, "test.urdf")
+    }
+
+    #[test]
+    fn revolute_then_mimic_prismatic() {
+        let k = chain("").expect("tree");
+        assert_eq!(k.variables(), ["j1"]);
+        let q = std::f64::consts::FRAC_PI_2;
+        let poses = k.link_poses(&[q]);
+        let c = poses[2].translation.vector;
+        // b at (1,0,0) rotated 90° about z; c slides 2q+0.5 along b's x, which is the root's y.
+        assert!((c - Vector3::new(1.0, 2.0 * q + 0.5, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn cycles_and_double_parents_are_refused() {
+        let err =
+            chain(r#"<joint name="j3" type="fixed"><parent link="c"/><child link="b"/></joint>"#)
+                .unwrap_err();
+        assert!(err.to_string().contains("two parent joints"), "{err}");
+        let xml = r#"<robot name="r"><link name="a"/><link name="b"/>
+            <joint name="x" type="fixed"><parent link="a"/><child link="b"/></joint>
+            <joint name="y" type="fixed"><parent link="b"/><child link="a"/></joint></robot>"#;
+        let err =
+            Kinematics::from_urdf(&urdf_rs::read_from_string(xml).expect("xml"), "t").unwrap_err();
+        assert!(err.to_string().contains("cycle"), "{err}");
+    }
+
+    #[test]
+    fn missing_and_unknown_joints_are_errors() {
+        let k = chain("").expect("tree");
+        assert!(matches!(
+            k.values_from_names(&[], None),
+            Err(RobotError::MissingJoint(_))
+        ));
+        assert!(matches!(
+            k.values_from_names(&[("nope".into(), 0.0)], Some(0.0)),
+            Err(RobotError::UnknownJoint(_))
+        ));
+    }
+}

@@ -1,0 +1,398 @@
+//! URDF loading: parses the robot description (urdf-rs), resolves mesh URIs, loads and checks the
+//! collision geometry of each link and moves it into the link frame.
+//!
+//! Mesh URIs: `package://NAME/rest` is looked up in `--package-path NAME=DIR` entries first, then
+//! in `ROS_PACKAGE_PATH` (an entry that is the package itself, or holds it as a sub-folder), then
+//! in `AMENT_PREFIX_PATH` (`PREFIX/share/NAME`). `file:///abs` is a plain path. Any other path is
+//! relative to the URDF's folder. A mesh's `scale` is applied before the element's origin.
+//! Primitives (box, cylinder, sphere, capsule) are tessellated with their error recorded.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Point3};
+
+use super::kinematics::{pose_from_urdf, Kinematics};
+use super::mesh::{
+    load_mesh_file, tessellate_box, tessellate_capsule, tessellate_cylinder, tessellate_sphere,
+    ClosedMesh, Tessellation,
+};
+use super::RobotError;
+
+/// One `--package-path NAME=DIR` entry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PackagePath {
+    pub name: String,
+    pub dir: PathBuf,
+}
+
+impl std::str::FromStr for PackagePath {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (name, dir) = s
+            .split_once('=')
+            .ok_or_else(|| format!("expected NAME=DIR, got '{s}'"))?;
+        if name.is_empty() || dir.is_empty() {
+            return Err(format!("expected NAME=DIR, got '{s}'"));
+        }
+        Ok(Self {
+            name: name.to_owned(),
+            dir: PathBuf::from(dir),
+        })
+    }
+}
+
+/// One collision element of a link, as a closed mesh in the link frame.
+#[derive(Debug, Clone)]
+pub struct CollisionElement {
+    /// Position among the link's `<collision>` elements.
+    pub index: usize,
+    /// What it came from, for messages: `mesh FILE` or the primitive and its size.
+    pub source: String,
+    pub mesh: ClosedMesh,
+    /// Largest distance from the described surface to `mesh` (primitive tessellation), metres.
+    pub tessellation_error_m: f64,
+}
+
+/// The collision geometry of one link.
+#[derive(Debug, Clone)]
+pub struct LinkGeometry {
+    pub name: String,
+    pub elements: Vec<CollisionElement>,
+}
+
+/// A robot loaded from a URDF: kinematics and the collision geometry of its links.
+#[derive(Debug, Clone)]
+pub struct RobotModel {
+    pub name: String,
+    pub urdf_path: PathBuf,
+    pub kinematics: Kinematics,
+    /// Links with collision geometry, in URDF order.
+    pub links: Vec<LinkGeometry>,
+    /// Links without collision geometry.
+    pub skipped_links: Vec<String>,
+}
+
+impl RobotModel {
+    /// Loads a URDF file and all its collision geometry.
+    pub fn load(path: &Path, packages: &[PackagePath]) -> Result<Self, RobotError> {
+        let xml = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let robot = parse_urdf(&xml, path)?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let kinematics = Kinematics::from_urdf(&robot, &path.display().to_string())?;
+        let mut links = Vec::new();
+        let mut skipped_links = Vec::new();
+        for link in &robot.links {
+            if link.collision.is_empty() {
+                skipped_links.push(link.name.clone());
+                continue;
+            }
+            let elements = link
+                .collision
+                .iter()
+                .enumerate()
+                .map(|(index, collision)| {
+                    load_element(&link.name, index, collision, base, packages)
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            links.push(LinkGeometry {
+                name: link.name.clone(),
+                elements,
+            });
+        }
+        if !skipped_links.is_empty() {
+            log::info!(
+                "{}: links without collision geometry, skipped: {}",
+                path.display(),
+                skipped_links.join(", ")
+            );
+        }
+        Ok(Self {
+            name: robot.name,
+            urdf_path: path.to_owned(),
+            kinematics,
+            links,
+            skipped_links,
+        })
+    }
+}
+
+/// Parses URDF text, naming the joint when its type is unknown.
+fn parse_urdf(xml: &str, path: &Path) -> Result<urdf_rs::Robot, RobotError> {
+    urdf_rs::read_from_string(xml).map_err(|e| {
+        let message = e.to_string();
+        if let Some(kind) = message
+            .split("unknown variant `")
+            .nth(1)
+            .and_then(|rest| rest.split('`').next())
+        {
+            if let Some(joint) = joint_with_type(xml, kind) {
+                return RobotError::UnknownJointType {
+                    path: path.to_owned(),
+                    joint,
+                    kind: kind.to_owned(),
+                };
+            }
+        }
+        RobotError::Urdf {
+            path: path.to_owned(),
+            message,
+        }
+    })
+}
+
+/// The name of the first `<joint>` whose `type` attribute is `kind`.
+fn joint_with_type(xml: &str, kind: &str) -> Option<String> {
+    xml.split("<joint").skip(1).find_map(|element| {
+        let tag = element.split('>').next()?;
+        let attribute = |name: &str| {
+            ['"', '\''].iter().find_map(|q| {
+                let start = tag.find(&format!("{name}={q}"))? + name.len() + 2;
+                Some(tag[start..].split(*q).next()?.to_owned())
+            })
+        };
+        (attribute("type")? == kind).then(|| attribute("name"))?
+    })
+}
+
+fn load_element(
+    link: &str,
+    index: usize,
+    collision: &urdf_rs::Collision,
+    base: &Path,
+    packages: &[PackagePath],
+) -> Result<CollisionElement, RobotError> {
+    let origin_values = collision
+        .origin
+        .xyz
+        .iter()
+        .chain(collision.origin.rpy.iter());
+    let geometry_error = |what: &str, message: String| RobotError::Geometry {
+        link: link.to_owned(),
+        element: index,
+        what: what.to_owned(),
+        message,
+    };
+    if origin_values.clone().any(|v| !v.is_finite()) {
+        return Err(geometry_error("origin", "origin is not finite".into()));
+    }
+    let link_from_element = pose_from_urdf(&collision.origin);
+    let positive = |what: &str, values: &[f64]| {
+        if values.iter().all(|v| v.is_finite() && *v > 0.0) {
+            Ok(())
+        } else {
+            Err(geometry_error(
+                what,
+                format!("dimensions {values:?} must be finite and positive (zero volume)"),
+            ))
+        }
+    };
+    use urdf_rs::Geometry as G;
+    let (source, tessellation, scale, file) = match &collision.geometry {
+        G::Mesh { filename, scale } => {
+            let file = resolve_uri(filename, base, packages).map_err(|e| match e {
+                UriError::Package(package) => RobotError::PackageNotFound {
+                    link: link.to_owned(),
+                    element: index,
+                    uri: filename.clone(),
+                    package,
+                },
+                UriError::Unsupported => RobotError::UnsupportedUri {
+                    link: link.to_owned(),
+                    element: index,
+                    uri: filename.clone(),
+                },
+            })?;
+            let mesh_error = |source| RobotError::Mesh {
+                link: link.to_owned(),
+                element: index,
+                file: file.clone(),
+                source,
+            };
+            let scale = scale.as_ref().map(|s| **s).unwrap_or([1.0; 3]);
+            if scale.iter().any(|s| !s.is_finite() || *s == 0.0) {
+                return Err(geometry_error(
+                    &format!("mesh {}", file.display()),
+                    format!("scale {scale:?} must be finite and non-zero"),
+                ));
+            }
+            let (vertices, triangles) = load_mesh_file(&file).map_err(mesh_error)?;
+            let t = Tessellation {
+                vertices,
+                triangles,
+                error_m: 0.0,
+            };
+            (format!("mesh {}", file.display()), t, scale, Some(file))
+        }
+        G::Box { size } => {
+            positive("box", &**size)?;
+            (
+                format!("box {:?}", **size),
+                tessellate_box(**size),
+                [1.0; 3],
+                None,
+            )
+        }
+        G::Cylinder { radius, length } => {
+            positive("cylinder", &[*radius, *length])?;
+            let t = tessellate_cylinder(*radius, *length);
+            (format!("cylinder r={radius} l={length}"), t, [1.0; 3], None)
+        }
+        G::Capsule { radius, length } => {
+            positive("capsule", &[*radius])?;
+            positive("capsule", &[length.max(f64::MIN_POSITIVE)])?;
+            let t = tessellate_capsule(*radius, *length);
+            (format!("capsule r={radius} l={length}"), t, [1.0; 3], None)
+        }
+        G::Sphere { radius } => {
+            positive("sphere", &[*radius])?;
+            let t = tessellate_sphere(*radius);
+            (format!("sphere r={radius}"), t, [1.0; 3], None)
+        }
+    };
+    let vertices = to_link_frame(&tessellation.vertices, scale, &link_from_element);
+    let mut triangles = tessellation.triangles;
+    if scale.iter().filter(|s| **s < 0.0).count() % 2 == 1 {
+        // A mirroring scale turns the mesh inside out; restore the orientation.
+        for t in &mut triangles {
+            t.swap(1, 2);
+        }
+    }
+    let label = format!("link {link}, collision element {index} ({source})");
+    let mesh = ClosedMesh::new(vertices, triangles, &label).map_err(|source| match &file {
+        Some(file) => RobotError::Mesh {
+            link: link.to_owned(),
+            element: index,
+            file: file.clone(),
+            source,
+        },
+        None => geometry_error(&source_label(&collision.geometry), source.to_string()),
+    })?;
+    Ok(CollisionElement {
+        index,
+        source,
+        mesh,
+        tessellation_error_m: tessellation.error_m,
+    })
+}
+
+fn source_label(g: &urdf_rs::Geometry) -> String {
+    match g {
+        urdf_rs::Geometry::Mesh { filename, .. } => format!("mesh {filename}"),
+        urdf_rs::Geometry::Box { .. } => "box".into(),
+        urdf_rs::Geometry::Cylinder { .. } => "cylinder".into(),
+        urdf_rs::Geometry::Capsule { .. } => "capsule".into(),
+        urdf_rs::Geometry::Sphere { .. } => "sphere".into(),
+    }
+}
+
+fn to_link_frame(
+    vertices: &[[f32; 3]],
+    scale: [f64; 3],
+    link_from_element: &Isometry3<f64>,
+) -> Vec<[f32; 3]> {
+    vertices
+        .iter()
+        .map(|v| {
+            let p = Point3::new(
+                v[0] as f64 * scale[0],
+                v[1] as f64 * scale[1],
+                v[2] as f64 * scale[2],
+            );
+            let q = link_from_element * p;
+            [q.x as f32, q.y as f32, q.z as f32]
+        })
+        .collect()
+}
+
+enum UriError {
+    Package(String),
+    Unsupported,
+}
+
+/// Resolves a mesh URI to a file path (see the module doc for the search order).
+fn resolve_uri(uri: &str, base: &Path, packages: &[PackagePath]) -> Result<PathBuf, UriError> {
+    if let Some(rest) = uri.strip_prefix("package://") {
+        let (package, relative) = rest.split_once('/').unwrap_or((rest, ""));
+        let env_paths = |var: &str| -> Vec<PathBuf> {
+            std::env::var_os(var)
+                .map(|v| std::env::split_paths(&v).collect())
+                .unwrap_or_default()
+        };
+        let explicit = packages
+            .iter()
+            .filter(|p| p.name == package)
+            .map(|p| p.dir.clone());
+        let ros = env_paths("ROS_PACKAGE_PATH").into_iter().flat_map(|entry| {
+            let own = (entry.file_name() == Some(package.as_ref())).then(|| entry.clone());
+            own.into_iter().chain(std::iter::once(entry.join(package)))
+        });
+        let ament = env_paths("AMENT_PREFIX_PATH")
+            .into_iter()
+            .map(|prefix| prefix.join("share").join(package));
+        return explicit
+            .chain(ros)
+            .chain(ament)
+            .find(|dir| dir.is_dir())
+            .map(|dir| dir.join(relative))
+            .ok_or_else(|| UriError::Package(package.to_owned()));
+    }
+    if let Some(path) = uri.strip_prefix("file://") {
+        return Ok(PathBuf::from(path));
+    }
+    if uri.contains("://") {
+        return Err(UriError::Unsupported);
+    }
+    Ok(base.join(uri))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_joint_type_is_named() {
+        let xml = r#"<robot name="r"><link name="a"/><link name="b"/>
+          <joint name="screwy" type="screw"><parent link="a"/><child link="b"/></joint></robot>"#;
+        let err = parse_urdf(xml, Path::new("r.urdf")).unwrap_err();
+        assert!(
+            matches!(&err, RobotError::UnknownJointType { joint, kind, .. } if joint == "screwy" && kind == "screw"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn package_paths_parse() {
+        let p: PackagePath = "panda_description=/opt/x".parse().expect("parses");
+        assert_eq!(p.name, "panda_description");
+        assert!("nodir".parse::<PackagePath>().is_err());
+    }
+
+    #[test]
+    fn explicit_package_path_wins() {
+        let dir = tempfile::tempdir().expect("tmp");
+        std::fs::create_dir_all(dir.path().join("meshes")).expect("mkdir");
+        let packages = [PackagePath {
+            name: "pkg".into(),
+            dir: dir.path().to_owned(),
+        }];
+        let Ok(path) = resolve_uri("package://pkg/meshes/a.stl", Path::new("/x"), &packages) else {
+            panic!("package not resolved")
+        };
+        assert_eq!(path, dir.path().join("meshes/a.stl"));
+        assert!(matches!(
+            resolve_uri("package://absent_pkg_xyz/a.stl", Path::new("/x"), &packages),
+            Err(UriError::Package(_))
+        ));
+        assert!(matches!(
+            resolve_uri("http://host/a.stl", Path::new("/x"), &packages),
+            Err(UriError::Unsupported)
+        ));
+        assert_eq!(
+            resolve_uri("m/a.stl", Path::new("/x"), &packages).ok(),
+            Some(PathBuf::from("/x/m/a.stl"))
+        );
+    }
+}
