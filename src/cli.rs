@@ -71,7 +71,7 @@ struct PackingArgs {
     #[arg(long, default_value_t = PackingParams::default().prototypes)]
     prototypes: u32,
     /// Hierarchy build.
-    #[arg(long, value_enum, default_value_t = TreeBuilder::NeuralGas)]
+    #[arg(long, value_enum, default_value_t = BuildOptions::default().tree)]
     tree: TreeBuilder,
 }
 

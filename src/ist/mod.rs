@@ -77,7 +77,7 @@ impl Default for BuildOptions {
     fn default() -> Self {
         Self {
             packing: PackingParams::default(),
-            tree: TreeBuilder::NeuralGas,
+            tree: TreeBuilder::MedianSplit,
             gap_tolerance_m: 5e-5,
         }
     }
