@@ -155,18 +155,23 @@ fn package_uris_resolve_through_package_path_and_ros_package_path() {
     }];
     let model = RobotModel::load(&moved, &packages).expect("explicit package path");
     assert_eq!(model.links.len(), 11);
-    // ROS_PACKAGE_PATH, through the binary so the variable is set for that process only.
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
-        .args(["poses", "--urdf"])
-        .arg(&moved)
-        .env("ROS_PACKAGE_PATH", ws.path())
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // The environment variables, through the binary so they are set for that process only.
+    let poses = |var: &str, value: &Path| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
+            .args(["poses", "--urdf"])
+            .arg(&moved)
+            .env_remove("ROS_PACKAGE_PATH")
+            .env_remove("AMENT_PREFIX_PATH")
+            .env(var, value)
+            .output()
+            .expect("runs");
+        assert!(
+            out.status.success(),
+            "{var}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    poses("ROS_PACKAGE_PATH", ws.path());
     // AMENT_PREFIX_PATH: PREFIX/share/NAME.
     let prefix = tempfile::tempdir().expect("tmp");
     std::fs::create_dir_all(prefix.path().join("share")).expect("mkdir");
@@ -175,16 +180,5 @@ fn package_uris_resolve_through_package_path_and_ros_package_path() {
         prefix.path().join("share/panda_description"),
     )
     .expect("link");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
-        .args(["poses", "--urdf"])
-        .arg(&moved)
-        .env_remove("ROS_PACKAGE_PATH")
-        .env("AMENT_PREFIX_PATH", prefix.path())
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    poses("AMENT_PREFIX_PATH", prefix.path());
 }

@@ -35,30 +35,13 @@ pub fn write_stl(path: &Path, triangles: &[[[f32; 3]; 3]]) {
 
 /// The 12 outward triangles of an axis-aligned box from `lo` to `hi`.
 pub fn box_triangles(lo: [f32; 3], hi: [f32; 3]) -> Vec<[[f32; 3]; 3]> {
-    let v = |i: usize| {
-        [
-            if i & 1 == 0 { lo[0] } else { hi[0] },
-            if i & 2 == 0 { lo[1] } else { hi[1] },
-            if i & 4 == 0 { lo[2] } else { hi[2] },
-        ]
-    };
-    [
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ]
-    .iter()
-    .map(|f: &[usize; 3]| [v(f[0]), v(f[1]), v(f[2])])
-    .collect()
+    let size = std::array::from_fn(|k| (hi[k] - lo[k]) as f64);
+    let t = ist_monitor::robot::mesh::tessellate_box(size);
+    let place = |v: [f32; 3]| std::array::from_fn(|k| v[k] + 0.5 * (lo[k] + hi[k]));
+    t.triangles
+        .iter()
+        .map(|f| f.map(|i| place(t.vertices[i as usize])))
+        .collect()
 }
 
 /// A one-link URDF whose collision is `geometry` (the XML of a `<geometry>` child).
