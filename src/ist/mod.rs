@@ -78,7 +78,7 @@ impl Default for BuildOptions {
         Self {
             packing: PackingParams::default(),
             tree: TreeBuilder::MedianSplit,
-            gap_tolerance_m: 5e-5,
+            gap_tolerance_m: 2e-5,
         }
     }
 }
@@ -105,12 +105,14 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         let packed_s = t.elapsed().as_secs_f64();
         let gap = surface_gap(&element.mesh, &packing.grid, options.gap_tolerance_m);
         log::debug!(
-            "link {} element {}: {} spheres, {} settles, packed in {packed_s:.2} s, gap in {:.2} s",
+            "link {} element {}: {} spheres, {} settles, packed in {packed_s:.2} s, gap in {:.2} s, h {:.2} mm at {:?}",
             link.name,
             element.index,
             packing.grid.spheres().len(),
             packing.settles,
-            t.elapsed().as_secs_f64() - packed_s
+            t.elapsed().as_secs_f64() - packed_s,
+            gap.upper_m * 1e3,
+            gap.worst_point
         );
         gap_m = gap_m.max(gap.upper_m as f64 + element.tessellation_error_m);
         gap_sampled_m = gap_sampled_m.max(gap.lower_m as f64);

@@ -22,11 +22,13 @@ use rayon::prelude::*;
 use super::grid::{distance, SphereGrid};
 use crate::robot::ClosedMesh;
 
-/// The measured gap: `lower` is the largest sampled distance, `upper` the certified bound.
+/// The measured gap: `lower` is the largest sampled distance, attained at `worst_point`, and
+/// `upper` the certified bound.
 #[derive(Debug, Clone, Copy)]
 pub struct SurfaceGap {
     pub lower_m: f32,
     pub upper_m: f32,
+    pub worst_point: [f32; 3],
 }
 
 const INV_SQRT3: f32 = 0.577_350_26;
@@ -59,7 +61,13 @@ pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> Su
             let (a, b, c) = (corner(0), corner(1), corner(2));
             let mut stack = vec![(a, b, c, g(a), g(b), g(c))];
             let mut upper = 0.0f32;
+            let mut worst = (0.0f32, a);
             while let Some((a, b, c, ga, gb, gc)) = stack.pop() {
+                for (v, gv) in [(a, ga), (b, gb), (c, gc)] {
+                    if gv.0 > worst.0 {
+                        worst = (gv.0, v);
+                    }
+                }
                 let longest = distance(a, b).max(distance(b, c)).max(distance(c, a));
                 let lipschitz = ga.0.max(gb.0).max(gc.0) + longest * INV_SQRT3;
                 let convex = [ga.1, gb.1, gc.1]
@@ -81,12 +89,17 @@ pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> Su
                 stack.push((ca, bc, c, gca, gbc, gc));
                 stack.push((ab, bc, ca, gab, gbc, gca));
             }
-            upper
+            (upper, worst)
         })
-        .reduce(|| 0.0, f32::max);
+        .reduce(
+            || (0.0, (0.0, [0.0; 3])),
+            |x, y| (x.0.max(y.0), if y.1 .0 > x.1 .0 { y.1 } else { x.1 }),
+        );
+    let (upper, (_, worst_point)) = upper;
     SurfaceGap {
         lower_m: f32::from_bits(lower.into_inner()),
         upper_m: upper,
+        worst_point,
     }
 }
 

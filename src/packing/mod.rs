@@ -53,22 +53,32 @@ pub struct PackingParams {
     pub prototypes: u32,
     /// Settling steps of a prototype.
     pub settle_iterations: u32,
+    /// The gap pass fills pockets under the surface until every surface sample is this close to
+    /// the spheres (or the budget is spent), m.
+    pub target_gap_m: f32,
 }
 
 impl Default for PackingParams {
     fn default() -> Self {
         Self {
-            max_spheres: 4096,
-            min_radius_m: 0.0003,
+            max_spheres: 8192,
+            min_radius_m: 0.00015,
             target_coverage: 0.99,
             prototypes: 4096,
             settle_iterations: 24,
+            target_gap_m: 0.0015,
         }
     }
 }
 
+/// Share of the budget the first volume pass may spend before the gap pass.
+const VOLUME_SHARE: f64 = 0.5;
+/// Half the diagonal of a unit cube.
+const HALF_DIAGONAL: f32 = 0.866_025_4;
 /// Prototypes within this fraction of the round's largest clearance become spheres together.
-const ACCEPT_RATIO: f32 = 0.8;
+const ACCEPT_RATIO: f32 = 0.95;
+/// Smallest number of spheres a gap-pass round may place.
+const GAP_ROUND_MIN: usize = 64;
 /// The cells are split once the largest clearance falls below this fraction of a cell.
 const REFINE_RATIO: f32 = 0.35;
 /// Prototypes allowed per sphere still to place, when a refinement spawns new ones.
@@ -199,114 +209,227 @@ fn jitter(cell: [i64; 3], axis: usize) -> f32 {
     (h >> 40) as f32 / (1u64 << 24) as f32 * 0.5 - 0.25
 }
 
-/// Packs one closed mesh with at most `budget` spheres.
+/// Packs one closed mesh with at most `budget` spheres: the volume pass fills the solid with the
+/// largest spheres first, the gap pass then fills the pockets under the surface where the gap is
+/// above `target_gap_m`, and the volume pass spends what budget is left.
 pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing {
-    let solid = Solid::new(mesh);
-    let (lo, hi) = mesh.bounds();
-    let mut grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
-    let box_volume: f64 = (0..3).map(|k| (hi[k] - lo[k]) as f64).product();
-    let mut cell = (box_volume / params.prototypes.max(1) as f64).cbrt() as f32;
+    let mut packer = Packer::new(mesh, params);
+    packer.volume_pass((budget as f64 * VOLUME_SHARE).ceil() as usize);
+    packer.gap_pass(budget);
+    packer.volume_pass(budget);
+    Packing {
+        grid: packer.grid,
+        settles: packer.settles,
+    }
+}
 
-    // First grid: every cell centre (jittered) inside the solid; cells that reach the solid are
-    // kept for refinement.
-    let counts =
-        std::array::from_fn::<usize, 3, _>(|k| ((hi[k] - lo[k]) / cell).ceil().max(1.0) as usize);
-    let first: Vec<[i64; 3]> = (0..counts[2])
-        .flat_map(|z| {
-            (0..counts[1])
-                .flat_map(move |y| (0..counts[0]).map(move |x| [x as i64, y as i64, z as i64]))
-        })
-        .collect();
-    let centre = |c: [i64; 3], jittered: bool| -> [f32; 3] {
-        std::array::from_fn(|k| {
-            let offset = if jittered { jitter(c, k) } else { 0.0 };
-            lo[k] + (c[k] as f32 + 0.5 + offset) * cell
-        })
-    };
-    let mut cells: Vec<[f32; 3]> = Vec::new();
-    let mut prototypes: Vec<Prototype> = Vec::new();
-    let half_diagonal = |size: f32| size * 0.866_025_4;
-    let seeded: Vec<([i64; 3], f32, [f32; 3])> = first
-        .par_iter()
-        .map(|&c| {
-            let p = centre(c, true);
-            (c, solid.signed_distance(p).0, p)
-        })
-        .collect();
-    for (c, d, p) in seeded {
-        if d > -half_diagonal(cell) {
-            cells.push(centre(c, false));
+/// The state of one packing.
+struct Packer<'a> {
+    solid: Solid,
+    mesh: &'a ClosedMesh,
+    params: &'a PackingParams,
+    grid: SphereGrid,
+    sphere_volume: f64,
+    settles: usize,
+    /// The volume pass's prototypes, its live cells and their current size.
+    prototypes: Vec<Prototype>,
+    cells: Vec<[f32; 3]>,
+    cell: f32,
+}
+
+impl<'a> Packer<'a> {
+    /// Seeds the first grid: a prototype at every cell centre (jittered) inside the solid; the
+    /// cells that reach the solid are kept for refinement.
+    fn new(mesh: &'a ClosedMesh, params: &'a PackingParams) -> Self {
+        let solid = Solid::new(mesh);
+        let (lo, hi) = mesh.bounds();
+        let grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
+        let box_volume: f64 = (0..3).map(|k| (hi[k] - lo[k]) as f64).product();
+        let cell = (box_volume / params.prototypes.max(1) as f64).cbrt() as f32;
+        let counts = std::array::from_fn::<usize, 3, _>(|k| {
+            ((hi[k] - lo[k]) / cell).ceil().max(1.0) as usize
+        });
+        let first: Vec<[i64; 3]> = (0..counts[2])
+            .flat_map(|z| {
+                (0..counts[1])
+                    .flat_map(move |y| (0..counts[0]).map(move |x| [x as i64, y as i64, z as i64]))
+            })
+            .collect();
+        let centre = |c: [i64; 3], jittered: bool| -> [f32; 3] {
+            std::array::from_fn(|k| {
+                let offset = if jittered { jitter(c, k) } else { 0.0 };
+                lo[k] + (c[k] as f32 + 0.5 + offset) * cell
+            })
+        };
+        let seeded: Vec<([i64; 3], f32, [f32; 3])> = first
+            .par_iter()
+            .map(|&c| {
+                let p = centre(c, true);
+                (c, solid.signed_distance(p).0, p)
+            })
+            .collect();
+        let mut cells = Vec::new();
+        let mut prototypes = Vec::new();
+        for (c, d, p) in seeded {
+            if d > -cell * HALF_DIAGONAL {
+                cells.push(centre(c, false));
+            }
+            if d > 0.0 {
+                prototypes.push(Prototype::at(p));
+            }
         }
-        if d > 0.0 {
-            prototypes.push(Prototype {
-                pos: p,
-                clearance: 0.0,
-                state: State::Unsettled,
-            });
+        Self {
+            solid,
+            mesh,
+            params,
+            grid,
+            sphere_volume: 0.0,
+            settles: 0,
+            prototypes,
+            cells,
+            cell,
         }
     }
 
-    let target_volume = params.target_coverage * mesh.volume_m3;
-    let mut sphere_volume = 0.0f64;
-    let mut settles = 0usize;
-    let mut round: Vec<InnerSphere> = Vec::new();
-    while grid.spheres().len() < budget && sphere_volume < target_volume {
-        settles += prototypes
-            .iter()
-            .filter(|p| p.state == State::Unsettled)
-            .count();
-        prototypes
-            .par_iter_mut()
-            .filter(|p| p.state == State::Unsettled)
-            .for_each(
-                |p| match settle(&solid, &grid, p.pos, params.settle_iterations) {
-                    Some((c, pos)) if c >= params.min_radius_m || grid.spheres().is_empty() => {
-                        *p = Prototype {
-                            pos,
-                            clearance: c,
-                            state: State::Settled,
-                        }
-                    }
-                    _ => p.state = State::Retired,
-                },
-            );
-        let mut order: Vec<u32> = (0..prototypes.len() as u32)
-            .filter(|&i| prototypes[i as usize].state == State::Settled)
-            .collect();
-        order.sort_unstable_by(|&a, &b| {
-            prototypes[b as usize]
-                .clearance
-                .total_cmp(&prototypes[a as usize].clearance)
-                .then(a.cmp(&b))
-        });
-        let best = order
-            .first()
-            .map(|&i| prototypes[i as usize].clearance)
-            .unwrap_or(0.0);
-        let can_refine = cell * 0.5 >= params.min_radius_m && !cells.is_empty();
-        if (order.is_empty() || best < REFINE_RATIO * cell) && can_refine {
-            cell *= 0.5;
-            let room = PROTOTYPES_PER_SPHERE * (budget - grid.spheres().len());
-            let spawned = refine(&solid, &grid, &mut cells, cell, params.min_radius_m, room);
-            prototypes.retain(|p| p.state != State::Retired);
-            prototypes.extend(spawned.into_iter().take(room).map(|(_, pos)| Prototype {
-                pos,
-                clearance: 0.0,
-                state: State::Unsettled,
-            }));
-            continue;
-        }
-        if order.is_empty() {
-            break;
-        }
-
-        // Accept the largest settled prototypes that do not overlap each other.
-        round.clear();
-        let room = budget - grid.spheres().len();
-        for &i in &order {
-            let p = &mut prototypes[i as usize];
-            if p.clearance < ACCEPT_RATIO * best || round.len() >= room {
+    fn volume_pass(&mut self, limit: usize) {
+        let target_volume = self.params.target_coverage * self.mesh.volume_m3;
+        let min_radius = self.params.min_radius_m;
+        while self.grid.spheres().len() < limit && self.sphere_volume < target_volume {
+            self.settles += settle_all(&self.solid, &self.grid, &mut self.prototypes, self.params);
+            let order = ranked(&self.prototypes);
+            let best = order
+                .first()
+                .map_or(0.0, |&i| self.prototypes[i as usize].clearance);
+            let can_refine = self.cell * 0.5 >= min_radius && !self.cells.is_empty();
+            if (order.is_empty() || best < REFINE_RATIO * self.cell) && can_refine {
+                self.cell *= 0.5;
+                let room = PROTOTYPES_PER_SPHERE * (limit - self.grid.spheres().len());
+                let spawned = refine(
+                    &self.solid,
+                    &self.grid,
+                    &mut self.cells,
+                    self.cell,
+                    min_radius,
+                    room,
+                );
+                self.prototypes.retain(|p| p.state != State::Retired);
+                self.prototypes.extend(
+                    spawned
+                        .into_iter()
+                        .take(room)
+                        .map(|(_, pos)| Prototype::at(pos)),
+                );
+                continue;
+            }
+            if order.is_empty() {
                 break;
+            }
+            let room = limit - self.grid.spheres().len();
+            let mut prototypes = std::mem::take(&mut self.prototypes);
+            let new = self.accept(&mut prototypes, &order, ACCEPT_RATIO * best, room);
+            disturb(&mut prototypes, &new);
+            self.prototypes = prototypes;
+            if best < min_radius && !can_refine {
+                break;
+            }
+        }
+    }
+
+    /// Samples the surface (triangles bisected down to half `target_gap_m`); while samples lie
+    /// farther than that from the spheres, starts a prototype just inside the worst ones (half
+    /// their gap deep, against the triangle's normal), lets them settle into their pockets and
+    /// accepts those that do not overlap, the worst gap first.
+    ///
+    /// A sample's gap only shrinks as spheres are added, so a stale gap is an upper bound: the
+    /// samples wait in a max-heap by stale gap, and a round re-evaluates only the top until the
+    /// re-evaluated value still beats the next stale one (lazy greedy). Cost: one evaluation
+    /// per sample, then about one per seed.
+    fn gap_pass(&mut self, limit: usize) {
+        use std::collections::BinaryHeap;
+        let target = self.params.target_gap_m;
+        // Half the target apart, so that the gap between samples stays near the target.
+        let samples = surface_samples(self.mesh, 0.5 * target);
+        let grid = &self.grid;
+        // Non-negative f32 gaps order like their bits.
+        let mut heap: BinaryHeap<(u32, u32)> = samples
+            .par_iter()
+            .enumerate()
+            .map(|(i, (p, _))| (grid.distance_to_union(*p).to_bits(), i as u32))
+            .filter(|(g, _)| f32::from_bits(*g) > target)
+            .collect();
+        let before = self.grid.spheres().len();
+        let mut rounds = 0;
+        while self.grid.spheres().len() < limit {
+            rounds += 1;
+            let room = limit - self.grid.spheres().len();
+            // A quarter of the room per round, so that the next round sees what these fixed;
+            // four seeds per sphere, for the seeds that overlap or find no room.
+            let round_room = (room / 4).max(GAP_ROUND_MIN).min(room);
+            let mut picked: Vec<(u32, u32)> = Vec::new();
+            while picked.len() < PROTOTYPES_PER_SPHERE * round_room {
+                let Some((_, i)) = heap.pop() else { break };
+                let g = self.grid.distance_to_union(samples[i as usize].0);
+                if g <= target {
+                    continue;
+                }
+                if heap
+                    .peek()
+                    .is_none_or(|&(next, _)| f32::from_bits(next) <= g)
+                {
+                    picked.push((g.to_bits(), i));
+                } else {
+                    heap.push((g.to_bits(), i));
+                }
+            }
+            if picked.is_empty() {
+                break;
+            }
+            let mut seeds: Vec<Prototype> = picked
+                .iter()
+                .map(|&(g, i)| {
+                    let (p, n) = samples[i as usize];
+                    let depth = 0.5 * f32::from_bits(g);
+                    Prototype::at(std::array::from_fn(|k| p[k] + n[k] * depth))
+                })
+                .collect();
+            heap.extend(picked);
+            self.settles += settle_all(&self.solid, &self.grid, &mut seeds, self.params);
+            // The worst gaps first: seeds were picked in decreasing order of their gap.
+            let order: Vec<u32> = (0..seeds.len() as u32)
+                .filter(|&i| seeds[i as usize].state == State::Settled)
+                .collect();
+            let new = self.accept(&mut seeds, &order, self.params.min_radius_m, round_room);
+            if new.is_empty() {
+                break;
+            }
+            disturb(&mut self.prototypes, &new);
+        }
+        log::debug!(
+            "gap pass: {} spheres in {rounds} rounds, {} of {} surface samples may lie above {target} m",
+            self.grid.spheres().len() - before,
+            heap.len(),
+            samples.len()
+        );
+    }
+
+    /// Turns the settled `prototypes` in `order` into spheres, up to `room`, skipping those whose
+    /// clearance is below `floor` and those that overlap a sphere accepted before them; the
+    /// prototypes examined must settle again. Returns the new spheres.
+    fn accept(
+        &mut self,
+        prototypes: &mut [Prototype],
+        order: &[u32],
+        floor: f32,
+        room: usize,
+    ) -> Vec<InnerSphere> {
+        let mut round: Vec<InnerSphere> = Vec::new();
+        for &i in order {
+            let p = &mut prototypes[i as usize];
+            if round.len() >= room {
+                break;
+            }
+            if p.clearance < floor {
+                continue;
             }
             let radius = p.clearance * (1.0 - 4.0 * f32::EPSILON) - 2e-7;
             let candidate = InnerSphere {
@@ -323,27 +446,121 @@ pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing
             p.state = State::Unsettled;
         }
         for s in &round {
-            grid.insert(*s);
-            sphere_volume += crate::geometry::ball_volume(s.radius as f64);
+            self.grid.insert(*s);
+            self.sphere_volume += crate::geometry::ball_volume(s.radius as f64);
         }
-        // Prototypes whose clearance a new sphere reduced must settle again.
-        let new = &round;
-        prototypes
-            .par_iter_mut()
-            .filter(|p| p.state == State::Settled)
-            .for_each(|p| {
-                if new
-                    .iter()
-                    .any(|s| distance(p.pos, s.center) - s.radius < p.clearance)
-                {
-                    p.state = State::Unsettled;
-                }
-            });
-        if best < params.min_radius_m && !grid.spheres().is_empty() && !can_refine {
-            break;
+        round
+    }
+}
+
+impl Prototype {
+    fn at(pos: [f32; 3]) -> Self {
+        Self {
+            pos,
+            clearance: 0.0,
+            state: State::Unsettled,
         }
     }
-    Packing { grid, settles }
+}
+
+/// Settles every unsettled prototype in parallel, retiring those that find no room for a sphere
+/// of the minimal radius (but the first sphere of an element); returns how many settled.
+fn settle_all(
+    solid: &Solid,
+    grid: &SphereGrid,
+    prototypes: &mut [Prototype],
+    params: &PackingParams,
+) -> usize {
+    let first = grid.spheres().is_empty();
+    prototypes
+        .par_iter_mut()
+        .filter(|p| p.state == State::Unsettled)
+        .map(|p| {
+            match settle(solid, grid, p.pos, params.settle_iterations) {
+                Some((c, pos)) if c >= params.min_radius_m || first => {
+                    *p = Prototype {
+                        pos,
+                        clearance: c,
+                        state: State::Settled,
+                    }
+                }
+                _ => p.state = State::Retired,
+            }
+            1
+        })
+        .sum()
+}
+
+/// Indices of the settled prototypes, largest clearance first (ties by index, so repeatable).
+fn ranked(prototypes: &[Prototype]) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..prototypes.len() as u32)
+        .filter(|&i| prototypes[i as usize].state == State::Settled)
+        .collect();
+    order.sort_unstable_by(|&a, &b| {
+        prototypes[b as usize]
+            .clearance
+            .total_cmp(&prototypes[a as usize].clearance)
+            .then(a.cmp(&b))
+    });
+    order
+}
+
+/// Settled prototypes whose clearance one of the `new` spheres reduced must settle again.
+fn disturb(prototypes: &mut [Prototype], new: &[InnerSphere]) {
+    prototypes
+        .par_iter_mut()
+        .filter(|p| p.state == State::Settled)
+        .for_each(|p| {
+            if new
+                .iter()
+                .any(|s| distance(p.pos, s.center) - s.radius < p.clearance)
+            {
+                p.state = State::Unsettled;
+            }
+        });
+}
+
+/// The centroids of the mesh triangles bisected at their longest edge until no edge is longer
+/// than `spacing` (so slivers give few samples), each with its triangle's inward unit normal.
+fn surface_samples(mesh: &ClosedMesh, spacing: f32) -> Vec<([f32; 3], [f32; 3])> {
+    mesh.triangles
+        .par_iter()
+        .flat_map_iter(|t| {
+            let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
+            let ab: [f32; 3] = std::array::from_fn(|k| b[k] - a[k]);
+            let ac: [f32; 3] = std::array::from_fn(|k| c[k] - a[k]);
+            let n = [
+                ab[1] * ac[2] - ab[2] * ac[1],
+                ab[2] * ac[0] - ab[0] * ac[2],
+                ab[0] * ac[1] - ab[1] * ac[0],
+            ];
+            let len = distance(n, [0.0; 3]).max(f32::MIN_POSITIVE);
+            let inward = n.map(|x| -x / len);
+            let mut out = Vec::new();
+            let mut stack = vec![[a, b, c]];
+            while let Some([a, b, c]) = stack.pop() {
+                let edges = [distance(a, b), distance(b, c), distance(c, a)];
+                let longest = edges.iter().copied().fold(0.0, f32::max);
+                if longest <= spacing {
+                    out.push((std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0), inward));
+                    continue;
+                }
+                let mid = |p: [f32; 3], q: [f32; 3]| std::array::from_fn(|k| 0.5 * (p[k] + q[k]));
+                // Split the longest edge; the corner opposite it goes to both halves.
+                let [p, q, r] = if edges[0] == longest {
+                    [a, b, c]
+                } else if edges[1] == longest {
+                    [b, c, a]
+                } else {
+                    [c, a, b]
+                };
+                let m = mid(p, q);
+                stack.push([p, m, r]);
+                stack.push([m, q, r]);
+            }
+            out
+        })
+        .collect()
 }
 
 /// Splits every live cell in eight, keeps the children that may still hold free space, and
@@ -357,7 +574,7 @@ fn refine(
     room: usize,
 ) -> Vec<(f32, [f32; 3])> {
     let half = size * 0.5;
-    let half_diagonal = size * 0.866_025_4;
+    let half_diagonal = size * HALF_DIAGONAL;
     let children: Vec<(f32, [f32; 3])> = cells
         .par_iter()
         .flat_map_iter(|c| {
