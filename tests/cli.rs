@@ -26,7 +26,13 @@ fn build_demo_robot_json_export_and_cache() {
         let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
         (json, String::from_utf8_lossy(&out.stderr).into_owned())
     };
-    let (first, _) = run(&["--export-spheres", export.to_str().expect("utf8")]);
+    // --validate: every sphere and node of every demo link checked exactly (primitives, a
+    // two-element link, meshes).
+    let (first, _) = run(&[
+        "--validate",
+        "--export-spheres",
+        export.to_str().expect("utf8"),
+    ]);
     let links = first["links"].as_array().expect("links");
     assert_eq!(links.len(), 9);
     for l in links {
@@ -35,6 +41,13 @@ fn build_demo_robot_json_export_and_cache() {
         }
         assert_eq!(l["origin"], "built");
     }
+    // A sphere primitive is its own best packing: one sphere, inscribed in the tessellation.
+    let wrist = links
+        .iter()
+        .find(|l| l["name"] == "wrist_2_link")
+        .expect("sphere link");
+    assert_eq!(wrist["spheres"], 1);
+    assert!(wrist["coverage"].as_f64().expect("coverage") > 0.99);
     let exported: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&export).expect("export")).expect("json");
     let gripper = exported["gripper_link"]

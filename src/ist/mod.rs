@@ -89,7 +89,8 @@ pub enum IstError {
     NoSpheres { link: String, min_radius_m: f32 },
 }
 
-/// Packs every element of a link, measures the gap and builds the tree.
+/// Packs every element of a link (a sphere primitive gets its inscribed sphere, which no packing
+/// beats), measures the gap and builds the tree.
 pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTree, IstError> {
     let start = Instant::now();
     let params = &options.packing;
@@ -101,7 +102,11 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         let share = element.mesh.volume_m3 / mesh_volume_m3;
         let budget = ((params.max_spheres as f64 * share).round() as usize).max(1);
         let t = Instant::now();
-        let packing = pack(&element.mesh, budget, params);
+        let packing = match element.sphere_center {
+            // A sphere primitive: its inscribed sphere is the whole packing (no search needed).
+            Some(center) => inscribed_sphere(&element.mesh, center),
+            None => pack(&element.mesh, budget, params),
+        };
         let packed_s = t.elapsed().as_secs_f64();
         let gap = surface_gap(&element.mesh, &packing.grid, options.gap_tolerance_m);
         log::debug!(
@@ -143,6 +148,19 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         nodes,
         spheres,
     })
+}
+
+/// The largest sphere about `center` inside `mesh` (exact f64 distance to the faces, shrunk by
+/// f32 rounding), as a one-sphere packing.
+fn inscribed_sphere(mesh: &crate::robot::ClosedMesh, center: [f64; 3]) -> crate::packing::Packing {
+    let radius = crate::geometry::distance_point_mesh(center, &mesh.vertices, &mesh.triangles);
+    let (lo, hi) = mesh.bounds();
+    let mut grid = crate::packing::grid::SphereGrid::new(lo, hi, (radius * 0.1) as f32);
+    grid.insert(InnerSphere {
+        center: center.map(|x| x as f32),
+        radius: (radius * (1.0 - 1e-6)) as f32 - 2e-7,
+    });
+    crate::packing::Packing { grid, settles: 0 }
 }
 
 /// Where a link's tree came from.

@@ -51,6 +51,8 @@ pub struct CollisionElement {
     pub mesh: ClosedMesh,
     /// Largest distance from the described surface to `mesh` (primitive tessellation), metres.
     pub tessellation_error_m: f64,
+    /// For a sphere primitive, its centre in the link frame: its best inner sphere is known.
+    pub sphere_center: Option<[f64; 3]>,
 }
 
 /// The collision geometry of one link.
@@ -275,6 +277,10 @@ fn load_element(
         source,
         mesh,
         tessellation_error_m: tessellation.error_m,
+        sphere_center: matches!(collision.geometry, G::Sphere { .. }).then(|| {
+            let c = link_from_element.translation.vector;
+            [c.x, c.y, c.z]
+        }),
     })
 }
 
