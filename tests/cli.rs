@@ -1,11 +1,9 @@
 //! The `ist_monitor` binary on the demo robot: the README's main command, JSON, sphere export,
 //! and a corrupt cache that is rebuilt with a warning.
 
-use std::process::Command;
+mod common;
 
-fn ist_monitor() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
-}
+use common::ist_monitor;
 
 #[test]
 fn build_demo_robot_json_export_and_cache() {

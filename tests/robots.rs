@@ -157,7 +157,7 @@ fn package_uris_resolve_through_package_path_and_ros_package_path() {
     assert_eq!(model.links.len(), 11);
     // The environment variables, through the binary so they are set for that process only.
     let poses = |var: &str, value: &Path| {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
+        let out = common::ist_monitor()
             .args(["poses", "--urdf"])
             .arg(&moved)
             .env_remove("ROS_PACKAGE_PATH")

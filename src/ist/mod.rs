@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub use crate::packing::InnerSphere;
-use crate::packing::{gap::surface_gap, pack, PackingParams};
+use crate::packing::{gap::surface_gap, pack, pack_sphere, PackingParams};
 use crate::robot::{LinkGeometry, RobotModel};
 pub use build::TreeBuilder;
 use cache::TreeCache;
@@ -104,7 +104,7 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         let t = Instant::now();
         let packing = match element.sphere_center {
             // A sphere primitive: its inscribed sphere is the whole packing (no search needed).
-            Some(center) => inscribed_sphere(&element.mesh, center),
+            Some(center) => pack_sphere(&element.mesh, center, params),
             None => pack(&element.mesh, budget, params),
         };
         let packed_s = t.elapsed().as_secs_f64();
@@ -148,19 +148,6 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         nodes,
         spheres,
     })
-}
-
-/// The largest sphere about `center` inside `mesh` (exact f64 distance to the faces, shrunk by
-/// f32 rounding), as a one-sphere packing.
-fn inscribed_sphere(mesh: &crate::robot::ClosedMesh, center: [f64; 3]) -> crate::packing::Packing {
-    let radius = crate::geometry::distance_point_mesh(center, &mesh.vertices, &mesh.triangles);
-    let (lo, hi) = mesh.bounds();
-    let mut grid = crate::packing::grid::SphereGrid::new(lo, hi, (radius * 0.1) as f32);
-    grid.insert(InnerSphere {
-        center: center.map(|x| x as f32),
-        radius: (radius * (1.0 - 1e-6)) as f32 - 2e-7,
-    });
-    crate::packing::Packing { grid, settles: 0 }
 }
 
 /// Where a link's tree came from.

@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 use rayon::prelude::*;
 
-use super::grid::{distance, SphereGrid};
+use super::grid::{distance, midpoint, SphereGrid};
 use crate::robot::ClosedMesh;
 
 /// The measured gap: `lower` is the largest sampled distance, attained at `worst_point`, and
@@ -81,8 +81,7 @@ pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> Su
                     upper = upper.max(bound);
                     continue;
                 }
-                let mid = |p: [f32; 3], q: [f32; 3]| std::array::from_fn(|k| 0.5 * (p[k] + q[k]));
-                let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+                let (ab, bc, ca) = (midpoint(a, b), midpoint(b, c), midpoint(c, a));
                 let (gab, gbc, gca) = (g(ab), g(bc), g(ca));
                 stack.push((a, ab, ca, ga, gab, gca));
                 stack.push((ab, b, bc, gab, gb, gbc));

@@ -149,6 +149,11 @@ impl SphereGrid {
 }
 
 #[inline]
+pub fn midpoint(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    std::array::from_fn(|k| 0.5 * (a[k] + b[k]))
+}
+
+#[inline]
 pub fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()

@@ -36,8 +36,9 @@ use parry3d::shape::{TriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::geometry::{cross, norm, sub, widen};
 use crate::robot::ClosedMesh;
-use grid::{distance, SphereGrid};
+use grid::{distance, midpoint, SphereGrid};
 
 /// One inner sphere in its link's frame (metres). WGSL mirror: `vec4<f32>` (xyz, radius).
 #[repr(C)]
@@ -229,6 +230,26 @@ pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing
         grid: packer.grid,
         settles: packer.settles,
     }
+}
+
+/// The packing of a sphere primitive: its inscribed sphere about `center` (the exact f64
+/// distance to the tessellation's faces, shrunk like every sphere's radius), which no packing
+/// beats, so no search is run.
+pub fn pack_sphere(mesh: &ClosedMesh, center: [f64; 3], params: &PackingParams) -> Packing {
+    let radius = crate::geometry::distance_point_mesh(center, &mesh.vertices, &mesh.triangles);
+    let (lo, hi) = mesh.bounds();
+    let mut grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
+    grid.insert(InnerSphere {
+        center: center.map(|x| x as f32),
+        radius: shrink(radius as f32),
+    });
+    Packing { grid, settles: 0 }
+}
+
+/// A sphere radius from a clearance, shrunk by a few f32 roundings so that the sphere stays
+/// inside the mesh and apart from its neighbours.
+fn shrink(clearance: f32) -> f32 {
+    clearance * (1.0 - 4.0 * f32::EPSILON) - 2e-7
 }
 
 /// The state of one packing.
@@ -439,7 +460,7 @@ impl<'a> Packer<'a> {
             if p.clearance < floor {
                 continue;
             }
-            let radius = p.clearance * (1.0 - 4.0 * f32::EPSILON) - 2e-7;
+            let radius = shrink(p.clearance);
             let candidate = InnerSphere {
                 center: p.pos,
                 radius,
@@ -535,15 +556,10 @@ fn surface_samples(mesh: &ClosedMesh, spacing: f32) -> Vec<([f32; 3], [f32; 3])>
         .par_iter()
         .flat_map_iter(|t| {
             let [a, b, c] = t.map(|i| mesh.vertices[i as usize]);
-            let ab: [f32; 3] = std::array::from_fn(|k| b[k] - a[k]);
-            let ac: [f32; 3] = std::array::from_fn(|k| c[k] - a[k]);
-            let n = [
-                ab[1] * ac[2] - ab[2] * ac[1],
-                ab[2] * ac[0] - ab[0] * ac[2],
-                ab[0] * ac[1] - ab[1] * ac[0],
-            ];
-            let len = distance(n, [0.0; 3]).max(f32::MIN_POSITIVE);
-            let inward = n.map(|x| -x / len);
+            let [wa, wb, wc] = [a, b, c].map(widen);
+            let n = cross(sub(wb, wa), sub(wc, wa));
+            let len = norm(n).max(f64::MIN_POSITIVE);
+            let inward = n.map(|x| (-x / len) as f32);
             let mut out = Vec::new();
             let mut stack = vec![[a, b, c]];
             while let Some([a, b, c]) = stack.pop() {
@@ -553,7 +569,6 @@ fn surface_samples(mesh: &ClosedMesh, spacing: f32) -> Vec<([f32; 3], [f32; 3])>
                     out.push((std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0), inward));
                     continue;
                 }
-                let mid = |p: [f32; 3], q: [f32; 3]| std::array::from_fn(|k| 0.5 * (p[k] + q[k]));
                 // Split the longest edge; the corner opposite it goes to both halves.
                 let [p, q, r] = if edges[0] == longest {
                     [a, b, c]
@@ -562,7 +577,7 @@ fn surface_samples(mesh: &ClosedMesh, spacing: f32) -> Vec<([f32; 3], [f32; 3])>
                 } else {
                     [c, a, b]
                 };
-                let m = mid(p, q);
+                let m = midpoint(p, q);
                 stack.push([p, m, r]);
                 stack.push([m, q, r]);
             }

@@ -2,6 +2,12 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The `ist_monitor` binary built for these tests.
+pub fn ist_monitor() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
+}
 
 /// `../shared` beside the checkout. In CI (CI set) it must exist; elsewhere a test may skip
 /// with a printed reason when it is absent.
