@@ -1,5 +1,7 @@
-//! Command line: `build` (trees, quality table, cache, export), `poses` (forward kinematics) and
-//! `bench packing` (quality and time against the sphere budget, cache load, tree builders).
+//! Command line: `build` (trees, quality table, cache, export), `poses` (forward kinematics),
+//! `query` (one cloud against the posed robot), `bench packing` (quality and time against the
+//! sphere budget, cache load, tree builders) and `bench query` (error against run time, peers;
+//! in `crate::bench`).
 //! Every option is defined once here and validated into the library's typed options.
 
 use std::path::{Path, PathBuf};
@@ -9,9 +11,11 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+use crate::cloud;
 use crate::ist::cache::TreeCache;
 use crate::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin, TreeBuilder};
 use crate::packing::PackingParams;
+use crate::query::{Engine, LinkSelection, Mode, Outcome, QueryOptions};
 use crate::robot::{PackagePath, RobotModel};
 
 /// The demo robot shipped in `urdf/`, the default of every command.
@@ -34,23 +38,25 @@ enum Command {
     Build(BuildArgs),
     /// Print the pose of every link in the root frame for given joint values.
     Poses(PosesArgs),
+    /// Minimum distance between the posed robot and one point cloud.
+    Query(QueryArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(Bench),
 }
 
 #[derive(Args)]
-struct RobotArgs {
+pub(crate) struct RobotArgs {
     /// URDF file (default: the demo robot in urdf/).
     #[arg(long, default_value = DEMO_URDF)]
-    urdf: PathBuf,
+    pub(crate) urdf: PathBuf,
     /// Where package://NAME is found; repeatable.
     #[arg(long = "package-path", value_name = "NAME=DIR")]
-    package_paths: Vec<PackagePath>,
+    pub(crate) package_paths: Vec<PackagePath>,
 }
 
 impl RobotArgs {
-    fn load(&self) -> Result<RobotModel> {
+    pub(crate) fn load(&self) -> Result<RobotModel> {
         RobotModel::load(&self.urdf, &self.package_paths)
             .with_context(|| format!("loading robot {}", self.urdf.display()))
     }
@@ -147,6 +153,77 @@ enum Bench {
     /// Coverage, surface gap and build time against the sphere budget; cache load time; tree
     /// builders compared by the sum of node volumes.
     Packing(BenchPackingArgs),
+    /// Error against run time of the query modes over sphere budgets, with the peers, on the
+    /// real scenarios of ../shared; prints a table and writes a PNG plot.
+    Query(crate::bench::BenchQueryArgs),
+}
+
+#[derive(Args)]
+pub(crate) struct QueryArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    #[command(flatten)]
+    packing: PackingArgs,
+    /// Cache folder of the trees (default as for `build`).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Joint values, NAME=VALUE,... (radians or metres); joints not named are 0.
+    #[arg(long, value_delimiter = ',', value_parser = parse_joint)]
+    joints: Vec<(String, f64)>,
+    /// Cloud: .pcd (ascii, binary, binary_compressed), .ply, or a rosbag2 bag (.mcap or folder).
+    #[arg(long)]
+    cloud: PathBuf,
+    /// Which PointCloud2 message of a bag (0 first).
+    #[arg(long, default_value_t = 0)]
+    msg: usize,
+    /// Pose of the cloud's frame in the robot's root link frame: "x y z qx qy qz qw".
+    #[arg(long, value_parser = parse_pose, default_value = "0 0 0 0 0 0 1")]
+    sensor_pose: nalgebra::Isometry3<f64>,
+    #[arg(long, value_enum, default_value_t = Mode::Fast)]
+    mode: Mode,
+    /// Drop points farther than this from the robot's bounding box, m (inf keeps all).
+    #[arg(long, default_value_t = QueryOptions::default().max_distance_m)]
+    max_distance: f32,
+    /// Self-filter padding, m: points this close to the robot are the robot itself.
+    #[arg(long, default_value_t = QueryOptions::default().self_filter_padding_m.unwrap_or(0.0))]
+    self_filter_padding: f32,
+    /// Take every point as an obstacle, even on the robot.
+    #[arg(long)]
+    no_self_filter: bool,
+    /// Only the global minimum (one shared bound; faster).
+    #[arg(long)]
+    no_per_link: bool,
+    /// Only these links (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    links: Vec<String>,
+    /// Leave these links out (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    exclude_links: Vec<String>,
+    /// Print the result object as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Parses "x y z qx qy qz qw" (the quaternion is normalized; it must not be zero).
+pub(crate) fn parse_pose(s: &str) -> Result<nalgebra::Isometry3<f64>, String> {
+    let v: Vec<f64> = s
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|w| !w.is_empty())
+        .map(|w| w.parse::<f64>().map_err(|e| format!("'{w}': {e}")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != 7 || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "expected 7 finite numbers \"x y z qx qy qz qw\", got '{s}'"
+        ));
+    }
+    let q = nalgebra::Quaternion::new(v[6], v[3], v[4], v[5]);
+    if q.norm() < 1e-9 {
+        return Err("the quaternion is zero".into());
+    }
+    Ok(nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(v[0], v[1], v[2]),
+        nalgebra::UnitQuaternion::from_quaternion(q),
+    ))
 }
 
 #[derive(Args)]
@@ -178,7 +255,9 @@ pub fn run() -> Result<()> {
     match Cli::parse().command {
         Command::Build(args) => build(args),
         Command::Poses(args) => poses(args),
+        Command::Query(args) => query(args),
         Command::Bench(Bench::Packing(args)) => bench_packing(args),
+        Command::Bench(Bench::Query(args)) => crate::bench::bench_query(args),
     }
 }
 
@@ -194,7 +273,7 @@ struct LinkRow<'a> {
     origin: Origin,
 }
 
-fn build_trees(
+pub(crate) fn build_trees(
     model: &RobotModel,
     options: &BuildOptions,
     cache: Option<&TreeCache>,
@@ -305,6 +384,127 @@ fn export_spheres(path: &Path, trees: &[(LinkTree, Origin)]) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
+fn query(args: QueryArgs) -> Result<()> {
+    let build = args.packing.options()?;
+    let model = args.robot.load()?;
+    let options = QueryOptions {
+        mode: args.mode,
+        max_distance_m: args.max_distance,
+        self_filter_padding_m: (!args.no_self_filter).then_some(args.self_filter_padding),
+        per_link: !args.no_per_link,
+    };
+    if options.max_distance_m.is_nan() || options.max_distance_m < 0.0 {
+        bail!("--max-distance must be a non-negative number of metres (inf allowed)");
+    }
+    if !(args.self_filter_padding.is_finite() && args.self_filter_padding >= 0.0) {
+        bail!("--self-filter-padding must be a non-negative number of metres");
+    }
+    let cache = TreeCache::new(
+        args.cache_dir
+            .clone()
+            .unwrap_or_else(TreeCache::default_dir),
+    );
+    let trees: Vec<LinkTree> = build_trees(&model, &build, Some(&cache))?
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect();
+    let selection = LinkSelection {
+        include: args.links.clone(),
+        exclude: args.exclude_links.clone(),
+    };
+    let mut engine = Engine::new(&model, &trees, &selection)?;
+    let q = model
+        .kinematics
+        .values_from_names(&args.joints, Some(0.0))?;
+    let poses = model.kinematics.link_poses(&q);
+    let cloud = cloud::load(&args.cloud, args.msg)
+        .with_context(|| format!("reading cloud {}", args.cloud.display()))?;
+    // The first queries warm the scratch memory and the caches; the last is timed.
+    for _ in 0..3 {
+        engine.query(&cloud.points, &args.sensor_pose, &poses, &options)?;
+    }
+    let start = Instant::now();
+    let result = engine.query(&cloud.points, &args.sensor_pose, &poses, &options)?;
+    let elapsed = start.elapsed().as_secs_f64();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&result)?);
+        return Ok(());
+    }
+    println!(
+        "cloud {}: {} points ({}×{}){}",
+        args.cloud.display(),
+        cloud.points.len(),
+        cloud.width,
+        cloud.height,
+        cloud
+            .frame_id
+            .as_ref()
+            .map(|f| format!(", frame {f}"))
+            .unwrap_or_default()
+    );
+    match (&result.outcome, &result.nearest) {
+        (Outcome::Nearest, Some(n)) => {
+            let lower = n
+                .lower_m
+                .filter(|_| options.mode == Mode::Certified)
+                .map(|l| format!(" (certified ≥ {l:.4} m)"))
+                .unwrap_or_default();
+            println!(
+                "{:?} minimum {:.4} m{lower} on {}: cloud point {} at ({:.4}, {:.4}, {:.4}), robot point ({:.4}, {:.4}, {:.4}) (root frame {})",
+                options.mode,
+                n.distance_m,
+                n.link,
+                n.point_index,
+                n.point_root[0],
+                n.point_root[1],
+                n.point_root[2],
+                n.robot_point_root[0],
+                n.robot_point_root[1],
+                n.robot_point_root[2],
+                model.kinematics.root_link()
+            );
+        }
+        (Outcome::NoPoints, _) => println!("no valid points in the cloud"),
+        _ => println!("nothing within max_distance {} m", options.max_distance_m),
+    }
+    let c = &result.counts;
+    println!(
+        "points: {} total, {} invalid, {} outside the region of interest, {} self-filtered, {} pruned, {} evaluated, {} inside{}",
+        c.total,
+        c.invalid,
+        c.outside_roi,
+        c.self_filtered,
+        c.pruned,
+        c.evaluated,
+        c.inside,
+        if options.mode == Mode::Exact {
+            format!(", {} exact refinements", c.exact_refined)
+        } else {
+            String::new()
+        }
+    );
+    if !result.links.is_empty() {
+        println!(
+            "{:<24} {:>12} {:>12} {:>10}",
+            "link", "upper [m]", "lower [m]", "point"
+        );
+        for l in &result.links {
+            let f = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
+            println!(
+                "{:<24} {:>12} {:>12} {:>10}",
+                l.link,
+                f(l.distance_m),
+                f(l.lower_m),
+                l.point_index
+                    .map(|p| p.to_string())
+                    .unwrap_or_else(|| "-".into())
+            );
+        }
+    }
+    println!("query time {:.3} ms", 1e3 * elapsed);
+    Ok(())
+}
+
 fn poses(args: PosesArgs) -> Result<()> {
     let model = args.robot.load()?;
     let k = &model.kinematics;
@@ -325,7 +525,7 @@ fn poses(args: PosesArgs) -> Result<()> {
     Ok(())
 }
 
-fn median_and_spread(mut samples: Vec<f64>) -> (f64, f64, f64) {
+pub(crate) fn median_and_spread(mut samples: Vec<f64>) -> (f64, f64, f64) {
     samples.sort_by(f64::total_cmp);
     let at = |q: f64| samples[((samples.len() - 1) as f64 * q).round() as usize];
     (at(0.5), at(0.1), at(0.9))

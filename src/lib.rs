@@ -4,8 +4,11 @@
 //! kinematics) → `packing` (Protosphere inner spheres, surface gap) → `ist` (tree, quality,
 //! cache, validation). `cli` wires them into the `ist_monitor` command.
 
+pub mod bench;
 pub mod cli;
+pub mod cloud;
 pub mod geometry;
 pub mod ist;
 pub mod packing;
+pub mod query;
 pub mod robot;

@@ -115,3 +115,68 @@ fn bad_options_are_refused_with_their_name() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--max-spheres"));
 }
+
+/// `ist_monitor query` on the demo robot with a PLY cloud: the nearest point, the counts, the
+/// "nothing within" and "no points" outcomes, and errors for a bad sensor pose or link name.
+#[test]
+fn query_demo_robot() {
+    let dir = tempfile::tempdir().expect("tmp");
+    // Four points in the camera frame: NaN, one 0.3 m in front of the camera, two far away.
+    let ply = dir.path().join("cloud.ply");
+    let points = [
+        [f32::NAN; 3],
+        [0.0, 0.0, 0.3],
+        [0.0, 0.0, 9.0],
+        [5.0, 5.0, 5.0],
+    ];
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    for p in points {
+        for v in p {
+            bytes.extend(v.to_le_bytes());
+        }
+    }
+    std::fs::write(&ply, bytes).expect("ply");
+    let query = |extra: &[&str]| {
+        let mut cmd = ist_monitor();
+        cmd.args(["query", "--max-spheres", "200", "--json", "--cache-dir"])
+            .arg(dir.path())
+            .arg("--cloud")
+            .arg(&ply)
+            .args(extra);
+        cmd.output().expect("runs")
+    };
+    // The cloud in the root frame, the camera at (1.2, 0, 0.8) looking along −x (as the demo
+    // URDF's camera_link): the point 0.3 m ahead is at x = 0.9.
+    let pose = ["--sensor-pose", "1.2 0 0.8 0 -0.7071068 0 0.7071068"];
+    let out = query(&[&pose[..], &["--mode", "certified"]].concat());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(json["outcome"], "nearest");
+    assert_eq!(json["nearest"]["point_index"], 1);
+    let p = &json["nearest"]["point_root"];
+    assert!((p[0].as_f64().unwrap() - 0.9).abs() < 1e-6, "{p}");
+    assert!((p[2].as_f64().unwrap() - 0.8).abs() < 1e-6, "{p}");
+    let (d, lower) = (
+        json["nearest"]["distance_m"].as_f64().unwrap(),
+        json["nearest"]["lower_m"].as_f64().unwrap(),
+    );
+    assert!(lower <= d && d > 0.0, "{lower} {d}");
+    assert_eq!(json["counts"]["invalid"], 1);
+    assert_eq!(json["counts"]["outside_roi"], 2);
+    assert_eq!(json["links"].as_array().unwrap().len(), 9);
+
+    let out = query(&[&pose[..], &["--max-distance", "0.01"]].concat());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(json["outcome"], "nothing_within_max_distance");
+
+    let out = query(&["--sensor-pose", "1 2 3"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("7 finite numbers"));
+    let out = query(&["--links", "no_such_link"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no_such_link"));
+}

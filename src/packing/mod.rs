@@ -94,6 +94,8 @@ const REFINE_RATIO: f32 = 0.35;
 const PROTOTYPES_PER_SPHERE: usize = 4;
 /// Live cells kept per prototype allowed, when the cells are split.
 const CELLS_PER_PROTOTYPE: usize = 2;
+/// Most surface samples of the gap pass (about 24 MiB); reached only by links of metres.
+const MAX_GAP_SAMPLES: usize = 1 << 20;
 
 /// A closed mesh as a solid for point queries (the one boundary to parry3d's glam types).
 pub struct Solid {
@@ -122,6 +124,42 @@ impl Solid {
         let q = [projection.point.x, projection.point.y, projection.point.z];
         let d = distance(p, q);
         (if projection.is_inside { d } else { -d }, q)
+    }
+
+    /// Axis-aligned bounds of the mesh.
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let aabb = self.trimesh.local_aabb();
+        (
+            [aabb.mins.x, aabb.mins.y, aabb.mins.z],
+            [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z],
+        )
+    }
+
+    /// Distance to the solid (0 inside) and the closest point (the point itself inside).
+    #[inline]
+    pub fn distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
+        let (d, q) = self.signed_distance(p);
+        if d >= 0.0 {
+            (0.0, p)
+        } else {
+            (-d, q)
+        }
+    }
+
+    /// [`Self::distance`] when it is at most `max`, for a point known to be outside: the BVH
+    /// descent stops at `max`, so a point inside but deeper than `max` would read as `None`.
+    #[inline]
+    pub fn distance_within(&self, p: [f32; 3], max: f32) -> Option<(f32, [f32; 3])> {
+        let projection = self.trimesh.project_local_point_with_max_dist(
+            Vector::new(p[0], p[1], p[2]),
+            false,
+            max,
+        )?;
+        if projection.is_inside {
+            return Some((0.0, p));
+        }
+        let q = [projection.point.x, projection.point.y, projection.point.z];
+        Some((distance(p, q), q))
     }
 }
 
@@ -376,8 +414,10 @@ impl<'a> Packer<'a> {
     fn gap_pass(&mut self, limit: usize) {
         use std::collections::BinaryHeap;
         let target = self.params.target_gap_m;
-        // Half the target apart, so that the gap between samples stays near the target.
-        let samples = surface_samples(self.mesh, 0.5 * target);
+        // Half the target apart, so that the gap between samples stays near the target; on
+        // very large links (metres), sparser, so that the samples stay within memory.
+        let sparse = (2.0 * self.mesh.area_m2() / MAX_GAP_SAMPLES as f64).sqrt() as f32;
+        let samples = surface_samples(self.mesh, (0.5 * target).max(sparse));
         let grid = &self.grid;
         // Non-negative f32 gaps order like their bits.
         let mut heap: BinaryHeap<(u32, u32)> = samples

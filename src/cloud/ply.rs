@@ -1,0 +1,139 @@
+//! PLY point clouds: the `vertex` element's `x y z`, in `ascii`, `binary_little_endian` or
+//! `binary_big_endian`. The vertex element must come first (as every point-cloud writer puts
+//! it); elements after it (faces) are ignored.
+
+use std::path::Path;
+
+use super::{read, Cloud, CloudError, Scalar};
+
+pub fn load(path: &Path) -> Result<Cloud, CloudError> {
+    parse(&read(path)?).map_err(|message| CloudError::Ply {
+        path: path.to_owned(),
+        message,
+    })
+}
+
+fn scalar(name: &str) -> Result<Scalar, String> {
+    Ok(match name {
+        "char" | "int8" => Scalar::I8,
+        "uchar" | "uint8" => Scalar::U8,
+        "short" | "int16" => Scalar::I16,
+        "ushort" | "uint16" => Scalar::U16,
+        "int" | "int32" => Scalar::I32,
+        "uint" | "uint32" => Scalar::U32,
+        "float" | "float32" => Scalar::F32,
+        "double" | "float64" => Scalar::F64,
+        other => return Err(format!("property type {other} not supported")),
+    })
+}
+
+/// Parses a PLY file's bytes.
+pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
+    let mut pos = 0;
+    let mut format = None;
+    let mut vertices = None;
+    let mut in_vertex = false;
+    let mut seen_element = false;
+    let mut properties: Vec<(String, Scalar)> = Vec::new();
+    let mut first = true;
+    loop {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .ok_or("header ends before end_header")?;
+        let line = std::str::from_utf8(&bytes[pos..pos + end])
+            .map_err(|_| "header is not text")?
+            .trim();
+        pos += end + 1;
+        if first {
+            if line != "ply" {
+                return Err("does not start with \"ply\"".into());
+            }
+            first = false;
+            continue;
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["format", f, _] => format = Some(f.to_string()),
+            ["comment", ..] | ["obj_info", ..] | [] => {}
+            ["element", name, count] => {
+                if *name == "vertex" {
+                    if seen_element {
+                        return Err("element vertex must come first".into());
+                    }
+                    vertices = Some(
+                        count
+                            .parse::<usize>()
+                            .map_err(|_| format!("vertex count {count:?}"))?,
+                    );
+                }
+                in_vertex = *name == "vertex";
+                seen_element = true;
+            }
+            ["property", "list", ..] if in_vertex => {
+                return Err("list properties on vertices are not supported".into())
+            }
+            ["property", kind, name] if in_vertex => {
+                properties.push((name.to_string(), scalar(kind)?))
+            }
+            ["property", ..] => {}
+            ["end_header"] => break,
+            _ => return Err(format!("unexpected header line {line:?}")),
+        }
+    }
+    let n = vertices.ok_or("no vertex element")?;
+    let find = |axis: &str| {
+        properties
+            .iter()
+            .position(|p| p.0 == axis)
+            .ok_or_else(|| format!("vertex has no property {axis}"))
+    };
+    let xyz = [find("x")?, find("y")?, find("z")?];
+    let body = &bytes[pos..];
+    let mut points = Vec::with_capacity(n);
+    match format.as_deref() {
+        Some("ascii") => {
+            let text = std::str::from_utf8(body).map_err(|_| "ascii body is not text")?;
+            let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+            for i in 0..n {
+                let line = lines.next().ok_or(format!("vertex {i} missing"))?;
+                let values: Vec<&str> = line.split_whitespace().collect();
+                let get = |k: usize| -> Result<f32, String> {
+                    values
+                        .get(xyz[k])
+                        .and_then(|w| w.parse::<f32>().ok())
+                        .ok_or_else(|| format!("vertex {i}: bad value"))
+                };
+                points.push([get(0)?, get(1)?, get(2)?]);
+            }
+        }
+        Some(f @ ("binary_little_endian" | "binary_big_endian")) => {
+            let big = f == "binary_big_endian";
+            let mut offsets = Vec::new();
+            let mut record = 0;
+            for p in &properties {
+                offsets.push(record);
+                record += p.1.size();
+            }
+            if body.len() < n * record {
+                return Err(format!(
+                    "{} body bytes, {n} vertices need {}",
+                    body.len(),
+                    n * record
+                ));
+            }
+            for i in 0..n {
+                let r = &body[i * record..];
+                points.push(xyz.map(|k| properties[k].1.read(&r[offsets[k]..], big)));
+            }
+        }
+        other => return Err(format!("format {other:?} not supported")),
+    }
+    Ok(Cloud {
+        width: n as u32,
+        height: 1,
+        points,
+        frame_id: None,
+        stamp: None,
+    })
+}

@@ -1,0 +1,454 @@
+//! Query stage: the minimum distance between the posed robot and a point cloud, on the CPU.
+//!
+//! Inputs: the inner sphere trees of the links (`ist`), the link poses `root_from_link` from
+//! forward kinematics (f64), a cloud in its sensor frame (f32) and the sensor pose
+//! `root_from_sensor` (f64). Three modes:
+//! - **fast**: the distance to the union of the inner spheres, the seed's query. Inner spheres
+//!   lie inside the link, so this is an upper bound of the true distance.
+//! - **certified**: also the lower bound `max(0, d − h_link)`, with h the link's certified
+//!   surface gap, so the true distance to the collision meshes lies in `[lower, upper]`.
+//! - **exact**: the exact distance to the collision meshes. The sphere pass keeps, as candidates,
+//!   the (point, link) pairs whose lower bound `d − h` does not exceed the best upper bound; they
+//!   are refined with exact point–triangle distance (parry3d's BVH) in ascending lower bound and
+//!   the refinement stops at the first candidate whose lower bound exceeds the best exact value.
+//!
+//! The traversal (`traverse`) is the seed's "atomicMin" query: every point descends the link
+//! trees in parallel (rayon), and a node is pruned when its lower bound `|p − c| − r` exceeds the
+//! shared minimum, one `AtomicU64` per link holding the non-negative f32 distance bits above the
+//! point index, so one `fetch_min` keeps the minimum and the point that attains it.
+//!
+//! Frames and precision: all poses are composed in f64 and the robot is brought into the sensor
+//! frame, where the points are small numbers; only then are the per-link transforms rounded to
+//! f32. A robot and sensor 1000 km from the map origin therefore give the answer they give at the
+//! origin (the offsets cancel in f64 before anything is rounded). The per-point work is f32.
+//!
+//! Leaving out what the scene does not need, cheapest first:
+//! 1. invalid points (NaN, ±Inf, and (0, 0, 0), which drivers use for "no return") are counted
+//!    and skipped;
+//! 2. the region of interest: points farther than `max_distance_m` from the robot's bounding box
+//!    are dropped; whole blocks of 32 consecutive points are dropped at once by their bounding
+//!    sphere;
+//! 3. links are included or excluded by name when the engine is made;
+//! 4. the shared bound: a block, then a point, then a node is skipped when its lower bound
+//!    exceeds the current minimum; per-link minima can be switched off
+//!    (`QueryOptions::per_link`), which leaves one shared bound and prunes far more;
+//! 5. self-filtering: points whose inner-sphere distance is within `self_filter_padding_m` of a
+//!    link are the robot seen by its own sensor; they are counted, not taken as obstacles.
+//!    Because the inner-sphere distance is an upper bound, every point filtered is truly within
+//!    the padding of the collision mesh: the filter never hides an obstacle farther than that.
+//!
+//! Every stage's count is reported in [`StageCounts`].
+
+pub mod exact;
+pub mod peers;
+mod traverse;
+
+pub use traverse::valid as is_valid_point;
+
+use std::sync::atomic::{AtomicU32, AtomicU64};
+
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+
+use crate::ist::{IstNode, LinkTree};
+use crate::packing::{InnerSphere, Solid};
+use crate::robot::{LinkGeometry, RobotModel};
+
+/// Most links with collision geometry one engine handles (a bit mask per point).
+pub const MAX_LINKS: usize = 128;
+
+/// What the query computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Distance to the inner spheres: an upper bound.
+    Fast,
+    /// Upper bound and certified lower bound `max(0, d − h)`.
+    Certified,
+    /// Exact distance to the collision meshes.
+    Exact,
+}
+
+/// Options of one query.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QueryOptions {
+    pub mode: Mode,
+    /// Points farther than this from the robot's bounding box are dropped; a result beyond it is
+    /// reported as "nothing within max_distance". Infinity keeps everything.
+    pub max_distance_m: f32,
+    /// Points within this inner-sphere distance of the robot are the robot itself; `None`
+    /// switches the self-filter off.
+    pub self_filter_padding_m: Option<f32>,
+    /// Per-link minima (one bound per link); off leaves one shared bound, which prunes more.
+    pub per_link: bool,
+}
+
+impl Default for QueryOptions {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Fast,
+            max_distance_m: 2.0,
+            self_filter_padding_m: Some(0.01),
+            per_link: true,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum QueryError {
+    #[error(
+        "link {0} named in the link selection has no collision geometry (links with geometry: {1})"
+    )]
+    UnknownLink(String, String),
+    #[error("link {0} has an inner sphere tree but is not in the robot's kinematics")]
+    NotInKinematics(String),
+    #[error("{0} links selected; the engine handles at most {MAX_LINKS}")]
+    TooManyLinks(usize),
+    #[error("link {link}: tree depth {depth} exceeds the traversal stack (at most {max})")]
+    TreeTooDeep {
+        link: String,
+        depth: usize,
+        max: usize,
+    },
+    #[error("link {0}: empty tree, or a node with more children than the tree's branching")]
+    BadTree(String),
+    #[error("no link selected")]
+    NoLinks,
+    #[error("the sensor pose is not finite")]
+    NonFiniteSensorPose,
+    #[error("{got} link poses given, the robot has {expected} links")]
+    LinkPoses { got: usize, expected: usize },
+}
+
+/// One link as the query sees it: its tree, its surface gap and, for exact mode, its solids.
+pub struct QueryLink {
+    pub name: String,
+    /// Index into the kinematics' link poses.
+    pub pose_index: usize,
+    pub nodes: Vec<IstNode>,
+    pub spheres: Vec<InnerSphere>,
+    /// Certified surface gap h, m.
+    pub gap_m: f32,
+    /// One solid per collision element (elements may overlap, so they are kept apart).
+    pub solids: Vec<Solid>,
+    /// Structure-of-arrays copies of the node and sphere arrays for the CPU descent (four
+    /// children tested at once); derived from `nodes` and `spheres` by [`QueryLink::new`].
+    pub(crate) node_soa: SphereSoa,
+    pub(crate) sphere_soa: SphereSoa,
+}
+
+/// Sphere centres and radii as four arrays, padded with four far spheres so that four
+/// consecutive entries can always be loaded.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SphereSoa {
+    pub x: Vec<f32>,
+    pub y: Vec<f32>,
+    pub z: Vec<f32>,
+    pub r: Vec<f32>,
+}
+
+impl SphereSoa {
+    fn new(spheres: impl Iterator<Item = ([f32; 3], f32)>) -> Self {
+        let mut soa = Self::default();
+        for (c, r) in spheres.chain(std::iter::repeat_n(([1e30; 3], 0.0), 4)) {
+            soa.x.push(c[0]);
+            soa.y.push(c[1]);
+            soa.z.push(c[2]);
+            soa.r.push(r);
+        }
+        soa
+    }
+}
+
+impl QueryLink {
+    /// A link from its tree and, for exact mode, its collision geometry.
+    pub fn from_tree(tree: &LinkTree, geometry: Option<&LinkGeometry>, pose_index: usize) -> Self {
+        let solids = geometry
+            .map(|g| g.elements.iter().map(|e| Solid::new(&e.mesh)).collect())
+            .unwrap_or_default();
+        Self::new(
+            tree.link.clone(),
+            pose_index,
+            tree.nodes.clone(),
+            tree.spheres.clone(),
+            tree.quality.gap_m as f32,
+            solids,
+        )
+    }
+
+    /// A link from its tree, surface gap, solids and index into the link poses.
+    pub fn new(
+        name: String,
+        pose_index: usize,
+        nodes: Vec<IstNode>,
+        spheres: Vec<InnerSphere>,
+        gap_m: f32,
+        solids: Vec<Solid>,
+    ) -> Self {
+        let node_soa = SphereSoa::new(nodes.iter().map(|n| (n.center, n.radius)));
+        let sphere_soa = SphereSoa::new(spheres.iter().map(|s| (s.center, s.radius)));
+        Self {
+            name,
+            pose_index,
+            nodes,
+            spheres,
+            gap_m,
+            solids,
+            node_soa,
+            sphere_soa,
+        }
+    }
+}
+
+/// Which links take part, by name.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LinkSelection {
+    /// Only these (all when empty).
+    pub include: Vec<String>,
+    pub exclude: Vec<String>,
+}
+
+/// The query engine: the selected links and the scratch memory reused from query to query.
+pub struct Engine {
+    links: Vec<QueryLink>,
+    pose_count: usize,
+    scratch: traverse::Scratch,
+}
+
+impl Engine {
+    /// An engine over `trees` (from `ist::build_robot`), posed by `model`'s kinematics, with the
+    /// meshes of `model` for exact mode.
+    pub fn new(
+        model: &RobotModel,
+        trees: &[LinkTree],
+        selection: &LinkSelection,
+    ) -> Result<Self, QueryError> {
+        let known = || {
+            trees
+                .iter()
+                .map(|t| t.link.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for name in selection.include.iter().chain(&selection.exclude) {
+            if !trees.iter().any(|t| &t.link == name) {
+                return Err(QueryError::UnknownLink(name.clone(), known()));
+            }
+        }
+        let mut links = Vec::new();
+        for tree in trees {
+            let selected = (selection.include.is_empty() || selection.include.contains(&tree.link))
+                && !selection.exclude.contains(&tree.link);
+            if !selected {
+                continue;
+            }
+            let pose_index = model
+                .kinematics
+                .link_index(&tree.link)
+                .ok_or_else(|| QueryError::NotInKinematics(tree.link.clone()))?;
+            let geometry = model.links.iter().find(|l| l.name == tree.link);
+            links.push(QueryLink::from_tree(tree, geometry, pose_index));
+        }
+        Self::from_links(links, model.kinematics.link_names().len())
+    }
+
+    /// An engine over links made by hand (tests, benchmarks); `pose_count` is the length of the
+    /// link pose array the queries will pass.
+    pub fn from_links(links: Vec<QueryLink>, pose_count: usize) -> Result<Self, QueryError> {
+        if links.is_empty() {
+            return Err(QueryError::NoLinks);
+        }
+        if links.len() > MAX_LINKS {
+            return Err(QueryError::TooManyLinks(links.len()));
+        }
+        let max = (traverse::STACK - traverse::FRONTIER) / (crate::ist::build::BRANCHING - 1);
+        for link in &links {
+            if link.nodes.is_empty()
+                || link
+                    .nodes
+                    .iter()
+                    .any(|n| n.child_count as usize > crate::ist::build::BRANCHING)
+            {
+                return Err(QueryError::BadTree(link.name.clone()));
+            }
+            let depth = traverse::tree_depth(&link.nodes);
+            if depth > max {
+                return Err(QueryError::TreeTooDeep {
+                    link: link.name.clone(),
+                    depth,
+                    max,
+                });
+            }
+        }
+        let scratch = traverse::Scratch::new(links.len());
+        Ok(Self {
+            links,
+            pose_count,
+            scratch,
+        })
+    }
+
+    pub fn links(&self) -> &[QueryLink] {
+        &self.links
+    }
+
+    /// The minimum distance between the robot posed by `link_poses` (`root_from_link`, indexed
+    /// like the kinematics' links) and `points`, given in the frame whose pose is
+    /// `root_from_sensor`.
+    pub fn query(
+        &mut self,
+        points: &[[f32; 3]],
+        root_from_sensor: &Isometry3<f64>,
+        link_poses: &[Isometry3<f64>],
+        options: &QueryOptions,
+    ) -> Result<QueryResult, QueryError> {
+        if link_poses.len() != self.pose_count {
+            return Err(QueryError::LinkPoses {
+                got: link_poses.len(),
+                expected: self.pose_count,
+            });
+        }
+        let m = root_from_sensor.to_homogeneous();
+        if m.iter().any(|v| !v.is_finite()) {
+            return Err(QueryError::NonFiniteSensorPose);
+        }
+        Ok(traverse::run(
+            &self.links,
+            &mut self.scratch,
+            points,
+            root_from_sensor,
+            link_poses,
+            options,
+        ))
+    }
+}
+
+/// `root_from_sensor` from two poses in a common (map) frame, composed in f64 so that large map
+/// coordinates cancel before anything is rounded.
+pub fn root_from_sensor(
+    map_from_root: &Isometry3<f64>,
+    map_from_sensor: &Isometry3<f64>,
+) -> Isometry3<f64> {
+    map_from_root.inverse() * map_from_sensor
+}
+
+/// How the query ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// A nearest obstacle point was found within `max_distance_m`.
+    Nearest,
+    /// The cloud had no valid point.
+    NoPoints,
+    /// Valid points, but none within `max_distance_m` (after the self-filter).
+    NothingWithinMaxDistance,
+}
+
+/// How many points each stage dropped. `total = invalid + outside_roi + self_filtered + pruned
+/// + evaluated`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct StageCounts {
+    pub total: u64,
+    /// NaN, infinite or (0, 0, 0).
+    pub invalid: u64,
+    /// Farther than `max_distance_m` from the robot's bounding box.
+    pub outside_roi: u64,
+    /// The robot itself (within the self-filter padding).
+    pub self_filtered: u64,
+    /// Dropped by the shared bound before any tree descent.
+    pub pruned: u64,
+    /// Descended at least one tree.
+    pub evaluated: u64,
+    /// Obstacle points inside the robot (distance 0): inside an inner sphere (all modes), or
+    /// inside a collision mesh among the exact candidates (exact mode).
+    pub inside: u64,
+    /// Exact point–mesh distances computed (exact mode).
+    pub exact_refined: u64,
+}
+
+impl std::ops::Add for StageCounts {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            total: self.total + o.total,
+            invalid: self.invalid + o.invalid,
+            outside_roi: self.outside_roi + o.outside_roi,
+            self_filtered: self.self_filtered + o.self_filtered,
+            pruned: self.pruned + o.pruned,
+            evaluated: self.evaluated + o.evaluated,
+            inside: self.inside + o.inside,
+            exact_refined: self.exact_refined + o.exact_refined,
+        }
+    }
+}
+
+/// The nearest obstacle point.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Nearest {
+    /// The mode's distance: the inner-sphere upper bound (fast, certified) or the exact distance.
+    pub distance_m: f64,
+    /// The certified lower bound over all links (certified), or the exact distance (exact).
+    pub lower_m: Option<f64>,
+    pub link: String,
+    pub point_index: u32,
+    /// The cloud point, in the sensor frame.
+    pub point_sensor: [f32; 3],
+    /// The cloud point and the closest robot point, in the root frame.
+    pub point_root: [f64; 3],
+    pub robot_point_root: [f64; 3],
+}
+
+/// One link's minimum over the obstacle points.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LinkDistance {
+    pub link: String,
+    /// Inner-sphere distance (upper bound); `None` when no point lies within `max_distance_m`,
+    /// or per-link minima are off and the link was pruned.
+    pub distance_m: Option<f64>,
+    /// Certified lower bound `max(0, d − h)`.
+    pub lower_m: Option<f64>,
+    /// Exact distance, for the nearest link in exact mode.
+    pub exact_m: Option<f64>,
+    pub point_index: Option<u32>,
+}
+
+/// The result of one query.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct QueryResult {
+    pub mode: Mode,
+    pub outcome: Outcome,
+    pub max_distance_m: f32,
+    pub nearest: Option<Nearest>,
+    /// Per-link minima (only when `per_link`), in the engine's link order.
+    pub links: Vec<LinkDistance>,
+    pub counts: StageCounts,
+}
+
+/// f32 distance and point index packed so that `fetch_min` keeps both: non-negative f32 bits
+/// order like the floats.
+#[inline]
+pub(crate) fn pack(distance: f32, point: u32) -> u64 {
+    ((distance.max(0.0).to_bits() as u64) << 32) | point as u64
+}
+
+#[inline]
+pub(crate) fn unpack(v: u64) -> (f32, u32) {
+    (f32::from_bits((v >> 32) as u32), v as u32)
+}
+
+pub(crate) const EMPTY: u64 = u64::MAX;
+
+#[inline]
+pub(crate) fn load_distance(a: &AtomicU64) -> f32 {
+    let v = a.load(std::sync::atomic::Ordering::Relaxed);
+    if v == EMPTY {
+        f32::INFINITY
+    } else {
+        unpack(v).0
+    }
+}
+
+#[inline]
+pub(crate) fn load_f32(a: &AtomicU32) -> f32 {
+    f32::from_bits(a.load(std::sync::atomic::Ordering::Relaxed))
+}

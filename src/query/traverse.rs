@@ -1,0 +1,886 @@
+//! The parallel traversal behind [`super::Engine::query`].
+//!
+//! 1. **Pose** (per link, f64): `sensor_from_link`, the root sphere of the link's tree in the
+//!    sensor frame and `link_from_sensor`, rounded to f32 only then; the robot's bounding box in
+//!    the sensor frame for the region of interest.
+//! 2. **Seeds** (parallel over links): a sample of the cloud (every `SEED_STRIDE`-th point)
+//!    gives each link the point nearest to its root sphere; the block around it is descended for
+//!    that link, so that the shared bounds are tight before the main pass.
+//! 3. **Main pass** (parallel over blocks of `BLOCK` consecutive points, rayon; the one sweep
+//!    over the whole cloud). Each block gets its valid count and the bounding sphere of its valid
+//!    points (eight lanes at a time, SIMD). Consecutive points of a scan or depth image lie close
+//!    together, so these spheres are small. A block is dropped whole when its sphere lies outside
+//!    the region of interest or farther from the robot's box than every link's bound; otherwise
+//!    each link's tree is cut at the block: the **frontier**, the nodes no larger than the block
+//!    whose lower bound over the block does not exceed the link's bound (a block × tree descent;
+//!    most links end with an empty frontier and cost the block nothing more). Each point of the
+//!    block is then tested against the frontier nodes (self-filter first), and descends from
+//!    them, depth first, nearest child first, four children tested at once, pruning nodes whose
+//!    lower bound `|p − c| − r` exceeds the bound. Minima go into the shared atomics with
+//!    `fetch_min`, so every thread prunes with the best bound found by any.
+//! 4. **Exact** (exact mode): see [`super::exact`].
+//!
+//! Nothing is allocated per query once the scratch memory has grown (thread-local frontier
+//! buffers, the exact candidates' vector).
+
+use std::mem::MaybeUninit;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+use std::sync::Mutex;
+
+use nalgebra::{Isometry3, Point3};
+use rayon::prelude::*;
+use wide::{f32x4, f32x8, CmpLt, CmpNe};
+
+use super::SphereSoa;
+use super::{
+    exact, load_distance, load_f32, pack, unpack, LinkDistance, Mode, Nearest, Outcome, QueryLink,
+    QueryOptions, QueryResult, StageCounts, EMPTY,
+};
+use crate::ist::IstNode;
+
+/// Points per block of the block pass.
+pub const BLOCK: usize = 32;
+/// Stride of the sample that seeds the links' bounds (prime, so that it does not alias with
+/// the rows of an organized cloud).
+const SEED_STRIDE: usize = 61;
+/// Most frontier nodes per block and link.
+pub const FRONTIER: usize = 32;
+/// Depth-first stack size; trees deeper than `(STACK - FRONTIER) / (BRANCHING - 1)` are
+/// refused.
+pub const STACK: usize = 192;
+
+#[derive(Clone, Copy, Default)]
+struct Block {
+    center: [f32; 3],
+    radius: f32,
+    valid: u32,
+    invalid: u32,
+}
+
+/// A link posed for one query, in the sensor frame (f32, rounded from f64 poses).
+#[derive(Clone, Copy, Default)]
+pub(crate) struct PosedLink {
+    /// Root sphere of the tree.
+    pub center: [f32; 3],
+    pub radius: f32,
+    /// `link_from_sensor`: rows of the rotation, then the translation.
+    pub rot: [[f32; 3]; 3],
+    pub trans: [f32; 3],
+    pub gap: f32,
+}
+
+impl PosedLink {
+    pub fn new(link: &QueryLink, sensor_from_link: &Isometry3<f64>) -> Self {
+        let root = link.nodes[0];
+        let c = sensor_from_link
+            * Point3::new(
+                root.center[0] as f64,
+                root.center[1] as f64,
+                root.center[2] as f64,
+            );
+        let link_from_sensor = sensor_from_link.inverse().to_homogeneous();
+        let mut rot = [[0.0f32; 3]; 3];
+        let mut trans = [0.0f32; 3];
+        for r in 0..3 {
+            for k in 0..3 {
+                rot[r][k] = link_from_sensor[(r, k)] as f32;
+            }
+            trans[r] = link_from_sensor[(r, 3)] as f32;
+        }
+        Self {
+            center: [c.x as f32, c.y as f32, c.z as f32],
+            radius: root.radius,
+            rot,
+            trans,
+            gap: link.gap_m,
+        }
+    }
+
+    #[inline(always)]
+    pub fn in_link(&self, p: [f32; 3]) -> [f32; 3] {
+        let r = &self.rot;
+        [
+            r[0][0] * p[0] + r[0][1] * p[1] + r[0][2] * p[2] + self.trans[0],
+            r[1][0] * p[0] + r[1][1] * p[1] + r[1][2] * p[2] + self.trans[1],
+            r[2][0] * p[0] + r[2][1] * p[1] + r[2][2] * p[2] + self.trans[2],
+        ]
+    }
+}
+
+/// An exact-mode candidate: a (point, link) pair whose lower bound may beat the best upper bound.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Candidate {
+    pub lower: f32,
+    pub link: u32,
+    pub point: u32,
+}
+
+/// Memory reused from query to query.
+pub(super) struct Scratch {
+    posed: Vec<PosedLink>,
+    best: Vec<AtomicU64>,
+    global: AtomicU32,
+    global_lower: AtomicU32,
+    candidates: Mutex<Vec<Candidate>>,
+}
+
+impl Scratch {
+    pub fn new(links: usize) -> Self {
+        Self {
+            posed: vec![PosedLink::default(); links],
+            best: (0..links).map(|_| AtomicU64::new(EMPTY)).collect(),
+            global: AtomicU32::new(f32::INFINITY.to_bits()),
+            global_lower: AtomicU32::new(f32::INFINITY.to_bits()),
+            candidates: Mutex::new(Vec::new()),
+        }
+    }
+}
+
+#[inline(always)]
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+#[inline(always)]
+fn dist2(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+}
+
+/// A cloud point that carries a measurement: finite and not the (0, 0, 0) "no return".
+#[inline(always)]
+pub fn valid(p: [f32; 3]) -> bool {
+    p[0].is_finite() && p[1].is_finite() && p[2].is_finite() && p != [0.0; 3]
+}
+
+#[inline(always)]
+fn box_distance(p: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> f32 {
+    let mut s = 0.0;
+    for k in 0..3 {
+        let e = (lo[k] - p[k]).max(p[k] - hi[k]).max(0.0);
+        s += e * e;
+    }
+    s.sqrt()
+}
+
+/// The nearest inner sphere to `p` (link frame) whose signed distance `|p − c| − r` is at most
+/// `bound`: the distance clamped at 0 (inside a sphere) and the sphere's index.
+#[inline]
+pub fn nearest_sphere(link: &QueryLink, p: [f32; 3], bound: f32) -> Option<(f32, u32)> {
+    nearest_from(link, p, &[0], bound)
+}
+
+/// Lower bounds `|p − c| − r` of the (at most four) spheres `first..first + count` of `soa`;
+/// lanes past `count` read +∞.
+#[inline(always)]
+fn lower_bounds(soa: &SphereSoa, p: [f32; 3], first: usize, count: usize) -> [f32; 4] {
+    let load = |v: &[f32]| f32x4::from(<[f32; 4]>::try_from(&v[first..first + 4]).unwrap());
+    let dx = load(&soa.x) - f32x4::splat(p[0]);
+    let dy = load(&soa.y) - f32x4::splat(p[1]);
+    let dz = load(&soa.z) - f32x4::splat(p[2]);
+    let lb = (dx * dx + dy * dy + dz * dz).sqrt() - load(&soa.r);
+    let mut out = lb.to_array();
+    for v in out.iter_mut().skip(count) {
+        *v = f32::INFINITY;
+    }
+    out
+}
+
+/// [`nearest_sphere`] over the subtrees rooted at `starts` (a block's frontier, which holds every
+/// sphere that can lie within `bound` of the block's points). Depth first, nearest child on top
+/// of the stack; a node is pruned when its lower bound exceeds the best; the four children of a
+/// node are tested at once (SIMD over the structure-of-arrays copy of the tree).
+#[inline]
+pub fn nearest_from(
+    link: &QueryLink,
+    p: [f32; 3],
+    starts: &[u32],
+    bound: f32,
+) -> Option<(f32, u32)> {
+    debug_assert!(starts.len() <= FRONTIER);
+    let nodes = &link.nodes;
+    let mut best = bound;
+    let mut arg = u32::MAX;
+    // Uninitialized: entries below `sp` are always written before they are read (a zeroed
+    // 1.5 KB array cost more than the descent itself on pruned points).
+    let mut stack = [MaybeUninit::<(f32, u32)>::uninit(); STACK];
+    let mut sp = 0;
+    let mut nearest = (f32::INFINITY, 0);
+    for &s in starts {
+        let n = &nodes[s as usize];
+        let lb = dist(p, n.center) - n.radius;
+        if lb <= best {
+            stack[sp].write((lb, s));
+            if lb < nearest.0 {
+                nearest = (lb, sp);
+            }
+            sp += 1;
+        }
+    }
+    if sp == 0 {
+        return None;
+    }
+    // The nearest start on top.
+    stack.swap(nearest.1, sp - 1);
+    while sp > 0 {
+        sp -= 1;
+        // SAFETY: stack[..sp + 1] was written (sp only grows by the entries just written).
+        let (lb, index) = unsafe { stack[sp].assume_init() };
+        if lb > best {
+            continue;
+        }
+        let node = &nodes[index as usize];
+        let first = node.first_child as usize;
+        let count = node.child_count as usize;
+        if node.children_are_spheres != 0 {
+            let d = lower_bounds(&link.sphere_soa, p, first, count);
+            for (k, &d) in d.iter().enumerate() {
+                if d <= best {
+                    best = d;
+                    arg = (first + k) as u32;
+                }
+            }
+        } else {
+            let lbs = lower_bounds(&link.node_soa, p, first, count);
+            // Children within the bound, the nearest pushed last so that it is popped next.
+            let mut top = (f32::INFINITY, usize::MAX);
+            for (k, &lb) in lbs.iter().enumerate() {
+                if lb <= best {
+                    stack[sp].write((lb, (first + k) as u32));
+                    if lb < top.0 {
+                        top = (lb, sp);
+                    }
+                    sp += 1;
+                }
+            }
+            if top.1 != usize::MAX {
+                stack.swap(top.1, sp - 1);
+            }
+        }
+    }
+    (arg != u32::MAX).then_some((best.max(0.0), arg))
+}
+
+/// Appends to `out` the frontier of a block (centre `c` in the link frame, radius `r`) in a
+/// tree: the nodes no larger than the block, or holding spheres, whose lower bound over the
+/// block `|c − c_n| − r − r_n` is at most `limit`. Every sphere within `limit` of a point of the
+/// block lies under one of them. More than `FRONTIER` nodes fall back to the root alone.
+/// Returns whether the frontier is not empty.
+fn frontier(nodes: &[IstNode], c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32>) -> bool {
+    let start = out.len();
+    let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
+    stack[0].write(0);
+    let mut sp = 1;
+    while sp > 0 {
+        sp -= 1;
+        // SAFETY: as in `nearest_from`, every entry below `sp` was written.
+        let index = unsafe { stack[sp].assume_init() };
+        let n = &nodes[index as usize];
+        if dist(c, n.center) - r - n.radius > limit {
+            continue;
+        }
+        if n.children_are_spheres != 0 || n.radius <= r {
+            if out.len() - start == FRONTIER {
+                out.truncate(start);
+                out.push(0);
+                return true;
+            }
+            out.push(index);
+        } else {
+            let first = n.first_child;
+            for k in 0..n.child_count {
+                stack[sp].write(first + k);
+                sp += 1;
+            }
+        }
+    }
+    out.len() > start
+}
+
+/// Depth of a tree (root = 1); the traversal's stack holds `1 + depth·(BRANCHING − 1)` entries.
+pub fn tree_depth(nodes: &[IstNode]) -> usize {
+    fn depth(nodes: &[IstNode], i: usize) -> usize {
+        let n = &nodes[i];
+        if n.children_are_spheres != 0 {
+            return 1;
+        }
+        let first = n.first_child as usize;
+        1 + (first..first + n.child_count as usize)
+            .map(|c| depth(nodes, c))
+            .max()
+            .unwrap_or(0)
+    }
+    depth(nodes, 0)
+}
+
+struct Pass<'a> {
+    links: &'a [QueryLink],
+    posed: &'a [PosedLink],
+    best: &'a [AtomicU64],
+    global: &'a AtomicU32,
+    global_lower: &'a AtomicU32,
+    candidates: &'a Mutex<Vec<Candidate>>,
+    points: &'a [[f32; 3]],
+    mode: Mode,
+    per_link: bool,
+    /// Self-filter padding; −∞ when off.
+    padding: f32,
+    roi_lo: [f32; 3],
+    roi_hi: [f32; 3],
+    max_distance: f32,
+}
+
+impl Pass<'_> {
+    /// The largest inner-sphere distance of link `l` that can still change the result.
+    #[inline(always)]
+    fn threshold(&self, l: usize) -> f32 {
+        let g = load_f32(self.global);
+        let mut t = if self.per_link {
+            load_distance(&self.best[l])
+        } else {
+            g
+        };
+        match self.mode {
+            Mode::Certified if !self.per_link => {
+                t = t.max(load_f32(self.global_lower) + self.posed[l].gap)
+            }
+            Mode::Exact => t = t.max(g + self.posed[l].gap),
+            _ => {}
+        }
+        t
+    }
+
+    #[inline]
+    fn record(&self, l: usize, point: u32, d: f32) {
+        self.best[l].fetch_min(pack(d, point), Relaxed);
+        self.global.fetch_min(d.to_bits(), Relaxed);
+        let lower = (d - self.posed[l].gap).max(0.0);
+        match self.mode {
+            Mode::Certified => {
+                self.global_lower.fetch_min(lower.to_bits(), Relaxed);
+            }
+            Mode::Exact => {
+                if lower <= load_f32(self.global) {
+                    self.candidates.lock().unwrap().push(Candidate {
+                        lower,
+                        link: l as u32,
+                        point,
+                    });
+                }
+            }
+            Mode::Fast => {}
+        }
+    }
+
+    /// One valid point inside the region of interest; `mask` holds the links whose frontier
+    /// (`frontier[spans[l]]`) is not empty.
+    #[inline]
+    fn point(
+        &self,
+        i: u32,
+        p: [f32; 3],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+        counts: &mut StageCounts,
+    ) {
+        // One look at the frontier nodes per link: which links may hold the point within the
+        // padding (self-filter) and which within their bound (evaluation).
+        let mut near = 0u128;
+        let mut eval = 0u128;
+        let mut m = mask;
+        while m != 0 {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(p);
+            let mut lb = f32::INFINITY;
+            for &n in starts(frontier, spans, l) {
+                let n = &link.nodes[n as usize];
+                lb = lb.min(dist(q, n.center) - n.radius);
+            }
+            if lb <= self.padding {
+                near |= 1 << l;
+            }
+            if lb <= self.threshold(l) {
+                eval |= 1 << l;
+            }
+        }
+        if near != 0 && self.is_self(p, near, frontier, spans) {
+            counts.self_filtered += 1;
+            return;
+        }
+        if eval == 0 {
+            counts.pruned += 1;
+            return;
+        }
+        let inside = self.evaluate(i, p, eval, frontier, spans);
+        counts.evaluated += 1;
+        counts.inside += inside as u64;
+    }
+
+    /// Whether `p` is within the self-filter padding of an inner sphere of a link in `mask`.
+    #[inline]
+    fn is_self(&self, p: [f32; 3], mask: u128, frontier: &[u32], spans: &[(u32, u32)]) -> bool {
+        if self.padding < 0.0 {
+            return false;
+        }
+        let mut m = mask;
+        while m != 0 {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(p);
+            if nearest_from(link, q, starts(frontier, spans, l), self.padding).is_some() {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Descends the links of `mask` for an obstacle point and records its distances; returns
+    /// whether the point is inside an inner sphere.
+    #[inline]
+    fn evaluate(
+        &self,
+        i: u32,
+        p: [f32; 3],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+    ) -> bool {
+        let mut inside = false;
+        let mut m = mask;
+        while m != 0 {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(p);
+            let s = starts(frontier, spans, l);
+            if let Some((d, _)) = nearest_from(link, q, s, self.threshold(l)) {
+                inside |= d == 0.0;
+                self.record(l, i, d);
+            }
+        }
+        inside
+    }
+
+    /// The frontiers of a block in every link (`limit`: the link's threshold, at least the
+    /// padding); returns the mask of links with a frontier.
+    fn frontiers(
+        &self,
+        center: [f32; 3],
+        radius: f32,
+        frontier: &mut Vec<u32>,
+        spans: &mut [(u32, u32)],
+    ) -> u128 {
+        frontier.clear();
+        let mut mask = 0u128;
+        for (l, pl) in self.posed.iter().enumerate() {
+            let limit = self.threshold(l).max(self.padding);
+            // Root sphere first, in the sensor frame (no transform, no square root).
+            let reach = limit + radius + pl.radius;
+            if dist2(center, pl.center) > reach * reach {
+                continue;
+            }
+            let start = frontier.len() as u32;
+            let c = pl.in_link(center);
+            if self::frontier(&self.links[l].nodes, c, radius, limit, frontier) {
+                spans[l] = (start, frontier.len() as u32 - start);
+                mask |= 1 << l;
+            }
+        }
+        mask
+    }
+
+    fn block(
+        &self,
+        b: usize,
+        block: &Block,
+        frontier: &mut Vec<u32>,
+        spans: &mut [(u32, u32)],
+    ) -> StageCounts {
+        let mut counts = StageCounts {
+            total: (block.valid + block.invalid) as u64,
+            invalid: block.invalid as u64,
+            ..Default::default()
+        };
+        if block.valid == 0 {
+            return counts;
+        }
+        let roi = box_distance(block.center, self.roi_lo, self.roi_hi);
+        if roi - block.radius > self.max_distance {
+            counts.outside_roi = block.valid as u64;
+            return counts;
+        }
+        let partial_roi = roi + block.radius > self.max_distance;
+        // The robot's bounding box is also a cheap lower bound for every link at once.
+        let mut reach = self.padding;
+        for l in 0..self.links.len() {
+            reach = reach.max(self.threshold(l));
+        }
+        if roi - block.radius > reach && !partial_roi {
+            counts.pruned = block.valid as u64;
+            return counts;
+        }
+        let mask = self.frontiers(block.center, block.radius, frontier, spans);
+        if mask == 0 && !partial_roi {
+            counts.pruned = block.valid as u64;
+            return counts;
+        }
+        let start = b * BLOCK;
+        let end = (start + BLOCK).min(self.points.len());
+        for (i, &p) in self.points[start..end].iter().enumerate() {
+            if !valid(p) {
+                continue;
+            }
+            if partial_roi && box_distance(p, self.roi_lo, self.roi_hi) > self.max_distance {
+                counts.outside_roi += 1;
+            } else if mask == 0 {
+                counts.pruned += 1;
+            } else {
+                self.point((start + i) as u32, p, mask, frontier, spans, &mut counts);
+            }
+        }
+        counts
+    }
+
+    /// Seeds link `l`'s bound from the valid points of block `b` (the self-filter applies, so
+    /// that the robot's own points never become a bound; nothing is counted).
+    fn seed(&self, l: usize, b: usize, block: &Block) {
+        with_scratch(self.links.len(), |frontier, spans| {
+            let mask = self.frontiers(block.center, block.radius, frontier, spans);
+            let start = b * BLOCK;
+            let end = (start + BLOCK).min(self.points.len());
+            for (i, &p) in self.points[start..end].iter().enumerate() {
+                if valid(p)
+                    && box_distance(p, self.roi_lo, self.roi_hi) <= self.max_distance
+                    && !self.is_self(p, mask, frontier, spans)
+                {
+                    self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
+                }
+            }
+        });
+    }
+}
+
+#[inline(always)]
+fn starts<'a>(frontier: &'a [u32], spans: &[(u32, u32)], l: usize) -> &'a [u32] {
+    let (s, n) = spans[l];
+    &frontier[s as usize..(s + n) as usize]
+}
+
+/// Frontier node indices and, per link, their span.
+type FrontierScratch = (Vec<u32>, Vec<(u32, u32)>);
+
+thread_local! {
+    /// Per-thread frontier memory (grows once, reused by every block of every query).
+    static SCRATCH: std::cell::RefCell<FrontierScratch> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
+fn with_scratch<R>(links: usize, f: impl FnOnce(&mut Vec<u32>, &mut [(u32, u32)]) -> R) -> R {
+    SCRATCH.with(|s| {
+        let mut s = s.borrow_mut();
+        let (frontier, spans) = &mut *s;
+        if spans.len() < links {
+            spans.resize(links, (0, 0));
+        }
+        f(frontier, spans)
+    })
+}
+
+/// The bounding sphere and valid count of a block. The coordinates are first split into three
+/// arrays (structure of arrays) so that the validity test and the box vectorize lane by lane.
+#[inline]
+fn bound_block(chunk: &[[f32; 3]]) -> Block {
+    let mut x = [0.0f32; BLOCK];
+    let mut y = [0.0f32; BLOCK];
+    let mut z = [0.0f32; BLOCK];
+    for (i, p) in chunk.iter().enumerate() {
+        x[i] = p[0];
+        y[i] = p[1];
+        z[i] = p[2];
+    }
+    let n = chunk.len();
+    // Eight lanes at a time (wide: SSE/AVX on x86, NEON on ARM). Padding lanes of a short last
+    // block are (0, 0, 0), which is invalid.
+    let inf = f32x8::splat(f32::INFINITY);
+    let zero = f32x8::ZERO;
+    let mut lo = [inf; 3];
+    let mut hi = [-inf; 3];
+    let mut valid_count = 0u32;
+    for j in (0..BLOCK).step_by(8) {
+        let v = [&x, &y, &z].map(|a| f32x8::from(<[f32; 8]>::try_from(&a[j..j + 8]).unwrap()));
+        let ok = v[0].abs().cmp_lt(inf)
+            & v[1].abs().cmp_lt(inf)
+            & v[2].abs().cmp_lt(inf)
+            & (v[0].cmp_ne(zero) | v[1].cmp_ne(zero) | v[2].cmp_ne(zero));
+        valid_count += (ok.move_mask() as u32).count_ones();
+        for a in 0..3 {
+            lo[a] = lo[a].fast_min(ok.blend(v[a], inf));
+            hi[a] = hi[a].fast_max(ok.blend(v[a], -inf));
+        }
+    }
+    let lo = lo.map(|l| l.to_array().into_iter().fold(f32::INFINITY, f32::min));
+    let hi = hi.map(|h| h.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max));
+    if valid_count == 0 {
+        return Block {
+            invalid: n as u32,
+            ..Block::default()
+        };
+    }
+    let center = [
+        0.5 * (lo[0] + hi[0]),
+        0.5 * (lo[1] + hi[1]),
+        0.5 * (lo[2] + hi[2]),
+    ];
+    // Rounded up so that every point lies inside despite f32 rounding.
+    let radius = 0.5 * dist(lo, hi) * (1.0 + 1e-6) + 1e-6;
+    Block {
+        center,
+        radius,
+        valid: valid_count,
+        invalid: n as u32 - valid_count,
+    }
+}
+
+pub(super) fn run(
+    links: &[QueryLink],
+    scratch: &mut Scratch,
+    points: &[[f32; 3]],
+    root_from_sensor: &Isometry3<f64>,
+    link_poses: &[Isometry3<f64>],
+    options: &QueryOptions,
+) -> QueryResult {
+    // 1. Pose, in f64, rounded once.
+    let sensor_from_root = root_from_sensor.inverse();
+    let mut roi_lo = [f32::INFINITY; 3];
+    let mut roi_hi = [f32::NEG_INFINITY; 3];
+    for (link, posed) in links.iter().zip(&mut scratch.posed) {
+        *posed = PosedLink::new(link, &(sensor_from_root * link_poses[link.pose_index]));
+        for k in 0..3 {
+            roi_lo[k] = roi_lo[k].min(posed.center[k] - posed.radius);
+            roi_hi[k] = roi_hi[k].max(posed.center[k] + posed.radius);
+        }
+    }
+    for b in &scratch.best {
+        b.store(EMPTY, Relaxed);
+    }
+    scratch.global.store(f32::INFINITY.to_bits(), Relaxed);
+    scratch.global_lower.store(f32::INFINITY.to_bits(), Relaxed);
+    scratch.candidates.get_mut().unwrap().clear();
+
+    let pass = Pass {
+        links,
+        posed: &scratch.posed,
+        best: &scratch.best,
+        global: &scratch.global,
+        global_lower: &scratch.global_lower,
+        candidates: &scratch.candidates,
+        points,
+        mode: options.mode,
+        per_link: options.per_link,
+        padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
+        roi_lo,
+        roi_hi,
+        max_distance: options.max_distance_m,
+    };
+
+    // 2. Seeds: each link from the block around the sample point nearest to its root sphere.
+    (0..links.len()).into_par_iter().for_each(|l| {
+        let c = pass.posed[l].center;
+        let mut nearest = (f32::INFINITY, usize::MAX);
+        for i in (0..points.len()).step_by(SEED_STRIDE) {
+            let p = points[i];
+            let d = dist2(p, c);
+            if d < nearest.0 && valid(p) {
+                nearest = (d, i);
+            }
+        }
+        if nearest.1 != usize::MAX {
+            let b = nearest.1 / BLOCK;
+            let chunk = &points[b * BLOCK..((b + 1) * BLOCK).min(points.len())];
+            pass.seed(l, b, &bound_block(chunk));
+        }
+    });
+
+    // 3. Main pass, one sweep over the cloud: each block is bounded, then culled or descended.
+    let mut counts = points
+        .par_chunks(BLOCK)
+        .enumerate()
+        .with_min_len(16)
+        .map(|(b, chunk)| {
+            let block = bound_block(chunk);
+            with_scratch(links.len(), |f, s| pass.block(b, &block, f, s))
+        })
+        .reduce(StageCounts::default, |a, b| a + b);
+
+    // 4. Exact refinement.
+    let refined = if options.mode == Mode::Exact {
+        let mut candidates = scratch.candidates.lock().unwrap();
+        let upper = load_f32(&scratch.global);
+        let r = exact::refine(
+            links,
+            &scratch.posed,
+            &mut candidates,
+            points,
+            upper,
+            &mut counts,
+        );
+        drop(candidates);
+        r
+    } else {
+        None
+    };
+
+    assemble(
+        links,
+        scratch,
+        points,
+        root_from_sensor,
+        link_poses,
+        options,
+        counts,
+        refined,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    links: &[QueryLink],
+    scratch: &Scratch,
+    points: &[[f32; 3]],
+    root_from_sensor: &Isometry3<f64>,
+    link_poses: &[Isometry3<f64>],
+    options: &QueryOptions,
+    counts: StageCounts,
+    refined: Option<exact::Refined>,
+) -> QueryResult {
+    let certified = options.mode != Mode::Fast;
+    let within = |d: f32| d <= options.max_distance_m;
+    let per_link: Vec<(f32, u32)> = scratch
+        .best
+        .iter()
+        .map(|b| {
+            let v = b.load(Relaxed);
+            if v == EMPTY {
+                (f32::INFINITY, u32::MAX)
+            } else {
+                unpack(v)
+            }
+        })
+        .collect();
+    let mut nearest_link = None;
+    for (l, &(d, _)) in per_link.iter().enumerate() {
+        if within(d) && nearest_link.is_none_or(|n: usize| d < per_link[n].0) {
+            nearest_link = Some(l);
+        }
+    }
+    let global_lower = if options.per_link {
+        per_link
+            .iter()
+            .zip(links)
+            .filter(|((d, _), _)| d.is_finite())
+            .map(|((d, _), link)| (d - link.gap_m).max(0.0))
+            .fold(f32::INFINITY, f32::min)
+    } else {
+        load_f32(&scratch.global_lower)
+    };
+    let link_results = if options.per_link {
+        per_link
+            .iter()
+            .zip(links)
+            .enumerate()
+            .map(|(l, (&(d, p), link))| {
+                let ok = within(d);
+                LinkDistance {
+                    link: link.name.clone(),
+                    distance_m: ok.then_some(d as f64),
+                    lower_m: (ok && certified).then_some((d - link.gap_m).max(0.0) as f64),
+                    exact_m: refined
+                        .as_ref()
+                        .filter(|r| r.link == l)
+                        .map(|r| r.distance as f64),
+                    point_index: ok.then_some(p),
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let to_root = |p: [f32; 3]| {
+        let q = root_from_sensor * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        [q.x, q.y, q.z]
+    };
+    let nearest = match (&refined, nearest_link) {
+        (Some(r), _) if within(r.distance) => {
+            let link = &links[r.link];
+            let p = points[r.point as usize];
+            let q = link_poses[link.pose_index]
+                * Point3::new(
+                    r.robot_point[0] as f64,
+                    r.robot_point[1] as f64,
+                    r.robot_point[2] as f64,
+                );
+            Some(Nearest {
+                distance_m: r.distance as f64,
+                lower_m: Some(r.distance as f64),
+                link: link.name.clone(),
+                point_index: r.point,
+                point_sensor: p,
+                point_root: to_root(p),
+                robot_point_root: [q.x, q.y, q.z],
+            })
+        }
+        (None, Some(l)) => {
+            let (d, i) = per_link[l];
+            let link = &links[l];
+            let p = points[i as usize];
+            let q = scratch.posed[l].in_link(p);
+            let (_, s) = nearest_sphere(link, q, f32::INFINITY)
+                .expect("a tree with spheres has a nearest one");
+            let s = link.spheres[s as usize];
+            let v = [q[0] - s.center[0], q[1] - s.center[1], q[2] - s.center[2]];
+            let n = dist(q, s.center);
+            let on = if n <= s.radius {
+                q
+            } else {
+                let f = s.radius / n;
+                [
+                    s.center[0] + f * v[0],
+                    s.center[1] + f * v[1],
+                    s.center[2] + f * v[2],
+                ]
+            };
+            let r =
+                link_poses[link.pose_index] * Point3::new(on[0] as f64, on[1] as f64, on[2] as f64);
+            Some(Nearest {
+                distance_m: d as f64,
+                lower_m: certified.then_some(global_lower as f64),
+                link: link.name.clone(),
+                point_index: i,
+                point_sensor: p,
+                point_root: to_root(p),
+                robot_point_root: [r.x, r.y, r.z],
+            })
+        }
+        _ => None,
+    };
+    let outcome = if counts.total == counts.invalid {
+        Outcome::NoPoints
+    } else if nearest.is_some() {
+        Outcome::Nearest
+    } else {
+        Outcome::NothingWithinMaxDistance
+    };
+    QueryResult {
+        mode: options.mode,
+        outcome,
+        max_distance_m: options.max_distance_m,
+        nearest,
+        links: link_results,
+        counts,
+    }
+}

@@ -1,0 +1,323 @@
+//! Cloud readers: PCD (ascii, binary, binary_compressed), PLY (ascii, both binary byte orders),
+//! PointCloud2 in CDR and rosbag2 MCAP; on files written here and on the real captures of
+//! ../shared.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use byteorder::{BigEndian, LittleEndian};
+use ist_monitor::cloud::{self, msg, CloudError};
+use ist_monitor::query::is_valid_point;
+
+fn sample() -> Vec<[f32; 3]> {
+    vec![
+        [0.5, -1.25, 2.0],
+        [f32::NAN, f32::NAN, f32::NAN],
+        [1e-7, 3.0e3, -0.125],
+        [0.0, 0.0, 0.0],
+    ]
+}
+
+fn same(a: &[[f32; 3]], b: &[[f32; 3]]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(p, q)| {
+            p.iter()
+                .zip(q)
+                .all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()))
+        })
+}
+
+/// A PCD with fields x y z and an extra `intensity` between y and z, so that offsets matter.
+fn pcd(encoding: &str, points: &[[f32; 3]]) -> Vec<u8> {
+    let n = points.len();
+    let mut out = format!(
+        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y intensity z\nSIZE 4 4 2 4\nTYPE F F U F\nCOUNT 1 1 1 1\nWIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {encoding}\n"
+    )
+    .into_bytes();
+    match encoding {
+        "ascii" => {
+            for p in points {
+                out.extend(format!("{} {} 7 {}\n", p[0], p[1], p[2]).bytes());
+            }
+        }
+        "binary" => {
+            for p in points {
+                out.extend(p[0].to_le_bytes());
+                out.extend(p[1].to_le_bytes());
+                out.extend(7u16.to_le_bytes());
+                out.extend(p[2].to_le_bytes());
+            }
+        }
+        _ => {
+            // Field-major, then LZF.
+            let mut raw = Vec::new();
+            for p in points {
+                raw.extend(p[0].to_le_bytes());
+            }
+            for p in points {
+                raw.extend(p[1].to_le_bytes());
+            }
+            for _ in points {
+                raw.extend(7u16.to_le_bytes());
+            }
+            for p in points {
+                raw.extend(p[2].to_le_bytes());
+            }
+            let mut compressed = vec![0u8; raw.len() * 2 + 64];
+            let size = lzf_rust::compress(&raw, &mut compressed).expect("lzf");
+            out.extend((size as u32).to_le_bytes());
+            out.extend((raw.len() as u32).to_le_bytes());
+            out.extend(&compressed[..size]);
+        }
+    }
+    out
+}
+
+#[test]
+fn pcd_encodings() {
+    let dir = tempfile::tempdir().unwrap();
+    let points = sample();
+    for encoding in ["ascii", "binary", "binary_compressed"] {
+        let path = dir.path().join(format!("{encoding}.pcd"));
+        std::fs::write(&path, pcd(encoding, &points)).unwrap();
+        let c = cloud::load(&path, 0).unwrap_or_else(|e| panic!("{encoding}: {e}"));
+        assert!(same(&c.points, &points), "{encoding}: {:?}", c.points);
+        assert_eq!((c.width, c.height), (4, 1));
+    }
+    // A truncated compressed body and a missing field are errors naming the file.
+    let path = dir.path().join("broken.pcd");
+    let mut bytes = pcd("binary_compressed", &points);
+    bytes.truncate(bytes.len() - 5);
+    std::fs::write(&path, &bytes).unwrap();
+    let e = cloud::load(&path, 0).unwrap_err().to_string();
+    assert!(e.contains("broken.pcd") && e.contains("compressed"), "{e}");
+    let text = String::from_utf8(pcd("ascii", &points))
+        .unwrap()
+        .replace("FIELDS x y intensity z", "FIELDS x y intensity w");
+    std::fs::write(&path, text).unwrap();
+    let e = cloud::load(&path, 0).unwrap_err().to_string();
+    assert!(e.contains("no field z"), "{e}");
+}
+
+#[test]
+fn ply_formats() {
+    let dir = tempfile::tempdir().unwrap();
+    let points = sample();
+    let header = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\ncomment test\nelement vertex {}\nproperty double x\nproperty float y\nproperty uchar red\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
+            points.len()
+        )
+        .into_bytes()
+    };
+    let mut ascii = header("ascii");
+    for p in &points {
+        ascii.extend(format!("{} {} 200 {}\n", p[0], p[1], p[2]).bytes());
+    }
+    let mut le = header("binary_little_endian");
+    let mut be = header("binary_big_endian");
+    for p in &points {
+        le.extend((p[0] as f64).to_le_bytes());
+        le.extend(p[1].to_le_bytes());
+        le.push(200);
+        le.extend(p[2].to_le_bytes());
+        be.extend((p[0] as f64).to_be_bytes());
+        be.extend(p[1].to_be_bytes());
+        be.push(200);
+        be.extend(p[2].to_be_bytes());
+    }
+    for (name, bytes) in [("ascii", ascii), ("le", le), ("be", be)] {
+        let path = dir.path().join(format!("{name}.ply"));
+        std::fs::write(&path, bytes).unwrap();
+        let c = cloud::load(&path, 0).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(same(&c.points, &points), "{name}: {:?}", c.points);
+    }
+}
+
+fn point_cloud2(big_endian: bool, float64: bool, data: &[u8], width: u32) -> msg::PointCloud2<'_> {
+    let (size, datatype) = if float64 {
+        (8, msg::PointField::FLOAT64)
+    } else {
+        (4, msg::PointField::FLOAT32)
+    };
+    let field = |name: &str, offset: u32| msg::PointField {
+        name: name.into(),
+        offset,
+        datatype,
+        count: 1,
+    };
+    // x y z, then 4 bytes of padding per point.
+    msg::PointCloud2 {
+        header: msg::Header {
+            stamp: msg::Time {
+                sec: 12,
+                nanosec: 34,
+            },
+            frame_id: "camera".into(),
+        },
+        height: 1,
+        width,
+        fields: vec![field("x", 0), field("y", size), field("z", 2 * size)],
+        is_bigendian: big_endian,
+        point_step: 3 * size + 4,
+        row_step: (3 * size + 4) * width,
+        data,
+        is_dense: false,
+    }
+}
+
+fn encode_points(points: &[[f32; 3]], big_endian: bool, float64: bool) -> Vec<u8> {
+    let mut data = Vec::new();
+    for p in points {
+        for &v in p {
+            match (float64, big_endian) {
+                (true, true) => data.extend((v as f64).to_be_bytes()),
+                (true, false) => data.extend((v as f64).to_le_bytes()),
+                (false, true) => data.extend(v.to_be_bytes()),
+                (false, false) => data.extend(v.to_le_bytes()),
+            }
+        }
+        data.extend([0xAB; 4]);
+    }
+    data
+}
+
+/// CDR with its encapsulation header, either byte order.
+fn cdr(m: &msg::PointCloud2, big_endian: bool) -> Vec<u8> {
+    let (head, body) = if big_endian {
+        (
+            [0, 0, 0, 0],
+            cdr_encoding::to_vec::<_, BigEndian>(m).unwrap(),
+        )
+    } else {
+        (
+            [0, 1, 0, 0],
+            cdr_encoding::to_vec::<_, LittleEndian>(m).unwrap(),
+        )
+    };
+    [head.to_vec(), body].concat()
+}
+
+#[test]
+fn point_cloud2_round_trip() {
+    let points = sample();
+    for big_endian in [false, true] {
+        for float64 in [false, true] {
+            let data = encode_points(&points, big_endian, float64);
+            let m = point_cloud2(big_endian, float64, &data, points.len() as u32);
+            for cdr_big in [false, true] {
+                let bytes = cdr(&m, cdr_big);
+                let decoded = msg::decode(&bytes).unwrap();
+                assert_eq!(decoded, m);
+                let c = decoded.to_cloud().unwrap();
+                assert!(same(&c.points, &points), "{big_endian} {float64}");
+                assert_eq!(c.frame_id.as_deref(), Some("camera"));
+                assert_eq!(c.stamp, Some((12, 34)));
+            }
+        }
+    }
+    // Inconsistent sizes are errors that name the frame.
+    let data = encode_points(&points, false, false);
+    let mut m = point_cloud2(false, false, &data, points.len() as u32 + 1);
+    let e = m.to_cloud().unwrap_err().to_string();
+    assert!(e.contains("camera") && e.contains("bytes"), "{e}");
+    m.width = points.len() as u32;
+    m.fields[2].offset = 14;
+    let e = m.to_cloud().unwrap_err().to_string();
+    assert!(e.contains("field z"), "{e}");
+}
+
+fn write_bag(path: &Path, clouds: &[Vec<[f32; 3]>]) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut w = mcap::Writer::new(file).unwrap();
+    let schema = w
+        .add_schema(cloud::bag::POINT_CLOUD2, "ros2msg", b"# test")
+        .unwrap();
+    let other = w
+        .add_schema("std_msgs/msg/String", "ros2msg", b"string data")
+        .unwrap();
+    let text = w
+        .add_channel(other, "/chatter", "cdr", &BTreeMap::new())
+        .unwrap();
+    let channel = w
+        .add_channel(schema, "/points", "cdr", &BTreeMap::new())
+        .unwrap();
+    for (i, points) in clouds.iter().enumerate() {
+        let header = |channel_id| mcap::records::MessageHeader {
+            channel_id,
+            sequence: i as u32,
+            log_time: i as u64,
+            publish_time: i as u64,
+        };
+        w.write_to_known_channel(&header(text), &[0, 1, 0, 0, 1, 0, 0, 0, 0])
+            .unwrap();
+        let data = encode_points(points, false, false);
+        let m = point_cloud2(false, false, &data, points.len() as u32);
+        w.write_to_known_channel(&header(channel), &cdr(&m, false))
+            .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn mcap_bags() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = sample();
+    let second = vec![[1.0, 2.0, 3.0]];
+    let bag = dir.path().join("bag");
+    std::fs::create_dir(&bag).unwrap();
+    write_bag(&bag.join("bag_0.mcap"), &[first.clone(), second.clone()]);
+    // The folder and the file, message 0 and 1; message 2 is an error saying how many exist.
+    assert!(same(&cloud::load(&bag, 0).unwrap().points, &first));
+    assert!(same(
+        &cloud::load(&bag.join("bag_0.mcap"), 1).unwrap().points,
+        &second
+    ));
+    let e = cloud::load(&bag, 2).unwrap_err().to_string();
+    assert!(e.contains("2 PointCloud2"), "{e}");
+    let e = cloud::load(&dir.path().join("nothing.xyz"), 0).unwrap_err();
+    assert!(matches!(e, CloudError::UnknownFormat { .. }));
+}
+
+/// The real captures: the Kinect PointCloud2 of the MoveIt tutorial (MCAP) and PCL's
+/// LZF-compressed PCDs.
+#[test]
+fn real_clouds() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
+    let c = cloud::load(&bag, 0).unwrap();
+    assert_eq!((c.width, c.height, c.points.len()), (640, 480, 307_200));
+    assert_eq!(c.frame_id.as_deref(), Some("camera_rgb_optical_frame"));
+    assert_eq!(
+        c.points.iter().filter(|p| is_valid_point(**p)).count(),
+        233_301
+    );
+    // SOURCE.md: camera-frame bounds of the finite points, z 0.700..1.649 m.
+    let z = c
+        .points
+        .iter()
+        .filter(|p| is_valid_point(**p))
+        .fold((f32::INFINITY, 0.0f32), |(lo, hi), p| {
+            (lo.min(p[2]), hi.max(p[2]))
+        });
+    assert!(
+        (z.0 - 0.700).abs() < 1e-3 && (z.1 - 1.649).abs() < 1e-3,
+        "{z:?}"
+    );
+
+    let mug = cloud::load(
+        &shared.join("clouds/pcl_test/table_scene_mug_stereo_textured.pcd"),
+        0,
+    )
+    .unwrap();
+    assert_eq!((mug.width, mug.height), (640, 480));
+    let valid = mug.points.iter().filter(|p| is_valid_point(**p)).count();
+    assert!(valid > 100_000 && valid < 307_200, "{valid}");
+    let milk = cloud::load(&shared.join("clouds/pcl_test/milk.pcd"), 0).unwrap();
+    assert_eq!(milk.points.len(), 13_704);
+    assert!(milk.points.iter().all(|p| is_valid_point(*p)));
+}

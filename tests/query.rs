@@ -1,0 +1,574 @@
+//! The query engine against brute force, on random closed meshes, poses and clouds, and on the
+//! stiff and extreme cases (far from the origin, inside and touching points, invalid points,
+//! empty clouds, tiny next to huge links, the region of interest, the self-filter).
+
+mod common;
+
+use ist_monitor::geometry::{distance_point_mesh, winding_number};
+use ist_monitor::ist::{build_link, BuildOptions, LinkTree};
+use ist_monitor::packing::{InnerSphere, PackingParams};
+use ist_monitor::query::{
+    root_from_sensor, Engine, Mode, Outcome, QueryLink, QueryOptions, QueryResult,
+};
+use ist_monitor::robot::mesh::{tessellate_box, tessellate_capsule, ClosedMesh};
+use ist_monitor::robot::{CollisionElement, LinkGeometry};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+
+/// A small deterministic generator (xorshift64*), so that a proptest seed gives a whole scene.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+    fn pose(&mut self, reach: f64) -> Isometry3<f64> {
+        let axis = Vector3::new(
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+        );
+        let rotation = UnitQuaternion::from_scaled_axis(axis * 3.0);
+        Isometry3::from_parts(
+            Translation3::new(
+                self.range(-reach, reach),
+                self.range(-reach, reach),
+                self.range(-reach, reach),
+            ),
+            rotation,
+        )
+    }
+}
+
+/// A closed mesh (a box or a capsule of random size) placed by a random element origin.
+fn random_mesh(rng: &mut Rng, scale: f64) -> ClosedMesh {
+    let t = if rng.next() < 0.5 {
+        tessellate_box([
+            scale * rng.range(0.3, 1.0),
+            scale * rng.range(0.3, 1.0),
+            scale * rng.range(0.3, 1.0),
+        ])
+    } else {
+        tessellate_capsule(scale * rng.range(0.15, 0.4), scale * rng.range(0.2, 1.0))
+    };
+    let origin = rng.pose(0.2 * scale);
+    let vertices = t
+        .vertices
+        .iter()
+        .map(|v| {
+            let p = origin * Point3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+            [p.x as f32, p.y as f32, p.z as f32]
+        })
+        .collect();
+    ClosedMesh::new(vertices, t.triangles, "test mesh").expect("a closed test mesh")
+}
+
+fn geometry(name: &str, mesh: ClosedMesh) -> LinkGeometry {
+    LinkGeometry {
+        name: name.into(),
+        elements: vec![CollisionElement {
+            index: 0,
+            source: "test".into(),
+            mesh,
+            tessellation_error_m: 0.0,
+            sphere_center: None,
+        }],
+    }
+}
+
+fn small_build(spheres: u32) -> BuildOptions {
+    BuildOptions {
+        packing: PackingParams {
+            max_spheres: spheres,
+            prototypes: 512,
+            ..PackingParams::default()
+        },
+        ..BuildOptions::default()
+    }
+}
+
+/// A robot of `n` random links (trees built with a small budget), their geometry and poses.
+struct Scene {
+    geometry: Vec<LinkGeometry>,
+    trees: Vec<LinkTree>,
+    link_poses: Vec<Isometry3<f64>>,
+}
+
+impl Scene {
+    fn random(rng: &mut Rng, n: usize, spheres: u32) -> Self {
+        let geometry: Vec<LinkGeometry> = (0..n)
+            .map(|i| {
+                let scale = rng.range(0.05, 0.4);
+                geometry(&format!("link{i}"), random_mesh(rng, scale))
+            })
+            .collect();
+        let trees = geometry
+            .iter()
+            .map(|g| build_link(g, &small_build(spheres)).expect("tree"))
+            .collect();
+        let link_poses = (0..n).map(|_| rng.pose(0.4)).collect();
+        Self {
+            geometry,
+            trees,
+            link_poses,
+        }
+    }
+
+    fn engine(&self) -> Engine {
+        let links = self
+            .trees
+            .iter()
+            .zip(&self.geometry)
+            .enumerate()
+            .map(|(i, (t, g))| QueryLink::from_tree(t, Some(g), i))
+            .collect();
+        Engine::from_links(links, self.trees.len()).expect("engine")
+    }
+
+    /// Brute force in f64: (exact distance to the meshes, distance to the union of the inner
+    /// spheres), minimum over points and links.
+    fn brute_force(&self, points: &[[f32; 3]], root_from_sensor: &Isometry3<f64>) -> (f64, f64) {
+        let mut exact = f64::INFINITY;
+        let mut spheres = f64::INFINITY;
+        for p in points
+            .iter()
+            .filter(|p| ist_monitor::query::is_valid_point(**p))
+        {
+            let root = root_from_sensor * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            for ((g, t), pose) in self.geometry.iter().zip(&self.trees).zip(&self.link_poses) {
+                let q = pose.inverse() * root;
+                let q = [q.x, q.y, q.z];
+                for e in &g.elements {
+                    let m = &e.mesh;
+                    let d = if winding_number(q, &m.vertices, &m.triangles) > 0.5 {
+                        0.0
+                    } else {
+                        distance_point_mesh(q, &m.vertices, &m.triangles)
+                    };
+                    exact = exact.min(d);
+                }
+                spheres = spheres.min(sphere_distance(&t.spheres, q));
+            }
+        }
+        (exact, spheres)
+    }
+}
+
+fn sphere_distance(spheres: &[InnerSphere], q: [f64; 3]) -> f64 {
+    spheres
+        .iter()
+        .map(|s| {
+            let c = s.center.map(|v| v as f64);
+            let d = ((q[0] - c[0]).powi(2) + (q[1] - c[1]).powi(2) + (q[2] - c[2]).powi(2)).sqrt();
+            (d - s.radius as f64).max(0.0)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// A cloud in the sensor frame: points scattered around the links (root frame), some invalid.
+fn cloud(rng: &mut Rng, n: usize, root_from_sensor: &Isometry3<f64>) -> Vec<[f32; 3]> {
+    let sensor_from_root = root_from_sensor.inverse();
+    (0..n)
+        .map(|i| match i % 17 {
+            3 => [f32::NAN; 3],
+            11 => [0.0; 3],
+            _ => {
+                let p = sensor_from_root
+                    * Point3::new(
+                        rng.range(-0.9, 0.9),
+                        rng.range(-0.9, 0.9),
+                        rng.range(-0.9, 0.9),
+                    );
+                [p.x as f32, p.y as f32, p.z as f32]
+            }
+        })
+        .collect()
+}
+
+fn all_points() -> QueryOptions {
+    QueryOptions {
+        max_distance_m: f32::INFINITY,
+        self_filter_padding_m: None,
+        ..QueryOptions::default()
+    }
+}
+
+fn run(
+    engine: &mut Engine,
+    points: &[[f32; 3]],
+    root_from_sensor: &Isometry3<f64>,
+    poses: &[Isometry3<f64>],
+    options: &QueryOptions,
+) -> QueryResult {
+    engine
+        .query(points, root_from_sensor, poses, options)
+        .expect("query")
+}
+
+fn distance(r: &QueryResult) -> f64 {
+    r.nearest.as_ref().expect("a nearest point").distance_m
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 10, .. ProptestConfig::default() })]
+
+    /// lower ≤ exact ≤ upper; exact mode = brute-force point–triangle minimum within 1e-5 m;
+    /// fast mode = brute-force scan over all spheres (1e-5 m: f32 transforms of f64 poses).
+    #[test]
+    fn modes_against_brute_force(seed in 1u64.., links in 1usize..4, per_link: bool) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, links, 96);
+        let mut engine = scene.engine();
+        let root_from_sensor = rng.pose(1.0);
+        let points = cloud(&mut rng, 400, &root_from_sensor);
+        let (exact, spheres) = scene.brute_force(&points, &root_from_sensor);
+        let options = |mode| QueryOptions { mode, per_link, ..all_points() };
+        let poses = &scene.link_poses;
+        let fast = run(&mut engine, &points, &root_from_sensor, poses, &options(Mode::Fast));
+        prop_assert!((distance(&fast) - spheres).abs() < 1e-5, "fast {} brute force {spheres}", distance(&fast));
+        let certified = run(&mut engine, &points, &root_from_sensor, poses, &options(Mode::Certified));
+        let n = certified.nearest.as_ref().unwrap();
+        let lower = n.lower_m.unwrap();
+        prop_assert!(lower <= exact + 1e-5 && exact <= n.distance_m + 1e-5,
+            "certified [{lower}, {}] does not hold exact {exact}", n.distance_m);
+        let e = run(&mut engine, &points, &root_from_sensor, poses, &options(Mode::Exact));
+        prop_assert!((distance(&e) - exact).abs() < 1e-5, "exact mode {} brute force {exact}", distance(&e));
+        // The counts add up: every point is in exactly one stage.
+        let c = e.counts;
+        prop_assert_eq!(c.total, points.len() as u64);
+        prop_assert_eq!(c.invalid + c.outside_roi + c.self_filtered + c.pruned + c.evaluated, c.total);
+        prop_assert_eq!(c.invalid, points.iter().filter(|p| !ist_monitor::query::is_valid_point(**p)).count() as u64);
+    }
+
+    /// The same scene 10 km and 1000 km from the map origin gives the same answer (1e-4 m):
+    /// poses are composed in f64 before anything is rounded.
+    #[test]
+    fn far_from_origin(seed in 1u64.., offset in prop::sample::select(vec![1e4, 1e6])) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, 2, 64);
+        let mut engine = scene.engine();
+        let map_from_root = rng.pose(0.0);
+        let map_from_sensor = rng.pose(1.0);
+        let points = cloud(&mut rng, 300, &root_from_sensor(&map_from_root, &map_from_sensor));
+        let shift = Translation3::new(offset, -0.7 * offset, 0.3 * offset);
+        for mode in [Mode::Fast, Mode::Exact] {
+            let options = QueryOptions { mode, ..all_points() };
+            let near = run(&mut engine, &points, &root_from_sensor(&map_from_root, &map_from_sensor), &scene.link_poses, &options);
+            let far_sensor = root_from_sensor(&(shift * map_from_root), &(shift * map_from_sensor));
+            let far = run(&mut engine, &points, &far_sensor, &scene.link_poses, &options);
+            prop_assert!((distance(&near) - distance(&far)).abs() < 1e-4,
+                "{mode:?}: {} at the origin, {} at {offset} m", distance(&near), distance(&far));
+        }
+    }
+}
+
+/// One box link 0.2 m × 0.2 m × 0.2 m at the origin, 256 spheres.
+fn box_scene() -> Scene {
+    let t = tessellate_box([0.2, 0.2, 0.2]);
+    let mesh = ClosedMesh::new(t.vertices, t.triangles, "box").unwrap();
+    let g = geometry("box", mesh);
+    let tree = build_link(&g, &small_build(256)).unwrap();
+    Scene {
+        geometry: vec![g],
+        trees: vec![tree],
+        link_poses: vec![Isometry3::identity()],
+    }
+}
+
+/// Inside points give 0 and count as inside, never a negative value; a point 1e-7 m outside a
+/// face reads 1e-7 m in exact mode (within f32 resolution at 0.1 m, 1e-8 m) and at most h + 1e-7
+/// in fast mode.
+#[test]
+fn inside_and_touching_points() {
+    let scene = box_scene();
+    let mut engine = scene.engine();
+    let h = scene.trees[0].quality.gap_m;
+    let id = Isometry3::identity();
+    let inside = vec![[0.0, 0.0, 0.01], [0.05, -0.03, 0.02], [0.099, 0.0, 0.0]];
+    for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
+        let r = run(
+            &mut engine,
+            &inside,
+            &id,
+            &scene.link_poses,
+            &QueryOptions {
+                mode,
+                ..all_points()
+            },
+        );
+        assert_eq!(distance(&r), 0.0, "{mode:?}");
+        assert!(r.nearest.as_ref().unwrap().lower_m.unwrap_or(0.0) == 0.0);
+    }
+    // Deep inside points lie in an inner sphere: counted inside in every mode.
+    let r = run(
+        &mut engine,
+        &inside[..1],
+        &id,
+        &scene.link_poses,
+        &all_points(),
+    );
+    assert_eq!(r.counts.inside, 1);
+    // The point just under the face is inside the mesh: exact mode counts it.
+    let r = run(
+        &mut engine,
+        &inside,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            mode: Mode::Exact,
+            ..all_points()
+        },
+    );
+    assert_eq!(r.counts.inside, 3);
+
+    let touching = vec![[0.1 + 1e-7, 0.0123, -0.0456]];
+    let e = run(
+        &mut engine,
+        &touching,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            mode: Mode::Exact,
+            ..all_points()
+        },
+    );
+    let d = distance(&e);
+    assert!(d >= 0.0 && (d - 1e-7).abs() < 2e-8, "exact {d}");
+    let f = run(
+        &mut engine,
+        &touching,
+        &id,
+        &scene.link_poses,
+        &all_points(),
+    );
+    assert!(
+        distance(&f) >= d && distance(&f) <= h + 1e-6,
+        "fast {} h {h}",
+        distance(&f)
+    );
+}
+
+/// NaN, infinite and (0, 0, 0) points are skipped and counted; a cloud without valid points, or
+/// without points, says so instead of reporting 0 or +∞ as a distance.
+#[test]
+fn invalid_and_empty_clouds() {
+    let scene = box_scene();
+    let mut engine = scene.engine();
+    let id = Isometry3::identity();
+    let bad = vec![
+        [f32::NAN, 0.0, 0.0],
+        [0.0, f32::INFINITY, 0.0],
+        [0.0, 0.0, f32::NEG_INFINITY],
+        [0.0, 0.0, 0.0],
+        [f32::NAN; 3],
+    ];
+    for points in [&bad[..], &[]] {
+        let r = run(
+            &mut engine,
+            points,
+            &id,
+            &scene.link_poses,
+            &QueryOptions::default(),
+        );
+        assert_eq!(r.outcome, Outcome::NoPoints);
+        assert!(r.nearest.is_none());
+        assert_eq!(r.counts.invalid, points.len() as u64);
+    }
+    let mut mixed = bad.clone();
+    mixed.push([0.5, 0.0, 0.0]);
+    let r = run(&mut engine, &mixed, &id, &scene.link_poses, &all_points());
+    assert_eq!(r.outcome, Outcome::Nearest);
+    assert_eq!(r.counts.invalid, 5);
+    assert_eq!(r.nearest.unwrap().point_index, 5);
+    // A non-finite sensor pose is refused.
+    let mut nan_pose = Isometry3::identity();
+    nan_pose.translation.x = f64::NAN;
+    assert!(engine
+        .query(
+            &mixed,
+            &nan_pose,
+            &scene.link_poses,
+            &QueryOptions::default()
+        )
+        .is_err());
+}
+
+/// A 1 mm link next to a 10 m link (spheres 1e4 apart in size): both answer correctly.
+#[test]
+fn tiny_next_to_huge() {
+    let tiny_t = tessellate_box([0.001, 0.001, 0.001]);
+    let huge_t = tessellate_box([10.0, 10.0, 10.0]);
+    let tiny = geometry(
+        "tiny",
+        ClosedMesh::new(tiny_t.vertices, tiny_t.triangles, "tiny").unwrap(),
+    );
+    let huge = geometry(
+        "huge",
+        ClosedMesh::new(huge_t.vertices, huge_t.triangles, "huge").unwrap(),
+    );
+    let options = BuildOptions {
+        packing: PackingParams {
+            max_spheres: 64,
+            prototypes: 256,
+            ..PackingParams::default()
+        },
+        ..BuildOptions::default()
+    };
+    let trees = vec![
+        build_link(&tiny, &options).unwrap(),
+        build_link(&huge, &options).unwrap(),
+    ];
+    let ratio = trees[1]
+        .spheres
+        .iter()
+        .map(|s| s.radius)
+        .fold(0.0, f32::max)
+        / trees[0]
+            .spheres
+            .iter()
+            .map(|s| s.radius)
+            .fold(f32::INFINITY, f32::min);
+    assert!(ratio > 1e3, "sphere size ratio {ratio}");
+    let scene = Scene {
+        geometry: vec![tiny, huge],
+        trees,
+        link_poses: vec![
+            Isometry3::translation(0.0, 0.0, 5.01),
+            Isometry3::identity(),
+        ],
+    };
+    let mut engine = scene.engine();
+    // 2 mm above the tiny cube's top face (z = 5.0105), 12 mm above the huge one.
+    let points = vec![[0.0, 0.0, 5.0125]];
+    let id = Isometry3::identity();
+    let e = run(
+        &mut engine,
+        &points,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            mode: Mode::Exact,
+            ..all_points()
+        },
+    );
+    let n = e.nearest.as_ref().unwrap();
+    assert_eq!(n.link, "tiny");
+    assert!(
+        (n.distance_m - 0.002).abs() < 1e-6,
+        "exact {}",
+        n.distance_m
+    );
+    let c = run(
+        &mut engine,
+        &points,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            mode: Mode::Certified,
+            ..all_points()
+        },
+    );
+    let n = c.nearest.as_ref().unwrap();
+    assert!(n.lower_m.unwrap() <= 0.002 + 1e-6 && n.distance_m >= 0.002 - 1e-6);
+    let per_link = &c.links;
+    assert!(
+        per_link[1].lower_m.unwrap() <= 0.0125 + 1e-5,
+        "{:?}",
+        per_link[1]
+    );
+}
+
+/// The region of interest, the self-filter and the link selection.
+#[test]
+fn leave_out_what_does_not_matter() {
+    let scene = box_scene();
+    let mut engine = scene.engine();
+    let id = Isometry3::identity();
+    // On the surface (self), 0.5 m away, and 3 m away.
+    let points = vec![[0.1, 0.0, 0.0], [0.6, 0.0, 0.0], [3.1, 0.0, 0.0]];
+    let options = QueryOptions {
+        max_distance_m: 1.0,
+        self_filter_padding_m: Some(0.01),
+        ..QueryOptions::default()
+    };
+    let r = run(&mut engine, &points, &id, &scene.link_poses, &options);
+    assert_eq!(r.counts.self_filtered, 1);
+    assert_eq!(r.counts.outside_roi, 1);
+    let n = r.nearest.unwrap();
+    assert_eq!(n.point_index, 1);
+    assert!((n.distance_m - 0.5).abs() < 0.003);
+    // Nothing within 0.3 m once the robot's own point is filtered.
+    let r = run(
+        &mut engine,
+        &points,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            max_distance_m: 0.3,
+            ..options.clone()
+        },
+    );
+    assert_eq!(r.outcome, Outcome::NothingWithinMaxDistance);
+    assert!(r.nearest.is_none());
+    // Without the filter the surface point is the nearest, at 0 in exact mode.
+    let r = run(
+        &mut engine,
+        &points,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            mode: Mode::Exact,
+            self_filter_padding_m: None,
+            ..options
+        },
+    );
+    assert_eq!(r.nearest.unwrap().point_index, 0);
+}
+
+/// A big cloud (2 million points) matches brute force over its points near the robot.
+#[test]
+fn huge_cloud() {
+    let scene = box_scene();
+    let mut engine = scene.engine();
+    let mut rng = Rng(7);
+    let points: Vec<[f32; 3]> = (0..2_000_000)
+        .map(|_| {
+            [
+                rng.range(-3.0, 3.0) as f32,
+                rng.range(-3.0, 3.0) as f32,
+                rng.range(0.12, 3.0) as f32,
+            ]
+        })
+        .collect();
+    let id = Isometry3::identity();
+    let r = run(
+        &mut engine,
+        &points,
+        &id,
+        &scene.link_poses,
+        &QueryOptions {
+            mode: Mode::Exact,
+            ..all_points()
+        },
+    );
+    // Every point above the box (z ≥ 0.12): the brute force over the points with z < 0.2 and
+    // |x|, |y| < 0.3 suffices, since any other point is farther than the nearest of those.
+    let near: Vec<[f32; 3]> = points
+        .iter()
+        .copied()
+        .filter(|p| p[2] < 0.2 && p[0].abs() < 0.3 && p[1].abs() < 0.3)
+        .collect();
+    assert!(!near.is_empty());
+    let (exact, _) = scene.brute_force(&near, &id);
+    assert!(
+        (distance(&r) - exact).abs() < 1e-5,
+        "{} vs {exact}",
+        distance(&r)
+    );
+    assert_eq!(r.counts.total, 2_000_000);
+}

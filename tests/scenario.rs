@@ -1,0 +1,159 @@
+//! The real scenario of ../shared/bags/moveit_perception_tutorial/SCENARIO.md: the Panda and the
+//! real Kinect cloud, through the library and through `ist_monitor query`.
+
+mod common;
+
+use common::ist_monitor;
+use ist_monitor::bench::{kinect_poses, kinect_root_from_sensor};
+use ist_monitor::cloud;
+use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
+use ist_monitor::query::{Engine, LinkSelection, Mode, Outcome, QueryOptions};
+use ist_monitor::robot::RobotModel;
+
+/// Exact mode within 1 mm of the reference distances, on the reference links and points; the
+/// certified per-link intervals hold the reference per-link minima. Exact mode does not depend
+/// on the sphere budget, so a small one keeps the build short.
+#[test]
+fn kinect_panda_reference_distances() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let model = RobotModel::load(&shared.join("robots/panda/robot.urdf"), &[]).unwrap();
+    let cache_dir = tempfile::tempdir().unwrap();
+    let mut options = BuildOptions::default();
+    options.packing.max_spheres = 1024;
+    let trees: Vec<_> = build_robot(
+        &model,
+        &options,
+        Some(&TreeCache::new(cache_dir.path().to_owned())),
+        &|_| {},
+    )
+    .unwrap()
+    .into_iter()
+    .map(|(t, _)| t)
+    .collect();
+    let mut engine = Engine::new(&model, &trees, &LinkSelection::default()).unwrap();
+    let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
+    let points = cloud::load(&bag, 0).unwrap().points;
+    let sensor = kinect_root_from_sensor();
+    let k = &model.kinematics;
+    let pose = |name: &str| {
+        let (_, joints) = kinect_poses().into_iter().find(|(n, _)| n == name).unwrap();
+        k.link_poses(&k.values_from_names(&joints, Some(0.0)).unwrap())
+    };
+    let exact = QueryOptions {
+        mode: Mode::Exact,
+        ..QueryOptions::default()
+    };
+    let certified = QueryOptions {
+        mode: Mode::Certified,
+        ..QueryOptions::default()
+    };
+
+    let ready = pose("ready");
+    let r = engine.query(&points, &sensor, &ready, &exact).unwrap();
+    let n = r.nearest.as_ref().unwrap();
+    assert_eq!(r.outcome, Outcome::Nearest);
+    assert_eq!(n.link, "panda_link0");
+    assert!(
+        (n.distance_m - 0.0979).abs() < 1e-3,
+        "ready: {}",
+        n.distance_m
+    );
+    let reference = [-0.0087, 0.1782, 0.0680];
+    assert!(
+        (0..3).all(|i| (n.point_root[i] - reference[i]).abs() < 2e-3),
+        "{:?}",
+        n.point_root
+    );
+    assert_eq!(r.counts.total, 307_200);
+    assert_eq!(r.counts.invalid, 73_899);
+    assert_eq!(r.counts.inside, 0);
+
+    // SCENARIO.md's per-link minima for `ready` lie in the certified intervals (1 mm for the
+    // reference's own rounding and tessellation).
+    let c = engine.query(&points, &sensor, &ready, &certified).unwrap();
+    for (link, reference) in [
+        ("panda_link0", 0.0979),
+        ("panda_link1", 0.1428),
+        ("panda_link2", 0.2290),
+        ("panda_link3", 0.3896),
+        ("panda_link4", 0.5150),
+        ("panda_link5", 0.5889),
+        ("panda_hand", 0.4843),
+        ("panda_leftfinger", 0.4758),
+        ("panda_rightfinger", 0.4696),
+    ] {
+        let l = c.links.iter().find(|l| l.link == link).unwrap();
+        let (lo, hi) = (l.lower_m.unwrap(), l.distance_m.unwrap());
+        assert!(
+            lo - 1e-3 <= reference && reference <= hi + 1e-3,
+            "{link}: [{lo}, {hi}] does not hold {reference}"
+        );
+    }
+
+    let reach = pose("reach_table");
+    let r = engine.query(&points, &sensor, &reach, &exact).unwrap();
+    let n = r.nearest.as_ref().unwrap();
+    assert_eq!(n.link, "panda_leftfinger");
+    assert!(
+        (n.distance_m - 0.0181).abs() < 1e-3,
+        "reach_table: {}",
+        n.distance_m
+    );
+    let reference = [0.0357, 0.6130, 0.0760];
+    assert!(
+        (0..3).all(|i| (n.point_root[i] - reference[i]).abs() < 2e-3),
+        "{:?}",
+        n.point_root
+    );
+    // The global-only query (one shared bound) gives the same exact answer.
+    let global = QueryOptions {
+        per_link: false,
+        ..exact
+    };
+    let g = engine.query(&points, &sensor, &reach, &global).unwrap();
+    assert_eq!(g.nearest.as_ref().unwrap().distance_m, n.distance_m);
+}
+
+/// `ist_monitor query` on the bag folder, JSON out.
+#[test]
+fn query_command_on_the_bag() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let cache = tempfile::tempdir().unwrap();
+    // SCENARIO.md's camera as "x y z qx qy qz qw" (root_from_sensor).
+    let s = kinect_root_from_sensor();
+    let (t, q) = (s.translation.vector, s.rotation.coords);
+    let pose = format!("{} {} {} {} {} {} {}", t.x, t.y, t.z, q.x, q.y, q.z, q.w);
+    let out = ist_monitor()
+        .args(["query", "--urdf"])
+        .arg(shared.join("robots/panda/robot.urdf"))
+        .args(["--max-spheres", "256", "--cache-dir"])
+        .arg(cache.path())
+        .args([
+            "--joints",
+            "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
+            "--mode",
+            "exact",
+            "--json",
+            "--sensor-pose",
+            &pose,
+            "--cloud",
+        ])
+        .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["outcome"], "nearest");
+    assert_eq!(json["nearest"]["link"], "panda_link0");
+    let d = json["nearest"]["distance_m"].as_f64().unwrap();
+    assert!((d - 0.0979).abs() < 1e-3, "{d}");
+    assert_eq!(json["counts"]["invalid"], 73_899);
+}
