@@ -29,7 +29,7 @@ use std::sync::Mutex;
 
 use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;
-use wide::{f32x4, f32x8, CmpLt, CmpNe};
+use wide::{f32x4, f32x8, CmpEq, CmpLt};
 
 use super::SphereSoa;
 use super::{
@@ -43,6 +43,8 @@ pub const BLOCK: usize = 32;
 /// Stride of the sample that seeds the links' bounds (prime, so that it does not alias with
 /// the rows of an organized cloud).
 const SEED_STRIDE: usize = 61;
+/// Sample points (and their blocks) that seed each link.
+const SEEDS: usize = 3;
 /// Most frontier nodes per block and link.
 pub const FRONTIER: usize = 32;
 /// Depth-first stack size; trees deeper than `(STACK - FRONTIER) / (BRANCHING - 1)` are
@@ -395,16 +397,18 @@ impl Pass<'_> {
             m &= m - 1;
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
-            let mut lb = f32::INFINITY;
+            let t = self.threshold(l);
+            // |q − c| − r ≤ b  ⇔  |q − c|² ≤ (b + r)²  for b + r ≥ 0: no square root.
             for &n in starts(frontier, spans, l) {
                 let n = &link.nodes[n as usize];
-                lb = lb.min(dist(q, n.center) - n.radius);
-            }
-            if lb <= self.padding {
-                near |= 1 << l;
-            }
-            if lb <= self.threshold(l) {
-                eval |= 1 << l;
+                let d2 = dist2(q, n.center);
+                let (pad, reach) = (self.padding + n.radius, t + n.radius);
+                if pad >= 0.0 && d2 <= pad * pad {
+                    near |= 1 << l;
+                }
+                if d2 <= reach * reach {
+                    eval |= 1 << l;
+                }
             }
         }
         if near != 0 && self.is_self(p, near, frontier, spans) {
@@ -591,58 +595,101 @@ fn with_scratch<R>(links: usize, f: impl FnOnce(&mut Vec<u32>, &mut [(u32, u32)]
     })
 }
 
-/// The bounding sphere and valid count of a block. The coordinates are first split into three
-/// arrays (structure of arrays) so that the validity test and the box vectorize lane by lane.
+/// Lane masks for a byte: entry `b` has lane `j` all ones where bit `j` of `b` is set.
+static LANE_MASKS: [[u32; 8]; 256] = {
+    let mut t = [[0u32; 8]; 256];
+    let mut b = 0;
+    while b < 256 {
+        let mut j = 0;
+        while j < 8 {
+            if (b >> j) & 1 == 1 {
+                t[b][j] = u32::MAX;
+            }
+            j += 1;
+        }
+        b += 1;
+    }
+    t
+};
+
+/// Every third bit (bit 3k stands for point k of a group of eight).
+const POINT_BITS: u32 = 0x0024_9249;
+
+/// The bounding sphere and valid count of a block, read as it lies in memory: eight points are
+/// 24 floats, three 8-lane vectors (SIMD through `wide`: SSE/AVX on x86, NEON on ARM). Per lane:
+/// finite? zero? As bit masks (bit 3k + axis for point k), a point is invalid when any of its
+/// three bits is non-finite or all three are zero; its lanes then take ±∞ in the box.
 #[inline]
 fn bound_block(chunk: &[[f32; 3]]) -> Block {
-    let mut x = [0.0f32; BLOCK];
-    let mut y = [0.0f32; BLOCK];
-    let mut z = [0.0f32; BLOCK];
-    for (i, p) in chunk.iter().enumerate() {
-        x[i] = p[0];
-        y[i] = p[1];
-        z[i] = p[2];
-    }
-    let n = chunk.len();
-    // Eight lanes at a time (wide: SSE/AVX on x86, NEON on ARM). Padding lanes of a short last
-    // block are (0, 0, 0), which is invalid.
+    let flat: &[f32] = bytemuck::cast_slice(chunk);
     let inf = f32x8::splat(f32::INFINITY);
-    let zero = f32x8::ZERO;
     let mut lo = [inf; 3];
     let mut hi = [-inf; 3];
-    let mut valid_count = 0u32;
-    for j in (0..BLOCK).step_by(8) {
-        let v = [&x, &y, &z].map(|a| f32x8::from(<[f32; 8]>::try_from(&a[j..j + 8]).unwrap()));
-        let ok = v[0].abs().cmp_lt(inf)
-            & v[1].abs().cmp_lt(inf)
-            & v[2].abs().cmp_lt(inf)
-            & (v[0].cmp_ne(zero) | v[1].cmp_ne(zero) | v[2].cmp_ne(zero));
-        valid_count += (ok.move_mask() as u32).count_ones();
-        for a in 0..3 {
-            lo[a] = lo[a].fast_min(ok.blend(v[a], inf));
-            hi[a] = hi[a].fast_max(ok.blend(v[a], -inf));
+    let mut invalid = 0u32;
+    let groups = chunk.len() / 8;
+    for g in 0..groups {
+        let v: [f32x8; 3] = std::array::from_fn(|k| {
+            let at = 24 * g + 8 * k;
+            f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
+        });
+        let mut nonfinite = 0u32;
+        let mut zero = 0u32;
+        for (k, v) in v.iter().enumerate() {
+            nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
+            zero |= (v.cmp_eq(f32x8::ZERO).move_mask() as u32 & 0xff) << (8 * k);
+        }
+        let bad = ((nonfinite | nonfinite >> 1 | nonfinite >> 2) | (zero & zero >> 1 & zero >> 2))
+            & POINT_BITS;
+        invalid += bad.count_ones();
+        let lanes = bad | bad << 1 | bad << 2;
+        for k in 0..3 {
+            let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
+            let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
+            lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
+            hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
         }
     }
-    let lo = lo.map(|l| l.to_array().into_iter().fold(f32::INFINITY, f32::min));
-    let hi = hi.map(|h| h.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max));
-    if valid_count == 0 {
+    // Lane j of vector k holds axis (8k + j) mod 3; the values are finite or ±∞, so plain
+    // comparisons do.
+    let mut l = [f32::INFINITY; 3];
+    let mut h = [f32::NEG_INFINITY; 3];
+    for k in 0..3 {
+        let (a, b) = (lo[k].to_array(), hi[k].to_array());
+        for j in 0..8 {
+            let axis = (8 * k + j) % 3;
+            l[axis] = if a[j] < l[axis] { a[j] } else { l[axis] };
+            h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
+        }
+    }
+    for &p in &chunk[8 * groups..] {
+        if valid(p) {
+            for k in 0..3 {
+                l[k] = l[k].min(p[k]);
+                h[k] = h[k].max(p[k]);
+            }
+        } else {
+            invalid += 1;
+        }
+    }
+    let n = chunk.len() as u32;
+    if invalid == n {
         return Block {
-            invalid: n as u32,
+            invalid,
             ..Block::default()
         };
     }
     let center = [
-        0.5 * (lo[0] + hi[0]),
-        0.5 * (lo[1] + hi[1]),
-        0.5 * (lo[2] + hi[2]),
+        0.5 * (l[0] + h[0]),
+        0.5 * (l[1] + h[1]),
+        0.5 * (l[2] + h[2]),
     ];
     // Rounded up so that every point lies inside despite f32 rounding.
-    let radius = 0.5 * dist(lo, hi) * (1.0 + 1e-6) + 1e-6;
+    let radius = 0.5 * dist(l, h) * (1.0 + 1e-6) + 1e-6;
     Block {
         center,
         radius,
-        valid: valid_count,
-        invalid: n as u32 - valid_count,
+        valid: n - invalid,
+        invalid,
     }
 }
 
@@ -688,19 +735,24 @@ pub(super) fn run(
         max_distance: options.max_distance_m,
     };
 
-    // 2. Seeds: each link from the block around the sample point nearest to its root sphere.
+    // 2. Seeds: each link from the blocks around the SEEDS sample points nearest to its root
+    // sphere's centre.
     (0..links.len()).into_par_iter().for_each(|l| {
         let c = pass.posed[l].center;
-        let mut nearest = (f32::INFINITY, usize::MAX);
+        let mut nearest = [(f32::INFINITY, usize::MAX); SEEDS];
         for i in (0..points.len()).step_by(SEED_STRIDE) {
             let p = points[i];
             let d = dist2(p, c);
-            if d < nearest.0 && valid(p) {
-                nearest = (d, i);
+            if d < nearest[SEEDS - 1].0
+                && valid(p)
+                && !nearest.iter().any(|n| n.1 / BLOCK == i / BLOCK)
+            {
+                nearest[SEEDS - 1] = (d, i);
+                nearest.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
             }
         }
-        if nearest.1 != usize::MAX {
-            let b = nearest.1 / BLOCK;
+        for &(_, i) in nearest.iter().filter(|n| n.1 != usize::MAX) {
+            let b = i / BLOCK;
             let chunk = &points[b * BLOCK..((b + 1) * BLOCK).min(points.len())];
             pass.seed(l, b, &bound_block(chunk));
         }
