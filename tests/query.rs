@@ -176,7 +176,10 @@ fn cloud(rng: &mut Rng, n: usize, root_from_sensor: &Isometry3<f64>) -> Vec<[f32
     (0..n)
         .map(|i| match i % 17 {
             3 => [f32::NAN; 3],
+            7 => [0.25, f32::INFINITY, -0.5],
             11 => [0.0; 3],
+            // Valid, with two zero coordinates (only all three zero is "no return").
+            13 => [0.0, 0.0, rng.range(0.1, 0.9) as f32],
             _ => {
                 let p = sensor_from_root
                     * Point3::new(
