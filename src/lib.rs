@@ -2,7 +2,9 @@
 //!
 //! The data flows through the modules in this order: `robot` (URDF, collision meshes,
 //! kinematics) → `packing` (Protosphere inner spheres, surface gap) → `ist` (tree, quality,
-//! cache, validation). `cli` wires them into the `ist_monitor` command.
+//! cache, validation) → `cloud` (PCD, PLY, PointCloud2, rosbag2 MCAP) → `query` (the parallel
+//! traversal: fast, certified and exact distances). `cli` wires them into the `ist_monitor`
+//! command; `bench` holds the error-against-run-time benchmark and its real scenarios.
 
 pub mod bench;
 pub mod cli;

@@ -2,7 +2,7 @@
 //!
 //! 1. **Pose** (per link, f64): `sensor_from_link`, the root sphere of the link's tree in the
 //!    sensor frame and `link_from_sensor`, rounded to f32 only then; the robot's bounding box in
-//!    the sensor frame for the region of interest.
+//!    its root frame for the region of interest.
 //! 2. **Seeds** (parallel over links): a sample of the cloud (every `SEED_STRIDE`-th point)
 //!    gives each link the point nearest to its root sphere; the block around it is descended for
 //!    that link, so that the shared bounds are tight before the main pass.
@@ -265,39 +265,55 @@ pub fn nearest_from(
 }
 
 /// Appends to `out` the frontier of a block (centre `c` in the link frame, radius `r`) in a
-/// tree: the nodes no larger than the block, or holding spheres, whose lower bound over the
-/// block `|c − c_n| − r − r_n` is at most `limit`. Every sphere within `limit` of a point of the
-/// block lies under one of them. More than `FRONTIER` nodes fall back to the root alone.
-/// Returns whether the frontier is not empty.
-fn frontier(nodes: &[IstNode], c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32>) -> bool {
+/// tree: a cut of the tree whose nodes' lower bound over the block, `|c − c_n| − r − r_n`, is at
+/// most `limit`; every sphere within `limit` of a point of the block lies under one of them.
+/// The cut is refined level by level, node by node, down to nodes no larger than the block or
+/// holding spheres, as long as it stays within `FRONTIER` nodes (the coarser cut is kept
+/// otherwise). Returns whether the frontier is not empty.
+fn frontier(link: &QueryLink, c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32>) -> bool {
+    let nodes = &link.nodes;
     let start = out.len();
-    let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
-    stack[0].write(0);
-    let mut sp = 1;
-    while sp > 0 {
-        sp -= 1;
-        // SAFETY: as in `nearest_from`, every entry below `sp` was written.
-        let index = unsafe { stack[sp].assume_init() };
-        let n = &nodes[index as usize];
-        if dist(c, n.center) - r - n.radius > limit {
-            continue;
+    let root = &nodes[0];
+    if dist(c, root.center) - r - root.radius > limit {
+        return false;
+    }
+    out.push(0);
+    loop {
+        // One refinement round: every node larger than the block is replaced by its children
+        // that pass the test, unless the cut would outgrow FRONTIER.
+        let mut next = [0u32; FRONTIER];
+        let mut n = 0;
+        let mut refined = false;
+        for &i in &out[start..] {
+            let node = &nodes[i as usize];
+            if node.children_are_spheres != 0 || node.radius <= r {
+                if n == FRONTIER {
+                    return true;
+                }
+                next[n] = i;
+                n += 1;
+                continue;
+            }
+            refined = true;
+            let first = node.first_child as usize;
+            let count = node.child_count as usize;
+            let lbs = lower_bounds(&link.node_soa, c, first, count);
+            for (k, &lb) in lbs.iter().enumerate().take(count) {
+                if lb - r <= limit {
+                    if n == FRONTIER {
+                        return true;
+                    }
+                    next[n] = (first + k) as u32;
+                    n += 1;
+                }
+            }
         }
-        if n.children_are_spheres != 0 || n.radius <= r {
-            if out.len() - start == FRONTIER {
-                out.truncate(start);
-                out.push(0);
-                return true;
-            }
-            out.push(index);
-        } else {
-            let first = n.first_child;
-            for k in 0..n.child_count {
-                stack[sp].write(first + k);
-                sp += 1;
-            }
+        out.truncate(start);
+        out.extend_from_slice(&next[..n]);
+        if !refined || n == 0 {
+            return n > 0;
         }
     }
-    out.len() > start
 }
 
 /// Depth of a tree (root = 1); the traversal's stack holds `1 + depth·(BRANCHING − 1)` entries.
@@ -328,9 +344,63 @@ struct Pass<'a> {
     per_link: bool,
     /// Self-filter padding; −∞ when off.
     padding: f32,
-    roi_lo: [f32; 3],
-    roi_hi: [f32; 3],
+    robot_box: RobotBox,
     max_distance: f32,
+}
+
+/// The robot's bounding box in its root frame (over the links' root spheres), where it is
+/// tight for an arm standing on its base, with the sensor-to-root transform in f32 (rounded from
+/// f64; the box is widened by `BOX_MARGIN` so that the rounding never drops a point).
+#[derive(Clone, Copy)]
+struct RobotBox {
+    rot: [[f32; 3]; 3],
+    trans: [f32; 3],
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+/// Widening of the robot box, m: far above the f32 rounding of a transformed point (~1e-6 m).
+const BOX_MARGIN: f32 = 1e-4;
+
+impl RobotBox {
+    fn new(
+        links: &[QueryLink],
+        root_from_sensor: &Isometry3<f64>,
+        link_poses: &[Isometry3<f64>],
+    ) -> Self {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for link in links {
+            let root = link.nodes[0];
+            let c = link_poses[link.pose_index]
+                * Point3::new(
+                    root.center[0] as f64,
+                    root.center[1] as f64,
+                    root.center[2] as f64,
+                );
+            for k in 0..3 {
+                lo[k] = lo[k].min((c[k] - root.radius as f64) as f32 - BOX_MARGIN);
+                hi[k] = hi[k].max((c[k] + root.radius as f64) as f32 + BOX_MARGIN);
+            }
+        }
+        let m = root_from_sensor.to_homogeneous();
+        Self {
+            rot: std::array::from_fn(|r| std::array::from_fn(|k| m[(r, k)] as f32)),
+            trans: std::array::from_fn(|r| m[(r, 3)] as f32),
+            lo,
+            hi,
+        }
+    }
+
+    /// Distance from a sensor-frame point to the box.
+    #[inline(always)]
+    fn distance(&self, p: [f32; 3]) -> f32 {
+        let r = &self.rot;
+        let q = std::array::from_fn(|k| {
+            r[k][0] * p[0] + r[k][1] * p[1] + r[k][2] * p[2] + self.trans[k]
+        });
+        box_distance(q, self.lo, self.hi)
+    }
 }
 
 impl Pass<'_> {
@@ -490,7 +560,7 @@ impl Pass<'_> {
             }
             let start = frontier.len() as u32;
             let c = pl.in_link(center);
-            if self::frontier(&self.links[l].nodes, c, radius, limit, frontier) {
+            if self::frontier(&self.links[l], c, radius, limit, frontier) {
                 spans[l] = (start, frontier.len() as u32 - start);
                 mask |= 1 << l;
             }
@@ -513,7 +583,7 @@ impl Pass<'_> {
         if block.valid == 0 {
             return counts;
         }
-        let roi = box_distance(block.center, self.roi_lo, self.roi_hi);
+        let roi = self.robot_box.distance(block.center);
         if roi - block.radius > self.max_distance {
             counts.outside_roi = block.valid as u64;
             return counts;
@@ -539,7 +609,7 @@ impl Pass<'_> {
             if !valid(p) {
                 continue;
             }
-            if partial_roi && box_distance(p, self.roi_lo, self.roi_hi) > self.max_distance {
+            if partial_roi && self.robot_box.distance(p) > self.max_distance {
                 counts.outside_roi += 1;
             } else if mask == 0 {
                 counts.pruned += 1;
@@ -559,7 +629,7 @@ impl Pass<'_> {
             let end = (start + BLOCK).min(self.points.len());
             for (i, &p) in self.points[start..end].iter().enumerate() {
                 if valid(p)
-                    && box_distance(p, self.roi_lo, self.roi_hi) <= self.max_distance
+                    && self.robot_box.distance(p) <= self.max_distance
                     && !self.is_self(p, mask, frontier, spans)
                 {
                     self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
@@ -703,14 +773,8 @@ pub(super) fn run(
 ) -> QueryResult {
     // 1. Pose, in f64, rounded once.
     let sensor_from_root = root_from_sensor.inverse();
-    let mut roi_lo = [f32::INFINITY; 3];
-    let mut roi_hi = [f32::NEG_INFINITY; 3];
     for (link, posed) in links.iter().zip(&mut scratch.posed) {
         *posed = PosedLink::new(link, &(sensor_from_root * link_poses[link.pose_index]));
-        for k in 0..3 {
-            roi_lo[k] = roi_lo[k].min(posed.center[k] - posed.radius);
-            roi_hi[k] = roi_hi[k].max(posed.center[k] + posed.radius);
-        }
     }
     for b in &scratch.best {
         b.store(EMPTY, Relaxed);
@@ -730,8 +794,7 @@ pub(super) fn run(
         mode: options.mode,
         per_link: options.per_link,
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
-        roi_lo,
-        roi_hi,
+        robot_box: RobotBox::new(links, root_from_sensor, link_poses),
         max_distance: options.max_distance_m,
     };
 
