@@ -119,6 +119,17 @@ impl Scene {
         }
     }
 
+    /// A query with the sensor at the root.
+    fn run(&self, engine: &mut Engine, points: &[[f32; 3]], options: &QueryOptions) -> QueryResult {
+        run(
+            engine,
+            points,
+            &Isometry3::identity(),
+            &self.link_poses,
+            options,
+        )
+    }
+
     fn engine(&self) -> Engine {
         let links = self
             .trees
@@ -291,14 +302,11 @@ fn inside_and_touching_points() {
     let scene = box_scene();
     let mut engine = scene.engine();
     let h = scene.trees[0].quality.gap_m;
-    let id = Isometry3::identity();
     let inside = vec![[0.0, 0.0, 0.01], [0.05, -0.03, 0.02], [0.099, 0.0, 0.0]];
     for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
-        let r = run(
+        let r = scene.run(
             &mut engine,
             &inside,
-            &id,
-            &scene.link_poses,
             &QueryOptions {
                 mode,
                 ..all_points()
@@ -308,20 +316,12 @@ fn inside_and_touching_points() {
         assert!(r.nearest.as_ref().unwrap().lower_m.unwrap_or(0.0) == 0.0);
     }
     // Deep inside points lie in an inner sphere: counted inside in every mode.
-    let r = run(
-        &mut engine,
-        &inside[..1],
-        &id,
-        &scene.link_poses,
-        &all_points(),
-    );
+    let r = scene.run(&mut engine, &inside[..1], &all_points());
     assert_eq!(r.counts.inside, 1);
     // The point just under the face is inside the mesh: exact mode counts it.
-    let r = run(
+    let r = scene.run(
         &mut engine,
         &inside,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             mode: Mode::Exact,
             ..all_points()
@@ -330,11 +330,9 @@ fn inside_and_touching_points() {
     assert_eq!(r.counts.inside, 3);
 
     let touching = vec![[0.1 + 1e-7, 0.0123, -0.0456]];
-    let e = run(
+    let e = scene.run(
         &mut engine,
         &touching,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             mode: Mode::Exact,
             ..all_points()
@@ -342,13 +340,7 @@ fn inside_and_touching_points() {
     );
     let d = distance(&e);
     assert!(d >= 0.0 && (d - 1e-7).abs() < 2e-8, "exact {d}");
-    let f = run(
-        &mut engine,
-        &touching,
-        &id,
-        &scene.link_poses,
-        &all_points(),
-    );
+    let f = scene.run(&mut engine, &touching, &all_points());
     assert!(
         distance(&f) >= d && distance(&f) <= h + 1e-6,
         "fast {} h {h}",
@@ -362,7 +354,6 @@ fn inside_and_touching_points() {
 fn invalid_and_empty_clouds() {
     let scene = box_scene();
     let mut engine = scene.engine();
-    let id = Isometry3::identity();
     let bad = vec![
         [f32::NAN, 0.0, 0.0],
         [0.0, f32::INFINITY, 0.0],
@@ -371,20 +362,14 @@ fn invalid_and_empty_clouds() {
         [f32::NAN; 3],
     ];
     for points in [&bad[..], &[]] {
-        let r = run(
-            &mut engine,
-            points,
-            &id,
-            &scene.link_poses,
-            &QueryOptions::default(),
-        );
+        let r = scene.run(&mut engine, points, &QueryOptions::default());
         assert_eq!(r.outcome, Outcome::NoPoints);
         assert!(r.nearest.is_none());
         assert_eq!(r.counts.invalid, points.len() as u64);
     }
     let mut mixed = bad.clone();
     mixed.push([0.5, 0.0, 0.0]);
-    let r = run(&mut engine, &mixed, &id, &scene.link_poses, &all_points());
+    let r = scene.run(&mut engine, &mixed, &all_points());
     assert_eq!(r.outcome, Outcome::Nearest);
     assert_eq!(r.counts.invalid, 5);
     assert_eq!(r.nearest.unwrap().point_index, 5);
@@ -448,12 +433,9 @@ fn tiny_next_to_huge() {
     let mut engine = scene.engine();
     // 2 mm above the tiny cube's top face (z = 5.0105), 12 mm above the huge one.
     let points = vec![[0.0, 0.0, 5.0125]];
-    let id = Isometry3::identity();
-    let e = run(
+    let e = scene.run(
         &mut engine,
         &points,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             mode: Mode::Exact,
             ..all_points()
@@ -466,11 +448,9 @@ fn tiny_next_to_huge() {
         "exact {}",
         n.distance_m
     );
-    let c = run(
+    let c = scene.run(
         &mut engine,
         &points,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             mode: Mode::Certified,
             ..all_points()
@@ -491,7 +471,6 @@ fn tiny_next_to_huge() {
 fn leave_out_what_does_not_matter() {
     let scene = box_scene();
     let mut engine = scene.engine();
-    let id = Isometry3::identity();
     // On the surface (self), 0.5 m away, and 3 m away.
     let points = vec![[0.1, 0.0, 0.0], [0.6, 0.0, 0.0], [3.1, 0.0, 0.0]];
     let options = QueryOptions {
@@ -499,18 +478,16 @@ fn leave_out_what_does_not_matter() {
         self_filter_padding_m: Some(0.01),
         ..QueryOptions::default()
     };
-    let r = run(&mut engine, &points, &id, &scene.link_poses, &options);
+    let r = scene.run(&mut engine, &points, &options);
     assert_eq!(r.counts.self_filtered, 1);
     assert_eq!(r.counts.outside_roi, 1);
     let n = r.nearest.unwrap();
     assert_eq!(n.point_index, 1);
     assert!((n.distance_m - 0.5).abs() < 0.003);
     // Nothing within 0.3 m once the robot's own point is filtered.
-    let r = run(
+    let r = scene.run(
         &mut engine,
         &points,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             max_distance_m: 0.3,
             ..options.clone()
@@ -519,11 +496,9 @@ fn leave_out_what_does_not_matter() {
     assert_eq!(r.outcome, Outcome::NothingWithinMaxDistance);
     assert!(r.nearest.is_none());
     // Without the filter the surface point is the nearest, at 0 in exact mode.
-    let r = run(
+    let r = scene.run(
         &mut engine,
         &points,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             mode: Mode::Exact,
             self_filter_padding_m: None,
@@ -548,12 +523,10 @@ fn huge_cloud() {
             ]
         })
         .collect();
-    let id = Isometry3::identity();
-    let r = run(
+    let id = Isometry3::<f64>::identity();
+    let r = scene.run(
         &mut engine,
         &points,
-        &id,
-        &scene.link_poses,
         &QueryOptions {
             mode: Mode::Exact,
             ..all_points()

@@ -15,7 +15,8 @@ use rayon::prelude::*;
 
 use super::exact::link_distance;
 use super::traverse::{valid, PosedLink};
-use super::{load_distance, pack, unpack, Engine, EMPTY};
+use super::{load_distance, pack, unpack, Engine, QueryLink, EMPTY};
+use crate::packing::grid::distance;
 
 /// Global minimum of a peer: distance, link index, point index.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,8 +74,41 @@ fn mesh_bounding_sphere(engine: &Engine, l: usize) -> ([f32; 3], f32) {
         0.5 * (lo[1] + hi[1]),
         0.5 * (lo[2] + hi[2]),
     ];
-    let r = 0.5 * crate::packing::grid::distance(lo, hi) * (1.0 + 1e-6);
+    let r = 0.5 * distance(lo, hi) * (1.0 + 1e-6);
     (c, r)
+}
+
+/// Every valid point against every link, in parallel: `distance(link index, link, point in the
+/// link frame, shared bound)` gives the point's distance to the link when it can matter. Minima
+/// go into per-link atomics and one shared bound (written only when they improve, so that the
+/// peers without pruning do not pay for contention they do not need).
+fn scan(
+    engine: &Engine,
+    points: &[[f32; 3]],
+    root_from_sensor: &Isometry3<f64>,
+    link_poses: &[Isometry3<f64>],
+    distance: impl Fn(usize, &QueryLink, [f32; 3], f32) -> Option<f32> + Sync,
+) -> Option<PeerMinimum> {
+    let posed = posed(engine, root_from_sensor, link_poses);
+    let best: Vec<AtomicU64> = posed.iter().map(|_| AtomicU64::new(EMPTY)).collect();
+    let shared = AtomicU64::new(EMPTY);
+    points.par_iter().enumerate().for_each(|(i, &p)| {
+        if !valid(p) {
+            return;
+        }
+        for (l, link) in engine.links().iter().enumerate() {
+            let bound = load_distance(&shared);
+            if let Some(d) = distance(l, link, posed[l].in_link(p), bound) {
+                if d < load_distance(&best[l]) {
+                    best[l].fetch_min(pack(d, i as u32), Relaxed);
+                }
+                if d < bound {
+                    shared.fetch_min(pack(d, i as u32), Relaxed);
+                }
+            }
+        }
+    });
+    minimum(&best)
 }
 
 /// Peer (a): exact distance for every valid point and every link.
@@ -84,20 +118,13 @@ pub fn exact_every_point(
     root_from_sensor: &Isometry3<f64>,
     link_poses: &[Isometry3<f64>],
 ) -> Option<PeerMinimum> {
-    let posed = posed(engine, root_from_sensor, link_poses);
-    let best: Vec<AtomicU64> = posed.iter().map(|_| AtomicU64::new(EMPTY)).collect();
-    points.par_iter().enumerate().for_each(|(i, &p)| {
-        if !valid(p) {
-            return;
-        }
-        for (l, link) in engine.links().iter().enumerate() {
-            let q = posed[l].in_link(p);
-            if let Some((d, _)) = link_distance(&link.solids, q, f32::INFINITY, true) {
-                best[l].fetch_min(pack(d, i as u32), Relaxed);
-            }
-        }
-    });
-    minimum(&best)
+    scan(
+        engine,
+        points,
+        root_from_sensor,
+        link_poses,
+        |_, link, q, _| link_distance(&link.solids, q, f32::INFINITY, true).map(|r| r.0),
+    )
 }
 
 /// Peer (b): exact distance with one shared bound, bounding-sphere culling per link and parry's
@@ -108,33 +135,25 @@ pub fn exact_shared_bound(
     root_from_sensor: &Isometry3<f64>,
     link_poses: &[Isometry3<f64>],
 ) -> Option<PeerMinimum> {
-    let posed = posed(engine, root_from_sensor, link_poses);
-    let spheres: Vec<([f32; 3], f32)> = (0..posed.len())
+    let spheres: Vec<([f32; 3], f32)> = (0..engine.links().len())
         .map(|l| mesh_bounding_sphere(engine, l))
         .collect();
-    let best: Vec<AtomicU64> = posed.iter().map(|_| AtomicU64::new(EMPTY)).collect();
-    let shared = AtomicU64::new(EMPTY);
-    points.par_iter().enumerate().for_each(|(i, &p)| {
-        if !valid(p) {
-            return;
-        }
-        for (l, link) in engine.links().iter().enumerate() {
-            let bound = load_distance(&shared);
-            let q = posed[l].in_link(p);
+    scan(
+        engine,
+        points,
+        root_from_sensor,
+        link_poses,
+        |l, link, q, bound| {
             let (c, r) = spheres[l];
-            if crate::packing::grid::distance(q, c) - r > bound {
-                continue;
+            if distance(q, c) - r > bound {
+                return None;
             }
             // Bounded by the shared minimum (a point inside a mesh deeper than the bound would
             // read as farther: the benchmark scenes have none, and the bench checks this peer
             // against peer (a)).
-            if let Some((d, _)) = link_distance(&link.solids, q, bound, bound.is_infinite()) {
-                best[l].fetch_min(pack(d, i as u32), Relaxed);
-                shared.fetch_min(pack(d, i as u32), Relaxed);
-            }
-        }
-    });
-    minimum(&best)
+            link_distance(&link.solids, q, bound, bound.is_infinite()).map(|r| r.0)
+        },
+    )
 }
 
 /// Peer (c): every valid point against every inner sphere of every link.
@@ -144,23 +163,21 @@ pub fn brute_force_spheres(
     root_from_sensor: &Isometry3<f64>,
     link_poses: &[Isometry3<f64>],
 ) -> Option<PeerMinimum> {
-    let posed = posed(engine, root_from_sensor, link_poses);
-    let best: Vec<AtomicU64> = posed.iter().map(|_| AtomicU64::new(EMPTY)).collect();
-    points.par_iter().enumerate().for_each(|(i, &p)| {
-        if !valid(p) {
-            return;
-        }
-        for (l, link) in engine.links().iter().enumerate() {
-            let q = posed[l].in_link(p);
-            let d = link
-                .spheres
-                .iter()
-                .map(|s| crate::packing::grid::distance(q, s.center) - s.radius)
-                .fold(f32::INFINITY, f32::min);
-            best[l].fetch_min(pack(d, i as u32), Relaxed);
-        }
-    });
-    minimum(&best)
+    scan(
+        engine,
+        points,
+        root_from_sensor,
+        link_poses,
+        |_, link, q, _| {
+            Some(
+                link.spheres
+                    .iter()
+                    .map(|s| distance(q, s.center) - s.radius)
+                    .fold(f32::INFINITY, f32::min)
+                    .max(0.0),
+            )
+        },
+    )
 }
 
 /// The floor: a sum over the point buffer (every coordinate read once, in parallel).
