@@ -211,6 +211,11 @@ pub fn nearest_from(
     let mut nearest = (f32::INFINITY, 0);
     for &s in starts {
         let n = &nodes[s as usize];
+        // The square root only for the starts that pass the squared test.
+        let reach = best + n.radius;
+        if reach < 0.0 || dist2(p, n.center) > reach * reach {
+            continue;
+        }
         let lb = dist(p, n.center) - n.radius;
         if lb <= best {
             stack[sp].write((lb, s));
