@@ -2,9 +2,9 @@
 //! sensor frame, in the order the sensor produced them (organized clouds row by row, so that
 //! consecutive points lie close together, which the query's block pass relies on).
 //!
-//! - `pcd`: PCL's PCD, `ascii`, `binary` and `binary_compressed` (LZF, fields stored one after
-//!   the other);
-//! - `ply`: PLY vertices, ASCII and binary of either byte order;
+//! - `pcd`: PCL's PCD through the `pcd-rs` crate, `ascii`, `binary` and `binary_compressed`;
+//! - `ply`: PLY vertices, ASCII and binary of either byte order (written here: the PLY crates
+//!   are unmaintained and a vertex reader is a page);
 //! - `msg`: `sensor_msgs/msg/PointCloud2` as serde structs that follow the `.msg` files, decoded
 //!   from CDR, and the extraction of `x y z` (FLOAT32 or FLOAT64, either byte order, any
 //!   point_step and row_step);
