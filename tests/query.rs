@@ -373,6 +373,21 @@ fn invalid_and_empty_clouds() {
     assert_eq!(r.outcome, Outcome::Nearest);
     assert_eq!(r.counts.invalid, 5);
     assert_eq!(r.nearest.unwrap().point_index, 5);
+    // Bad options are refused.
+    for options in [
+        QueryOptions {
+            max_distance_m: f32::NAN,
+            ..QueryOptions::default()
+        },
+        QueryOptions {
+            self_filter_padding_m: Some(-0.1),
+            ..QueryOptions::default()
+        },
+    ] {
+        assert!(engine
+            .query(&mixed, &Isometry3::identity(), &scene.link_poses, &options)
+            .is_err());
+    }
     // A non-finite sensor pose is refused.
     let mut nan_pose = Isometry3::identity();
     nan_pose.translation.x = f64::NAN;

@@ -116,6 +116,10 @@ pub enum QueryError {
     NoLinks,
     #[error("the sensor pose is not finite")]
     NonFiniteSensorPose,
+    #[error("option {0}")]
+    BadOption(&'static str),
+    #[error("{0} points: point indices are 32-bit")]
+    TooManyPoints(usize),
     #[error("{got} link poses given, the robot has {expected} links")]
     LinkPoses { got: usize, expected: usize },
 }
@@ -311,6 +315,22 @@ impl Engine {
         let m = root_from_sensor.to_homogeneous();
         if m.iter().any(|v| !v.is_finite()) {
             return Err(QueryError::NonFiniteSensorPose);
+        }
+        if options.max_distance_m.is_nan() || options.max_distance_m < 0.0 {
+            return Err(QueryError::BadOption(
+                "max_distance_m must be ≥ 0 (infinity allowed)",
+            ));
+        }
+        if options
+            .self_filter_padding_m
+            .is_some_and(|p| !(p.is_finite() && p >= 0.0))
+        {
+            return Err(QueryError::BadOption(
+                "self_filter_padding_m must be finite and ≥ 0",
+            ));
+        }
+        if points.len() > u32::MAX as usize {
+            return Err(QueryError::TooManyPoints(points.len()));
         }
         Ok(traverse::run(
             &self.links,
