@@ -466,10 +466,7 @@ impl Pass<'_> {
         // padding (self-filter) and which within their bound (evaluation).
         let mut near = 0u128;
         let mut eval = 0u128;
-        let mut m = mask;
-        while m != 0 {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
+        for l in bits(mask) {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
             let t = self.threshold(l);
@@ -505,10 +502,7 @@ impl Pass<'_> {
         if self.padding < 0.0 {
             return false;
         }
-        let mut m = mask;
-        while m != 0 {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
+        for l in bits(mask) {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
             if nearest_from(link, q, starts(frontier, spans, l), self.padding).is_some() {
@@ -530,10 +524,7 @@ impl Pass<'_> {
         spans: &[(u32, u32)],
     ) -> bool {
         let mut inside = false;
-        let mut m = mask;
-        while m != 0 {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
+        for l in bits(mask) {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
             let s = starts(frontier, spans, l);
@@ -642,6 +633,18 @@ impl Pass<'_> {
             }
         });
     }
+}
+
+/// The links of a mask, lowest first.
+#[inline(always)]
+fn bits(mut mask: u128) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let l = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            l
+        })
+    })
 }
 
 #[inline(always)]
