@@ -83,6 +83,26 @@ pub struct QueryOptions {
     pub per_link: bool,
 }
 
+impl QueryOptions {
+    /// Refuses a NaN or negative `max_distance_m` and a negative or non-finite padding.
+    pub fn validate(&self) -> Result<(), QueryError> {
+        if self.max_distance_m.is_nan() || self.max_distance_m < 0.0 {
+            return Err(QueryError::BadOption(
+                "max_distance_m must be ≥ 0 (infinity allowed)",
+            ));
+        }
+        if self
+            .self_filter_padding_m
+            .is_some_and(|p| !(p.is_finite() && p >= 0.0))
+        {
+            return Err(QueryError::BadOption(
+                "self_filter_padding_m must be finite and ≥ 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for QueryOptions {
     fn default() -> Self {
         Self {
@@ -316,19 +336,7 @@ impl Engine {
         if m.iter().any(|v| !v.is_finite()) {
             return Err(QueryError::NonFiniteSensorPose);
         }
-        if options.max_distance_m.is_nan() || options.max_distance_m < 0.0 {
-            return Err(QueryError::BadOption(
-                "max_distance_m must be ≥ 0 (infinity allowed)",
-            ));
-        }
-        if options
-            .self_filter_padding_m
-            .is_some_and(|p| !(p.is_finite() && p >= 0.0))
-        {
-            return Err(QueryError::BadOption(
-                "self_filter_padding_m must be finite and ≥ 0",
-            ));
-        }
+        options.validate()?;
         if points.len() > u32::MAX as usize {
             return Err(QueryError::TooManyPoints(points.len()));
         }

@@ -53,7 +53,7 @@ fn posed(
     engine
         .links()
         .iter()
-        .map(|l| PosedLink::new(l, &(sensor_from_root * link_poses[l.pose_index])))
+        .map(|l| PosedLink::new(l, &sensor_from_root, link_poses))
         .collect()
 }
 

@@ -72,7 +72,13 @@ pub(crate) struct PosedLink {
 }
 
 impl PosedLink {
-    pub fn new(link: &QueryLink, sensor_from_link: &Isometry3<f64>) -> Self {
+    /// Link `link` posed by `link_poses` (`root_from_link`), seen from the sensor.
+    pub fn new(
+        link: &QueryLink,
+        sensor_from_root: &Isometry3<f64>,
+        link_poses: &[Isometry3<f64>],
+    ) -> Self {
+        let sensor_from_link = sensor_from_root * link_poses[link.pose_index];
         let root = link.nodes[0];
         let c = sensor_from_link
             * Point3::new(
@@ -782,7 +788,7 @@ pub(super) fn run(
     // 1. Pose, in f64, rounded once.
     let sensor_from_root = root_from_sensor.inverse();
     for (link, posed) in links.iter().zip(&mut scratch.posed) {
-        *posed = PosedLink::new(link, &(sensor_from_root * link_poses[link.pose_index]));
+        *posed = PosedLink::new(link, &sensor_from_root, link_poses);
     }
     for b in &scratch.best {
         b.store(EMPTY, Relaxed);
