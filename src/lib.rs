@@ -6,11 +6,13 @@
 //! traversal: fast, certified and exact distances). `cli` wires them into the `ist_monitor`
 //! command; `bench` holds the error-against-run-time benchmark and its real scenarios.
 
+pub mod bag;
 pub mod bench;
 pub mod cli;
 pub mod cloud;
 pub mod geometry;
 pub mod ist;
+pub mod msg;
 pub mod packing;
 pub mod query;
 pub mod robot;

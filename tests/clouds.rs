@@ -4,11 +4,13 @@
 
 mod common;
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use byteorder::{BigEndian, LittleEndian};
-use ist_monitor::cloud::{self, msg, CloudError};
+use byteorder::BigEndian;
+use ist_monitor::cloud::{self, pointcloud2, CloudError};
+use ist_monitor::msg::{self, RosMessage};
 use ist_monitor::query::is_valid_point;
 
 fn sample() -> Vec<[f32; 3]> {
@@ -136,7 +138,13 @@ fn ply_formats() {
     }
 }
 
-fn point_cloud2(big_endian: bool, float64: bool, data: &[u8], width: u32) -> msg::PointCloud2<'_> {
+/// x y z, 4 bytes of padding per point, `pad` bytes after each row of `width` points.
+fn point_cloud2(
+    big_endian: bool,
+    float64: bool,
+    data: Vec<u8>,
+    (width, height, pad): (u32, u32, u32),
+) -> msg::PointCloud2<'static> {
     let (size, datatype) = if float64 {
         (8, msg::PointField::FLOAT64)
     } else {
@@ -148,7 +156,6 @@ fn point_cloud2(big_endian: bool, float64: bool, data: &[u8], width: u32) -> msg
         datatype,
         count: 1,
     };
-    // x y z, then 4 bytes of padding per point.
     msg::PointCloud2 {
         header: msg::Header {
             stamp: msg::Time {
@@ -157,20 +164,25 @@ fn point_cloud2(big_endian: bool, float64: bool, data: &[u8], width: u32) -> msg
             },
             frame_id: "camera".into(),
         },
-        height: 1,
+        height,
         width,
         fields: vec![field("x", 0), field("y", size), field("z", 2 * size)],
         is_bigendian: big_endian,
         point_step: 3 * size + 4,
-        row_step: (3 * size + 4) * width,
-        data,
+        row_step: (3 * size + 4) * width + pad,
+        data: Cow::Owned(data),
         is_dense: false,
     }
 }
 
-fn encode_points(points: &[[f32; 3]], big_endian: bool, float64: bool) -> Vec<u8> {
+fn encode_points(
+    points: &[[f32; 3]],
+    big_endian: bool,
+    float64: bool,
+    (width, pad): (usize, usize),
+) -> Vec<u8> {
     let mut data = Vec::new();
-    for p in points {
+    for (i, p) in points.iter().enumerate() {
         for &v in p {
             match (float64, big_endian) {
                 (true, true) => data.extend((v as f64).to_be_bytes()),
@@ -180,60 +192,126 @@ fn encode_points(points: &[[f32; 3]], big_endian: bool, float64: bool) -> Vec<u8
             }
         }
         data.extend([0xAB; 4]);
+        if (i + 1) % width == 0 {
+            data.extend(std::iter::repeat_n(0xCD, pad));
+        }
     }
     data
 }
 
 /// CDR with its encapsulation header, either byte order.
 fn cdr(m: &msg::PointCloud2, big_endian: bool) -> Vec<u8> {
-    let (head, body) = if big_endian {
-        (
-            [0, 0, 0, 0],
-            cdr_encoding::to_vec::<_, BigEndian>(m).unwrap(),
-        )
-    } else {
-        (
-            [0, 1, 0, 0],
-            cdr_encoding::to_vec::<_, LittleEndian>(m).unwrap(),
-        )
-    };
-    [head.to_vec(), body].concat()
+    if !big_endian {
+        return msg::encode(m).unwrap();
+    }
+    let body = cdr_encoding::to_vec::<_, BigEndian>(m).unwrap();
+    [vec![0, 0, 0, 0], body].concat()
 }
 
 #[test]
 fn point_cloud2_round_trip() {
     let points = sample();
+    let n = points.len() as u32;
+    // Unorganized and dense rows; organized (2 rows) with 12 bytes of row padding.
+    let layouts = [(n, 1, 0), (n / 2, 2, 12)];
     for big_endian in [false, true] {
         for float64 in [false, true] {
-            let data = encode_points(&points, big_endian, float64);
-            let m = point_cloud2(big_endian, float64, &data, points.len() as u32);
-            for cdr_big in [false, true] {
-                let bytes = cdr(&m, cdr_big);
-                let decoded = msg::decode(&bytes).unwrap();
-                assert_eq!(decoded, m);
-                let c = decoded.to_cloud().unwrap();
-                assert!(same(&c.points, &points), "{big_endian} {float64}");
-                assert_eq!(c.frame_id.as_deref(), Some("camera"));
-                assert_eq!(c.stamp, Some((12, 34)));
+            for (width, height, pad) in layouts {
+                let points = &points[..(width * height) as usize];
+                let data =
+                    encode_points(points, big_endian, float64, (width as usize, pad as usize));
+                let m = point_cloud2(big_endian, float64, data, (width, height, pad));
+                for cdr_big in [false, true] {
+                    let bytes = cdr(&m, cdr_big);
+                    let decoded = pointcloud2::decode(&bytes).unwrap();
+                    assert_eq!(decoded, m);
+                    let c = decoded.to_cloud().unwrap();
+                    let case = format!("{big_endian} {float64} {width}x{height}");
+                    assert!(same(&c.points, points), "{case}");
+                    assert_eq!((c.width, c.height), (width, height), "{case}");
+                    assert_eq!(c.frame_id.as_deref(), Some("camera"));
+                    assert_eq!(c.stamp, Some((12, 34)));
+                }
             }
         }
     }
-    // Inconsistent sizes are errors that name the frame.
-    let data = encode_points(&points, false, false);
-    let mut m = point_cloud2(false, false, &data, points.len() as u32 + 1);
+}
+
+/// Every malformed case of the decoder gives its own error, naming the frame; the next message
+/// still decodes.
+#[test]
+fn malformed_point_cloud2_are_errors() {
+    let points = sample();
+    let n = points.len() as u32;
+    let good = || {
+        point_cloud2(
+            false,
+            false,
+            encode_points(&points, false, false, (points.len(), 0)),
+            (n, 1, 0),
+        )
+    };
+    type Break = fn(&mut msg::PointCloud2<'static>);
+    let cases: [(&str, Break, &str); 8] = [
+        ("short data", |m| m.height = 2, "less than row_step"),
+        (
+            "truncated bytes",
+            |m| m.data.to_mut().truncate(20),
+            "less than row_step",
+        ),
+        ("missing z", |m| m.fields[2].name = "w".into(), "no field z"),
+        (
+            "unknown datatype",
+            |m| m.fields[1].datatype = 9,
+            "datatype 9 unknown",
+        ),
+        ("count 2", |m| m.fields[0].count = 2, "overlap"),
+        ("count 0", |m| m.fields[0].count = 0, "count 0"),
+        ("overlapping fields", |m| m.fields[1].offset = 2, "overlap"),
+        (
+            "field past point_step",
+            |m| m.fields[2].offset = 14,
+            "exceed point_step",
+        ),
+    ];
+    for (name, break_it, expected) in cases {
+        let mut m = good();
+        break_it(&mut m);
+        let bytes = cdr(&m, false);
+        let e = pointcloud2::cloud_from_cdr(&bytes).unwrap_err().to_string();
+        assert!(e.contains("camera") && e.contains(expected), "{name}: {e}");
+        // The next, good message decodes.
+        assert!(same(
+            &pointcloud2::cloud_from_cdr(&cdr(&good(), false))
+                .unwrap()
+                .points,
+            &points
+        ));
+    }
+    // A count of 2 on x alone (no neighbour to overlap) is refused for its count.
+    let mut m = good();
+    m.fields.retain(|f| f.name != "y");
+    m.fields[0].count = 2;
+    m.fields.push(msg::PointField {
+        name: "y".into(),
+        offset: 12,
+        datatype: msg::PointField::UINT8,
+        count: 1,
+    });
     let e = m.to_cloud().unwrap_err().to_string();
-    assert!(e.contains("camera") && e.contains("bytes"), "{e}");
-    m.width = points.len() as u32;
-    m.fields[2].offset = 14;
-    let e = m.to_cloud().unwrap_err().to_string();
-    assert!(e.contains("field z"), "{e}");
+    assert!(e.contains("field x: count 2"), "{e}");
+    // Bytes that are not a PointCloud2 at all.
+    let e = pointcloud2::cloud_from_cdr(&[0, 1, 0, 0, 200, 0, 0, 0])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("PointCloud2"), "{e}");
 }
 
 fn write_bag(path: &Path, clouds: &[Vec<[f32; 3]>]) {
     let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
     let mut w = mcap::Writer::new(file).unwrap();
     let schema = w
-        .add_schema(cloud::bag::POINT_CLOUD2, "ros2msg", b"# test")
+        .add_schema(msg::PointCloud2::TYPE, "ros2msg", b"# test")
         .unwrap();
     let other = w
         .add_schema("std_msgs/msg/String", "ros2msg", b"string data")
@@ -253,8 +331,8 @@ fn write_bag(path: &Path, clouds: &[Vec<[f32; 3]>]) {
         };
         w.write_to_known_channel(&header(text), &[0, 1, 0, 0, 1, 0, 0, 0, 0])
             .unwrap();
-        let data = encode_points(points, false, false);
-        let m = point_cloud2(false, false, &data, points.len() as u32);
+        let data = encode_points(points, false, false, (points.len(), 0));
+        let m = point_cloud2(false, false, data, (points.len() as u32, 1, 0));
         w.write_to_known_channel(&header(channel), &cdr(&m, false))
             .unwrap();
     }

@@ -5,19 +5,20 @@
 //! - `pcd`: PCL's PCD through the `pcd-rs` crate, `ascii`, `binary` and `binary_compressed`;
 //! - `ply`: PLY vertices, ASCII and binary of either byte order (written here: the PLY crates
 //!   are unmaintained and a vertex reader is a page);
-//! - `msg`: `sensor_msgs/msg/PointCloud2` as serde structs that follow the `.msg` files, decoded
+//! - `pointcloud2`: `sensor_msgs/msg/PointCloud2` (structs in `crate::msg`), decoded
 //!   from CDR, and the extraction of `x y z` (FLOAT32 or FLOAT64, either byte order, any
 //!   point_step and row_step);
-//! - `bag`: rosbag2 MCAP (a `.mcap` file or a rosbag2 folder), the N-th PointCloud2 message.
+//! - a bag (`crate::bag`, a `.mcap` file or a rosbag2 folder): its N-th PointCloud2 message.
 //!
 //! Invalid points (NaN, Inf, zeros) are kept as they are: the query counts and skips them.
 
-pub mod bag;
-pub mod msg;
 pub mod pcd;
 pub mod ply;
+pub mod pointcloud2;
 
 use std::path::{Path, PathBuf};
+
+use crate::msg::RosMessage;
 
 /// A point cloud in its sensor frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,8 +44,14 @@ pub enum CloudError {
     Pcd { path: PathBuf, message: String },
     #[error("{path}: PLY: {message}")]
     Ply { path: PathBuf, message: String },
-    #[error("{path}: MCAP: {message}")]
-    Bag { path: PathBuf, message: String },
+    #[error(transparent)]
+    Bag(#[from] crate::bag::BagError),
+    #[error("{path}: {count} PointCloud2 message(s), none with index {index}")]
+    NoMessage {
+        path: PathBuf,
+        count: usize,
+        index: usize,
+    },
     #[error("PointCloud2: {0}")]
     Message(String),
     #[error("{path}: unknown cloud format (expected .pcd, .ply, .mcap or a rosbag2 folder)")]
@@ -68,12 +75,28 @@ pub fn load(path: &Path, message: usize) -> Result<Cloud, CloudError> {
     match ext.as_deref() {
         Some("pcd") => pcd::load(path),
         Some("ply") => ply::load(path),
-        Some("mcap") => bag::point_cloud(path, None, message),
-        _ if path.is_dir() => bag::point_cloud(path, None, message),
+        Some("mcap") => point_cloud_from_bag(path, message),
+        _ if path.is_dir() => point_cloud_from_bag(path, message),
         _ => Err(CloudError::UnknownFormat {
             path: path.to_owned(),
         }),
     }
+}
+
+/// The `index`-th PointCloud2 message (0 first, in log-time order) of a bag.
+pub fn point_cloud_from_bag(path: &Path, index: usize) -> Result<Cloud, CloudError> {
+    let messages = crate::bag::read_messages(path, &|_| true)?;
+    let clouds: Vec<_> = messages
+        .iter()
+        .filter(|m| &*m.schema == crate::msg::PointCloud2::TYPE)
+        .collect();
+    let m = clouds.get(index).ok_or_else(|| CloudError::NoMessage {
+        path: path.to_owned(),
+        count: clouds.len(),
+        index,
+    })?;
+    pointcloud2::cloud_from_cdr(&m.data)
+        .map_err(|e| CloudError::Message(format!("{}: topic {}: {e}", path.display(), m.topic)))
 }
 
 /// Reads a scalar of PCD/PLY/PointField type `kind` at `bytes[..]` as f32.

@@ -56,3 +56,22 @@ pub fn one_link_urdf(geometry: &str) -> String {
         r#"<robot name="t"><link name="body"><collision><geometry>{geometry}</geometry></collision></link></robot>"#
     )
 }
+
+/// The Python of the project's venv (`.ci/run` makes it, with `rosbags`), for the interop tests.
+/// In CI it must exist; elsewhere a test may skip with a printed reason.
+pub fn venv_python() -> Option<PathBuf> {
+    let python = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
+    let ok = python.exists()
+        && Command::new(&python)
+            .args(["-c", "import rosbags"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if ok {
+        return Some(python);
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!("CI is set but .venv/bin/python with rosbags is missing: .ci/run installs it");
+    }
+    eprintln!("skipped: .venv/bin/python with rosbags is absent and CI is not set");
+    None
+}

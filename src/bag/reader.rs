@@ -1,0 +1,125 @@
+//! Reading rosbag2 MCAP: the files of a bag, and its messages in log-time order.
+//!
+//! A rosbag2 folder lists its files in `metadata.yaml` (`relative_file_paths`); a folder without
+//! it is read as its `.mcap` files in name order, and a path to a file as that file. Each file is
+//! read whole and its chunks decompressed by the `mcap` crate (zstd, lz4); the messages of all
+//! files are sorted by log time (stable, so equal times keep their file order), which is the
+//! order a live node would have received them in.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use yaml_rust2::YamlLoader;
+
+use super::BagError;
+
+/// One message of a bag.
+#[derive(Debug, Clone)]
+pub struct BagMessage {
+    pub topic: Arc<str>,
+    /// Schema name, e.g. `sensor_msgs/msg/PointCloud2` (empty when the channel has none).
+    pub schema: Arc<str>,
+    /// Message encoding of the channel (`cdr` for rosbag2).
+    pub encoding: Arc<str>,
+    pub log_time_ns: u64,
+    pub data: Vec<u8>,
+}
+
+type Names = (Arc<str>, Arc<str>, Arc<str>);
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> BagError + '_ {
+    move |source| BagError::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+/// The `.mcap` files of a bag path, in order.
+pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
+    if !path.is_dir() {
+        return Ok(vec![path.to_owned()]);
+    }
+    let metadata = path.join("metadata.yaml");
+    if metadata.exists() {
+        let text = std::fs::read_to_string(&metadata).map_err(io(&metadata))?;
+        let bad = |message: String| BagError::Metadata {
+            path: path.to_owned(),
+            message,
+        };
+        let docs = YamlLoader::load_from_str(&text).map_err(|e| bad(e.to_string()))?;
+        let info =
+            &docs.first().ok_or_else(|| bad("empty file".into()))?["rosbag2_bagfile_information"];
+        let storage = info["storage_identifier"].as_str().unwrap_or("mcap");
+        if storage != "mcap" {
+            return Err(bad(format!("storage {storage} (only mcap is read)")));
+        }
+        let names = info["relative_file_paths"]
+            .as_vec()
+            .ok_or_else(|| bad("no relative_file_paths".into()))?;
+        return names
+            .iter()
+            .map(|n| {
+                n.as_str()
+                    .map(|n| path.join(n))
+                    .ok_or_else(|| bad("relative_file_paths holds a non-string".into()))
+            })
+            .collect();
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+        .map_err(io(path))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(BagError::Metadata {
+            path: path.to_owned(),
+            message: "a folder without metadata.yaml nor .mcap files".into(),
+        });
+    }
+    Ok(files)
+}
+
+/// The messages of the bag at `path` whose topic passes `keep`, in log-time order.
+pub fn read_messages(
+    path: &Path,
+    keep: &dyn Fn(&str) -> bool,
+) -> Result<Vec<BagMessage>, BagError> {
+    let mut out = Vec::new();
+    for file in files(path)? {
+        let bytes = std::fs::read(&file).map_err(io(&file))?;
+        let bad = |e: mcap::McapError| BagError::Mcap {
+            path: file.clone(),
+            message: e.to_string(),
+        };
+        // Channel id → (topic, schema, encoding), shared by the messages of the channel.
+        let mut channels: HashMap<u16, Names> = HashMap::new();
+        for message in mcap::MessageStream::new(&bytes).map_err(bad)? {
+            let message = message.map_err(bad)?;
+            let c = &message.channel;
+            if !keep(&c.topic) {
+                continue;
+            }
+            let (topic, schema, encoding) = channels
+                .entry(c.id)
+                .or_insert_with(|| {
+                    (
+                        Arc::from(c.topic.as_str()),
+                        Arc::from(c.schema.as_ref().map(|s| s.name.as_str()).unwrap_or("")),
+                        Arc::from(c.message_encoding.as_str()),
+                    )
+                })
+                .clone();
+            out.push(BagMessage {
+                topic,
+                schema,
+                encoding,
+                log_time_ns: message.log_time,
+                data: message.data.into_owned(),
+            });
+        }
+    }
+    out.sort_by_key(|m| m.log_time_ns);
+    Ok(out)
+}

@@ -1,0 +1,83 @@
+//! `builtin_interfaces` and `std_msgs`.
+
+use serde::{Deserialize, Serialize};
+
+use super::ros_message;
+
+/// `builtin_interfaces/msg/Time`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Time {
+    pub sec: i32,
+    pub nanosec: u32,
+}
+ros_message!(
+    Time,
+    "builtin_interfaces/msg/Time",
+    "int32 sec\nuint32 nanosec\n"
+);
+
+impl Time {
+    /// Nanoseconds since the epoch.
+    pub fn as_nanos(self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
+    /// The time `ns` nanoseconds since the epoch (floor division, so negative times work).
+    pub fn from_nanos(ns: i64) -> Self {
+        Self {
+            sec: ns.div_euclid(1_000_000_000) as i32,
+            nanosec: ns.rem_euclid(1_000_000_000) as u32,
+        }
+    }
+}
+
+/// `builtin_interfaces/msg/Duration`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Duration {
+    pub sec: i32,
+    pub nanosec: u32,
+}
+ros_message!(
+    Duration,
+    "builtin_interfaces/msg/Duration",
+    "int32 sec\nuint32 nanosec\n"
+);
+
+/// `std_msgs/msg/Header`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    pub stamp: Time,
+    pub frame_id: String,
+}
+ros_message!(
+    Header,
+    "std_msgs/msg/Header",
+    "builtin_interfaces/Time stamp\nstring frame_id\n"
+);
+
+/// `std_msgs/msg/Float64`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Float64 {
+    pub data: f64,
+}
+ros_message!(Float64, "std_msgs/msg/Float64", "float64 data\n");
+
+/// `std_msgs/msg/Bool`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Bool {
+    pub data: bool,
+}
+ros_message!(Bool, "std_msgs/msg/Bool", "bool data\n");
+
+/// `std_msgs/msg/ColorRGBA`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct ColorRgba {
+    pub r: f32,
+    pub g: f32,
+    pub b: f32,
+    pub a: f32,
+}
+ros_message!(
+    ColorRgba,
+    "std_msgs/msg/ColorRGBA",
+    "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n"
+);
