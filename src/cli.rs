@@ -11,9 +11,12 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+use crate::bag::{replay, writer::Compression};
 use crate::cloud;
+use crate::config::Config;
 use crate::ist::cache::TreeCache;
 use crate::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin, TreeBuilder};
+use crate::monitor::Monitor;
 use crate::packing::PackingParams;
 use crate::query::{Engine, LinkSelection, Mode, Outcome, QueryOptions};
 use crate::robot::{PackagePath, RobotModel};
@@ -40,9 +43,37 @@ enum Command {
     Poses(PosesArgs),
     /// Minimum distance between the posed robot and one point cloud.
     Query(QueryArgs),
+    /// Replay a rosbag2 MCAP bag through the monitor: one line per cloud and a summary.
+    Replay(ReplayArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(Bench),
+}
+
+/// The bundled demo bag and its config, the defaults of `replay`.
+pub const DEMO_BAG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/bags/demo");
+pub const DEMO_CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo_arm.yaml");
+
+#[derive(Args)]
+pub(crate) struct ReplayArgs {
+    /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag).
+    #[arg(default_value = DEMO_BAG)]
+    bag: PathBuf,
+    /// ROS 2 parameters file (default: config/demo_arm.yaml).
+    #[arg(long, default_value = DEMO_CONFIG)]
+    config: PathBuf,
+    /// Override a parameter, NAME:=VALUE (value in YAML); repeatable.
+    #[arg(short = 'p', long = "param", value_name = "NAME:=VALUE", value_parser = crate::config::parse_override)]
+    params: Vec<(String, String)>,
+    /// Write the node's outputs to this MCAP (`.mcap` file, or a rosbag2 folder otherwise).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Chunk compression of --out.
+    #[arg(long, value_enum, default_value_t = Compression::Zstd)]
+    out_compression: Compression,
+    /// Print the frames and the summary as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -256,6 +287,7 @@ pub fn run() -> Result<()> {
         Command::Build(args) => build(args),
         Command::Poses(args) => poses(args),
         Command::Query(args) => query(args),
+        Command::Replay(args) => replay(args),
         Command::Bench(Bench::Packing(args)) => bench_packing(args),
         Command::Bench(Bench::Query(args)) => crate::bench::bench_query(args),
     }
@@ -497,6 +529,87 @@ fn query(args: QueryArgs) -> Result<()> {
         }
     }
     println!("query time {:.3} ms (one cold query)", 1e3 * elapsed);
+    Ok(())
+}
+
+fn replay(args: ReplayArgs) -> Result<()> {
+    let config = Config::load(&args.config, &args.params)
+        .with_context(|| format!("config {}", args.config.display()))?;
+    let mut monitor = Monitor::new(config)?;
+    let out = args.out.as_deref().map(|p| (p, args.out_compression));
+    let mut frames = Vec::new();
+    let json = args.json;
+    if !json {
+        println!(
+            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8}",
+            "frame",
+            "stamp [s]",
+            "level",
+            "min [m]",
+            "lower [m]",
+            "upper [m]",
+            "link",
+            "truth [m]",
+            "ms"
+        );
+    }
+    let summary = replay::replay(&mut monitor, &args.bag, out, &mut |f| {
+        if json {
+            frames.push(f.clone());
+            return;
+        }
+        let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
+        println!(
+            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8.3}{}",
+            f.index,
+            f.stamp_ns as f64 * 1e-9,
+            format!("{:?}", f.level).to_uppercase(),
+            m(f.min_distance_m),
+            m(f.lower_m),
+            m(f.distance_m),
+            f.link.as_deref().unwrap_or(match f.outcome {
+                "nearest" => "-",
+                other => other,
+            }),
+            m(f.truth_m),
+            f.processing_ms,
+            f.fault
+                .as_ref()
+                .map(|e| format!("  {e}"))
+                .unwrap_or_default()
+        );
+    })?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(
+                &serde_json::json!({"frames": frames, "summary": summary})
+            )?
+        );
+        return Ok(());
+    }
+    let faults: usize = summary.faults.values().sum();
+    println!(
+        "{} frames, {} faults{}, {} dropped, {} input errors; processing p50 {:.3} ms, p99 {:.3} ms{}",
+        summary.frames,
+        faults,
+        if faults > 0 {
+            format!(" ({:?})", summary.faults)
+        } else {
+            String::new()
+        },
+        summary.dropped,
+        summary.input_errors,
+        summary.processing_p50_ms,
+        summary.processing_p99_ms,
+        summary
+            .max_error_vs_truth_m
+            .map(|e| format!("; max |min_distance − truth| {:.2} mm", e * 1e3))
+            .unwrap_or_default()
+    );
+    if let Some(out) = &args.out {
+        println!("outputs written to {}", out.display());
+    }
     Ok(())
 }
 

@@ -313,13 +313,16 @@ fn to_link_frame(
         .collect()
 }
 
-enum UriError {
+#[derive(Debug, thiserror::Error)]
+pub enum UriError {
+    #[error("package {0} not found (give --package-path {0}=DIR, or set ROS_PACKAGE_PATH or AMENT_PREFIX_PATH)")]
     Package(String),
+    #[error("unsupported URI scheme")]
     Unsupported,
 }
 
 /// Resolves a mesh URI to a file path (see the module doc for the search order).
-fn resolve_uri(uri: &str, base: &Path, packages: &[PackagePath]) -> Result<PathBuf, UriError> {
+pub fn resolve_uri(uri: &str, base: &Path, packages: &[PackagePath]) -> Result<PathBuf, UriError> {
     if let Some(rest) = uri.strip_prefix("package://") {
         let (package, relative) = rest.split_once('/').unwrap_or((rest, ""));
         let env_paths = |var: &str| -> Vec<PathBuf> {

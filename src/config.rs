@@ -1,0 +1,600 @@
+//! Configuration: a ROS 2 parameters file (`<node>: ros__parameters: …`, the form `ros2 run
+//! --ros-args --params-file` reads), validated into a typed [`Config`]. `replay` and the live
+//! node read the same files.
+//!
+//! Every parameter is declared once in [`PARAMETERS`] with its default, unit and meaning; a file
+//! may set only declared ones (a misspelt name is an error that names it). Nested maps are
+//! flattened to dotted names as ROS 2 does (`front.topic`). Names with a `<source>.` or
+//! `<transform>.` prefix are declared per entry of the `sources` and `static_transforms` lists.
+//! `-p name:=value` overrides (value in YAML) are applied after the file. Every value is
+//! checked at load, and a bad one is an error that names the parameter.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use yaml_rust2::{Yaml, YamlLoader};
+
+use crate::ist::BuildOptions;
+use crate::msg::{Header, Quaternion, Time, Transform, TransformStamped, Vector3};
+use crate::query::{LinkSelection, Mode, QueryOptions};
+use crate::robot::PackagePath;
+
+/// One declared parameter. `default` is YAML text; `~` means "no value" (optional).
+#[derive(Debug, Clone, Copy)]
+pub struct ParamDecl {
+    pub name: &'static str,
+    pub default: &'static str,
+    pub unit: &'static str,
+    pub doc: &'static str,
+}
+
+const fn p(
+    name: &'static str,
+    default: &'static str,
+    unit: &'static str,
+    doc: &'static str,
+) -> ParamDecl {
+    ParamDecl {
+        name,
+        default,
+        unit,
+        doc,
+    }
+}
+
+/// Every parameter of the node. `<source>.x` and `<transform>.x` are declared for each name in
+/// `sources` and `static_transforms`.
+pub const PARAMETERS: &[ParamDecl] = &[
+    p("robot_description", "~", "path", "URDF file; relative paths are relative to this file; package:// is resolved through package_paths (default: the demo robot)"),
+    p("package_paths", "[]", "NAME=DIR", "where package://NAME is found"),
+    p("mode", "certified", "", "fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or exact (distance to the collision meshes)"),
+    p("max_distance", "2.0", "m", "points farther than this from the robot's bounding box are culled"),
+    p("self_filter", "true", "", "drop cloud points on the robot itself"),
+    p("self_filter_padding", "0.01", "m", "a point this close to the robot is the robot"),
+    p("per_link", "true", "", "also compute the minimum of every link"),
+    p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
+    p("exclude_links", "[]", "", "leave these links out"),
+    p("max_spheres", "8192", "", "inner spheres per link"),
+    p("cache_dir", "~", "path", "where the trees are cached (default: $IST_MONITOR_CACHE or ~/.cache/ist_monitor)"),
+    p("joint_states_topic", "/joint_states", "topic", "sensor_msgs/JointState input"),
+    p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
+    p("joint_state_tolerance", "0.1", "s", "a joint state may be this much older or newer than the cloud"),
+    p("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),
+    p("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
+    p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
+    p("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
+    p("sources", "[camera]", "", "names of the point cloud sources"),
+    p("<source>.topic", "/camera/depth/points", "topic", "sensor_msgs/PointCloud2 input of the source"),
+    p("<source>.enabled", "true", "", "whether the source is used"),
+    p("<source>.source_timeout", "0.5", "s", "no cloud for this long is a fault"),
+    p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
+    p("<source>.max_range", "~", "m", "points farther from the sensor than this are dropped (default: none)"),
+    p("<source>.qos", "sensor_data", "", "sensor_data (best effort) or reliable"),
+    p("static_transforms", "[]", "", "names of static transforms given here, for bags and setups without /tf_static"),
+    p("<transform>.parent_frame", "~", "frame", "parent frame of the static transform"),
+    p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),
+    p("<transform>.translation", "[0.0, 0.0, 0.0]", "m", "parent_from_child translation x y z"),
+    p("<transform>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "parent_from_child rotation as a quaternion x y z w"),
+    p("fixed_joint_state.names", "[]", "", "joints held at fixed values (for bags without /joint_states)"),
+    p("fixed_joint_state.positions", "[]", "rad or m", "their values, in the same order"),
+];
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: YAML: {message}")]
+    Yaml { path: PathBuf, message: String },
+    #[error("{path}: no `<node>: ros__parameters:` section")]
+    NoParameters { path: PathBuf },
+    #[error("parameter {0} is not declared (see `config/README.md`)")]
+    Unknown(String),
+    #[error("parameter {name}: {message}")]
+    Invalid { name: String, message: String },
+}
+
+/// A point cloud source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SourceConfig {
+    pub name: String,
+    pub topic: String,
+    pub enabled: bool,
+    pub source_timeout_s: f64,
+    pub min_range_m: f64,
+    pub max_range_m: Option<f64>,
+    pub reliable: bool,
+}
+
+/// The validated configuration.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// Node name and namespace from the file's top key (`/ns/name`), `ist_monitor` for `/**`.
+    pub node_name: String,
+    pub namespace: String,
+    pub robot_description: Option<PathBuf>,
+    pub package_paths: Vec<PackagePath>,
+    pub query: QueryOptions,
+    pub selection: LinkSelection,
+    pub build: BuildOptions,
+    pub cache_dir: Option<PathBuf>,
+    pub joint_states_topic: String,
+    pub tf_tolerance_s: f64,
+    pub joint_state_tolerance_s: f64,
+    pub warn_distance_m: f64,
+    pub stop_distance_m: f64,
+    pub hysteresis_m: f64,
+    pub latency_budget_s: f64,
+    pub sources: Vec<SourceConfig>,
+    pub static_transforms: Vec<TransformStamped>,
+    pub fixed_joint_state: Vec<(String, f64)>,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self::from_values("ist_monitor", "/", None, BTreeMap::new())
+            .expect("the declared defaults are valid")
+    }
+}
+
+fn scalar_yaml(text: &str) -> Yaml {
+    YamlLoader::load_from_str(text)
+        .ok()
+        .and_then(|d| d.into_iter().next())
+        .unwrap_or(Yaml::Null)
+}
+
+/// Flattens nested maps into dotted names.
+fn flatten(prefix: &str, y: &Yaml, out: &mut BTreeMap<String, Yaml>) {
+    match y {
+        Yaml::Hash(h) => {
+            for (k, v) in h {
+                let key = match k {
+                    Yaml::String(s) => s.clone(),
+                    other => format!("{other:?}"),
+                };
+                let name = if prefix.is_empty() {
+                    key
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                flatten(&name, v, out);
+            }
+        }
+        _ => {
+            out.insert(prefix.to_owned(), y.clone());
+        }
+    }
+}
+
+/// Typed access to the flattened values with the declared defaults.
+struct Values {
+    values: BTreeMap<String, Yaml>,
+}
+
+impl Values {
+    fn raw(&self, name: &str, template: &str) -> Yaml {
+        if let Some(v) = self.values.get(name) {
+            return v.clone();
+        }
+        let decl = PARAMETERS
+            .iter()
+            .find(|d| d.name == template)
+            .expect("every read parameter is declared");
+        scalar_yaml(decl.default)
+    }
+    fn bad(name: &str, message: impl Into<String>) -> ConfigError {
+        ConfigError::Invalid {
+            name: name.to_owned(),
+            message: message.into(),
+        }
+    }
+    fn f64_of(name: &str, y: &Yaml) -> Result<f64, ConfigError> {
+        match y {
+            Yaml::Real(_) => y.as_f64(),
+            Yaml::Integer(i) => Some(*i as f64),
+            _ => None,
+        }
+        .ok_or_else(|| Self::bad(name, format!("expected a number, got {}", show(y))))
+    }
+    fn opt_f64(&self, name: &str, template: &str) -> Result<Option<f64>, ConfigError> {
+        match self.raw(name, template) {
+            Yaml::Null => Ok(None),
+            y => Self::f64_of(name, &y).map(Some),
+        }
+    }
+    /// A number ≥ 0 (finite unless `infinite_ok`).
+    fn distance(&self, name: &str, template: &str) -> Result<f64, ConfigError> {
+        let v = self
+            .opt_f64(name, template)?
+            .ok_or_else(|| Self::bad(name, "a value is required"))?;
+        if !(v >= 0.0 && v.is_finite()) {
+            return Err(Self::bad(name, format!("must be finite and ≥ 0, got {v}")));
+        }
+        Ok(v)
+    }
+    fn bool(&self, name: &str, template: &str) -> Result<bool, ConfigError> {
+        let y = self.raw(name, template);
+        y.as_bool()
+            .ok_or_else(|| Self::bad(name, format!("expected true or false, got {}", show(&y))))
+    }
+    fn opt_string(&self, name: &str, template: &str) -> Result<Option<String>, ConfigError> {
+        match self.raw(name, template) {
+            Yaml::Null => Ok(None),
+            Yaml::String(s) => Ok(Some(s)),
+            y => Err(Self::bad(
+                name,
+                format!("expected a string, got {}", show(&y)),
+            )),
+        }
+    }
+    fn string(&self, name: &str, template: &str) -> Result<String, ConfigError> {
+        self.opt_string(name, template)?
+            .ok_or_else(|| Self::bad(name, "a value is required"))
+    }
+    fn strings(&self, name: &str) -> Result<Vec<String>, ConfigError> {
+        let y = self.raw(name, name);
+        let list = y.as_vec().ok_or_else(|| {
+            Self::bad(
+                name,
+                format!("expected a list of strings, got {}", show(&y)),
+            )
+        })?;
+        list.iter()
+            .map(|v| {
+                v.as_str()
+                    .map(str::to_owned)
+                    .ok_or_else(|| Self::bad(name, format!("{} is not a string", show(v))))
+            })
+            .collect()
+    }
+    fn numbers(&self, name: &str, template: &str) -> Result<Vec<f64>, ConfigError> {
+        let y = self.raw(name, template);
+        let list = y.as_vec().ok_or_else(|| {
+            Self::bad(
+                name,
+                format!("expected a list of numbers, got {}", show(&y)),
+            )
+        })?;
+        list.iter()
+            .map(|v| {
+                let x = Self::f64_of(name, v)?;
+                x.is_finite()
+                    .then_some(x)
+                    .ok_or_else(|| Self::bad(name, "values must be finite"))
+            })
+            .collect()
+    }
+}
+
+fn show(y: &Yaml) -> String {
+    match y {
+        Yaml::Real(s) | Yaml::String(s) => s.clone(),
+        Yaml::Integer(i) => i.to_string(),
+        Yaml::Boolean(b) => b.to_string(),
+        Yaml::Null => "nothing".into(),
+        Yaml::Array(_) => "a list".into(),
+        Yaml::Hash(_) => "a map".into(),
+        _ => format!("{y:?}"),
+    }
+}
+
+/// Parses `name:=value` (a `-p` override; the value is YAML).
+pub fn parse_override(s: &str) -> Result<(String, String), String> {
+    let (name, value) = s
+        .split_once(":=")
+        .ok_or_else(|| format!("expected NAME:=VALUE, got '{s}'"))?;
+    Ok((name.trim().to_owned(), value.trim().to_owned()))
+}
+
+impl Config {
+    /// Reads a parameters file, then applies `overrides` (`name`, YAML value).
+    pub fn load(path: &Path, overrides: &[(String, String)]) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let docs = YamlLoader::load_from_str(&text).map_err(|e| ConfigError::Yaml {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        let no_params = || ConfigError::NoParameters {
+            path: path.to_owned(),
+        };
+        let top = docs
+            .first()
+            .and_then(|d| d.as_hash())
+            .ok_or_else(no_params)?;
+        let (key, section) = top
+            .iter()
+            .find(|(_, v)| !v["ros__parameters"].is_badvalue())
+            .ok_or_else(no_params)?;
+        let key = key.as_str().unwrap_or("ist_monitor");
+        let (namespace, node_name) = match key.trim_start_matches('/').rsplit_once('/') {
+            _ if key == "/**" => ("/".to_owned(), "ist_monitor".to_owned()),
+            Some((ns, name)) => (format!("/{ns}"), name.to_owned()),
+            None => ("/".to_owned(), key.trim_start_matches('/').to_owned()),
+        };
+        let mut values = BTreeMap::new();
+        flatten("", &section["ros__parameters"], &mut values);
+        for (name, value) in overrides {
+            values.insert(name.clone(), scalar_yaml(value));
+        }
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::from_values(&node_name, &namespace, Some(base), values)
+    }
+
+    /// Validates flattened values; relative paths are taken from `base`.
+    pub fn from_values(
+        node_name: &str,
+        namespace: &str,
+        base: Option<&Path>,
+        values: BTreeMap<String, Yaml>,
+    ) -> Result<Self, ConfigError> {
+        let v = Values { values };
+        let sources = v.strings("sources")?;
+        let transforms = v.strings("static_transforms")?;
+        // Every given name must be declared, directly or under a listed source or transform.
+        for name in v.values.keys() {
+            let declared = PARAMETERS.iter().any(|d| {
+                d.name == name
+                    || d.name
+                        .strip_prefix("<source>.")
+                        .is_some_and(|rest| sources.iter().any(|s| name == &format!("{s}.{rest}")))
+                    || d.name.strip_prefix("<transform>.").is_some_and(|rest| {
+                        transforms.iter().any(|t| name == &format!("{t}.{rest}"))
+                    })
+            });
+            if !declared {
+                return Err(ConfigError::Unknown(name.clone()));
+            }
+        }
+        let path = |s: String| {
+            let p = PathBuf::from(&s);
+            match base {
+                Some(b) if p.is_relative() && !s.starts_with("package://") => b.join(p),
+                _ => p,
+            }
+        };
+        let mode = match v.string("mode", "mode")?.as_str() {
+            "fast" => Mode::Fast,
+            "certified" => Mode::Certified,
+            "exact" => Mode::Exact,
+            other => {
+                return Err(Values::bad(
+                    "mode",
+                    format!("'{other}' (expected fast, certified or exact)"),
+                ))
+            }
+        };
+        let max_distance_m = match v.raw("max_distance", "max_distance") {
+            Yaml::Real(s) if s == ".inf" => f64::INFINITY,
+            _ => v.distance("max_distance", "max_distance")?,
+        } as f32;
+        let query = QueryOptions {
+            mode,
+            max_distance_m,
+            self_filter_padding_m: v
+                .bool("self_filter", "self_filter")?
+                .then(|| v.distance("self_filter_padding", "self_filter_padding"))
+                .transpose()?
+                .map(|x| x as f32),
+            per_link: v.bool("per_link", "per_link")?,
+        };
+        let max_spheres = v.distance("max_spheres", "max_spheres")?;
+        if max_spheres < 1.0 || max_spheres.fract() != 0.0 {
+            return Err(Values::bad("max_spheres", "must be a whole number ≥ 1"));
+        }
+        let mut build = BuildOptions::default();
+        build.packing.max_spheres = max_spheres as u32;
+        let package_paths = v
+            .strings("package_paths")?
+            .iter()
+            .map(|s| {
+                s.parse::<PackagePath>()
+                    .map(|p| PackagePath {
+                        dir: path(p.dir.to_string_lossy().into_owned()),
+                        ..p
+                    })
+                    .map_err(|e| Values::bad("package_paths", e))
+            })
+            .collect::<Result<_, _>>()?;
+        let sources = sources
+            .iter()
+            .map(|s| {
+                let get = |rest: &str| (format!("{s}.{rest}"), format!("<source>.{rest}"));
+                let (topic, t) = get("topic");
+                let (enabled, e) = get("enabled");
+                let (timeout, to) = get("source_timeout");
+                let (min, mi) = get("min_range");
+                let (max, ma) = get("max_range");
+                let (qos, q) = get("qos");
+                let reliable = match v.string(&qos, &q)?.as_str() {
+                    "sensor_data" => false,
+                    "reliable" => true,
+                    other => {
+                        return Err(Values::bad(
+                            &qos,
+                            format!("'{other}' (expected sensor_data or reliable)"),
+                        ))
+                    }
+                };
+                let max_range_m = v.opt_f64(&max, &ma)?;
+                if max_range_m.is_some_and(|m| m <= 0.0 || m.is_nan()) {
+                    return Err(Values::bad(&max, "must be > 0"));
+                }
+                let source_timeout_s = v.distance(&timeout, &to)?;
+                if source_timeout_s <= 0.0 {
+                    return Err(Values::bad(&timeout, "must be > 0"));
+                }
+                Ok(SourceConfig {
+                    name: s.clone(),
+                    topic: v.string(&topic, &t)?,
+                    enabled: v.bool(&enabled, &e)?,
+                    source_timeout_s,
+                    min_range_m: v.distance(&min, &mi)?,
+                    max_range_m,
+                    reliable,
+                })
+            })
+            .collect::<Result<Vec<_>, ConfigError>>()?;
+        let static_transforms = transforms
+            .iter()
+            .map(|t| {
+                let n = |rest: &str| (format!("{t}.{rest}"), format!("<transform>.{rest}"));
+                let (parent, pt) = n("parent_frame");
+                let (child, ct) = n("child_frame");
+                let (tr, trt) = n("translation");
+                let (rot, rott) = n("rotation");
+                let xyz = v.numbers(&tr, &trt)?;
+                let q = v.numbers(&rot, &rott)?;
+                if xyz.len() != 3 {
+                    return Err(Values::bad(&tr, "expected [x, y, z]"));
+                }
+                if q.len() != 4 {
+                    return Err(Values::bad(&rot, "expected [x, y, z, w]"));
+                }
+                let rotation = Quaternion {
+                    x: q[0],
+                    y: q[1],
+                    z: q[2],
+                    w: q[3],
+                };
+                if rotation.to_unit().is_none() {
+                    return Err(Values::bad(&rot, "the quaternion is zero"));
+                }
+                Ok(TransformStamped {
+                    header: Header {
+                        stamp: Time::default(),
+                        frame_id: v.string(&parent, &pt)?,
+                    },
+                    child_frame_id: v.string(&child, &ct)?,
+                    transform: Transform {
+                        translation: Vector3 {
+                            x: xyz[0],
+                            y: xyz[1],
+                            z: xyz[2],
+                        },
+                        rotation,
+                    },
+                })
+            })
+            .collect::<Result<Vec<_>, ConfigError>>()?;
+        let names = v.strings("fixed_joint_state.names")?;
+        let positions = v.numbers("fixed_joint_state.positions", "fixed_joint_state.positions")?;
+        if names.len() != positions.len() {
+            return Err(Values::bad(
+                "fixed_joint_state.positions",
+                format!("{} values for {} names", positions.len(), names.len()),
+            ));
+        }
+        let warn_distance_m = v.distance("warn_distance", "warn_distance")?;
+        let stop_distance_m = v.distance("stop_distance", "stop_distance")?;
+        if stop_distance_m > warn_distance_m {
+            return Err(Values::bad(
+                "stop_distance",
+                format!("{stop_distance_m} m is above warn_distance {warn_distance_m} m"),
+            ));
+        }
+        Ok(Self {
+            node_name: node_name.to_owned(),
+            namespace: namespace.to_owned(),
+            robot_description: v
+                .opt_string("robot_description", "robot_description")?
+                .map(path),
+            package_paths,
+            query,
+            selection: LinkSelection {
+                include: v.strings("links")?,
+                exclude: v.strings("exclude_links")?,
+            },
+            build,
+            cache_dir: v.opt_string("cache_dir", "cache_dir")?.map(path),
+            joint_states_topic: v.string("joint_states_topic", "joint_states_topic")?,
+            tf_tolerance_s: v.distance("tf_tolerance", "tf_tolerance")?,
+            joint_state_tolerance_s: v
+                .distance("joint_state_tolerance", "joint_state_tolerance")?,
+            warn_distance_m,
+            stop_distance_m,
+            hysteresis_m: v.distance("hysteresis", "hysteresis")?,
+            latency_budget_s: v.distance("latency_budget", "latency_budget")?,
+            sources,
+            static_transforms,
+            fixed_joint_state: names.into_iter().zip(positions).collect(),
+        })
+    }
+
+    /// The fully qualified name of a node-private topic `~/name`.
+    pub fn private_topic(&self, name: &str) -> String {
+        let ns = self.namespace.trim_end_matches('/');
+        format!("{ns}/{}/{name}", self.node_name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str, overrides: &[(&str, &str)]) -> Result<Config, ConfigError> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("params.yaml");
+        std::fs::write(&path, text).unwrap();
+        let o: Vec<(String, String)> = overrides
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect();
+        Config::load(&path, &o)
+    }
+
+    #[test]
+    fn defaults_and_a_full_file() {
+        let c = Config::default();
+        assert_eq!(c.query.mode, Mode::Certified);
+        assert_eq!(c.sources.len(), 1);
+        assert_eq!(c.sources[0].topic, "/camera/depth/points");
+        let c = load(
+            "/robots/arm_monitor:\n  ros__parameters:\n    mode: exact\n    max_distance: 1\n    sources: [front, wrist]\n    front:\n      topic: /front/points\n      max_range: 4.5\n    wrist.enabled: false\n    static_transforms: [cam]\n    cam:\n      parent_frame: world\n      child_frame: cam_link\n      translation: [1, 2, 3]\n      rotation: [0, 0, 0, 2]\n    fixed_joint_state:\n      names: [j1]\n      positions: [0.5]\n",
+            &[("front.min_range", "0.2")],
+        )
+        .unwrap();
+        assert_eq!(
+            (c.namespace.as_str(), c.node_name.as_str()),
+            ("/robots", "arm_monitor")
+        );
+        assert_eq!(
+            c.private_topic("min_distance"),
+            "/robots/arm_monitor/min_distance"
+        );
+        assert_eq!(c.query.mode, Mode::Exact);
+        assert_eq!(c.query.max_distance_m, 1.0);
+        assert_eq!(c.sources[0].max_range_m, Some(4.5));
+        assert_eq!(c.sources[0].min_range_m, 0.2);
+        assert!(!c.sources[1].enabled);
+        assert_eq!(c.static_transforms[0].transform.translation.z, 3.0);
+        assert_eq!(c.fixed_joint_state, vec![("j1".to_string(), 0.5)]);
+    }
+
+    #[test]
+    fn bad_values_name_the_parameter() {
+        let base = "ist_monitor:\n  ros__parameters:\n";
+        for (body, name) in [
+            ("    mode: quick\n", "mode"),
+            ("    max_distance: -1.0\n", "max_distance"),
+            ("    self_filter_padding: x\n", "self_filter_padding"),
+            ("    max_distanse: 1.0\n", "max_distanse"),
+            ("    sources: [a]\n    a.qos: fast\n", "a.qos"),
+            ("    sources: [a]\n    a.source_timeout: 0\n", "a.source_timeout"),
+            ("    static_transforms: [t]\n    t.parent_frame: a\n    t.child_frame: b\n    t.rotation: [0, 0, 0, 0]\n", "t.rotation"),
+            ("    fixed_joint_state:\n      names: [a, b]\n      positions: [1.0]\n", "fixed_joint_state.positions"),
+            ("    stop_distance: 0.5\n", "stop_distance"),
+            ("    per_link: 3\n", "per_link"),
+        ] {
+            let e = load(&format!("{base}{body}"), &[]).unwrap_err().to_string();
+            assert!(e.contains(name), "{body}: {e}");
+        }
+        let e = load("ist_monitor:\n  params: {}\n", &[]).unwrap_err();
+        assert!(matches!(e, ConfigError::NoParameters { .. }));
+    }
+}

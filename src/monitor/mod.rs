@@ -1,0 +1,271 @@
+//! The monitor: the one pipeline that `replay` and the live node run. Inputs are CDR payloads
+//! as they come off a bag or DDS — `/tf`, `/tf_static`, `/joint_states` and each source's
+//! PointCloud2 — and every cloud gives a [`Frame`]: the query result or the fault that stopped
+//! it, and the node's output messages (`outputs`).
+//!
+//! Per cloud: decode → drop points outside the source's `min_range`/`max_range` (they become
+//! invalid points) → the joint values at the cloud's stamp (`tf::JointStateBuffer`) → forward
+//! kinematics → the sensor frame in the robot's root frame at the stamp (`tf::root_from_sensor`)
+//! → the query (`query::Engine`) → outputs. A decode error, a missing or stale transform or
+//! joint, and a failed query are faults of that frame: reported with their reason and an ERROR
+//! level, never as a distance. The next message is processed as usual.
+
+pub mod outputs;
+
+pub use outputs::{Level, LevelTracker, Outputs};
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use nalgebra::Isometry3;
+
+use crate::cloud::{pointcloud2, CloudError};
+use crate::config::Config;
+use crate::ist::{self, cache::TreeCache, LinkTree};
+use crate::msg::{self, JointState, MsgError, TfMessage};
+use crate::query::{Engine, QueryError, QueryResult};
+use crate::robot::{urdf::resolve_uri, RobotModel};
+use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
+
+/// Why a frame has no distance.
+#[derive(Debug, thiserror::Error)]
+pub enum Fault {
+    #[error("decode error: {0}")]
+    Decode(#[from] CloudError),
+    #[error("missing joint state: {0}")]
+    Joints(#[from] JointError),
+    #[error("missing transform: {0}")]
+    Tf(#[from] TfError),
+    #[error("query failed: {0}")]
+    Query(#[from] QueryError),
+    #[error("cloud has no frame_id")]
+    NoFrame,
+}
+
+impl Fault {
+    /// A short key for counting faults by kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Fault::Decode(_) => "decode",
+            Fault::Joints(JointError::Stale { .. }) => "stale_joint_state",
+            Fault::Joints(_) => "joint_state",
+            Fault::Tf(TfError::Stale { .. }) => "stale_tf",
+            Fault::Tf(_) => "tf",
+            Fault::Query(_) => "query",
+            Fault::NoFrame => "decode",
+        }
+    }
+}
+
+/// Errors of the TF and joint-state inputs themselves (the message is dropped).
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    #[error("{topic}: {source}")]
+    Msg { topic: String, source: MsgError },
+    #[error("{topic}: {source}")]
+    Tf { topic: String, source: TfError },
+    #[error("{topic}: {source}")]
+    Joints { topic: String, source: JointError },
+}
+
+/// One processed cloud.
+#[derive(Debug)]
+pub struct Frame {
+    pub source: String,
+    pub stamp_ns: i64,
+    pub result: Result<QueryResult, Fault>,
+    /// Decode, poses and query, s.
+    pub processing_s: f64,
+    pub outputs: Outputs,
+}
+
+pub struct Monitor {
+    pub config: Config,
+    pub model: RobotModel,
+    engine: Engine,
+    tf: TfBuffer,
+    joints: JointStateBuffer,
+    level: LevelTracker,
+}
+
+/// The trees of `model` built or loaded from the cache as `config` says.
+pub fn trees(model: &RobotModel, config: &Config) -> Result<Vec<LinkTree>> {
+    let cache = TreeCache::new(
+        config
+            .cache_dir
+            .clone()
+            .unwrap_or_else(TreeCache::default_dir),
+    );
+    Ok(
+        ist::build_robot(model, &config.build, Some(&cache), &|_| {})?
+            .into_iter()
+            .map(|(t, _)| t)
+            .collect(),
+    )
+}
+
+impl Monitor {
+    /// Loads the robot, builds (or loads) its trees and applies the config's static transforms
+    /// and fixed joints. Errors here are start-up errors.
+    pub fn new(config: Config) -> Result<Self> {
+        let urdf = match &config.robot_description {
+            None => crate::cli::DEMO_URDF.into(),
+            Some(p) => match p.to_str().filter(|s| s.starts_with("package://")) {
+                Some(uri) => resolve_uri(uri, Path::new("."), &config.package_paths)
+                    .with_context(|| format!("parameter robot_description: {uri}"))?,
+                None => p.clone(),
+            },
+        };
+        let model = RobotModel::load(&urdf, &config.package_paths)
+            .with_context(|| format!("loading robot {}", urdf.display()))?;
+        let trees = trees(&model, &config)?;
+        Self::with_trees(config, model, &trees)
+    }
+
+    /// As [`Monitor::new`], with the model and trees given.
+    pub fn with_trees(config: Config, model: RobotModel, trees: &[LinkTree]) -> Result<Self> {
+        config.query.validate().context("query parameters")?;
+        let engine = Engine::new(&model, trees, &config.selection)?;
+        let mut tf = TfBuffer::new(10.0);
+        for t in &config.static_transforms {
+            tf.insert(t, true).with_context(|| {
+                format!(
+                    "static transform {} → {}",
+                    t.header.frame_id, t.child_frame_id
+                )
+            })?;
+        }
+        let mut joints = JointStateBuffer::new(model.kinematics.variables());
+        joints
+            .set_fixed(&config.fixed_joint_state)
+            .map_err(anyhow::Error::msg)
+            .context("parameter fixed_joint_state.names")?;
+        let level = LevelTracker::new(&config);
+        Ok(Self {
+            config,
+            model,
+            engine,
+            tf,
+            joints,
+            level,
+        })
+    }
+
+    /// The robot's root frame (the URDF's root link).
+    pub fn root_frame(&self) -> &str {
+        self.model.kinematics.root_link()
+    }
+
+    /// Adds a `tf2_msgs/TFMessage` from `/tf` or (`is_static`) `/tf_static`.
+    pub fn on_tf(
+        &mut self,
+        topic: &str,
+        payload: &[u8],
+        is_static: bool,
+    ) -> Result<(), InputError> {
+        let m: TfMessage = msg::decode(payload).map_err(|source| InputError::Msg {
+            topic: topic.into(),
+            source,
+        })?;
+        for t in &m.transforms {
+            self.tf
+                .insert(t, is_static)
+                .map_err(|source| InputError::Tf {
+                    topic: topic.into(),
+                    source,
+                })?;
+        }
+        Ok(())
+    }
+
+    /// Adds a `sensor_msgs/JointState`.
+    pub fn on_joint_state(&mut self, topic: &str, payload: &[u8]) -> Result<(), InputError> {
+        let m: JointState = msg::decode(payload).map_err(|source| InputError::Msg {
+            topic: topic.into(),
+            source,
+        })?;
+        self.joints.insert(&m).map_err(|source| InputError::Joints {
+            topic: topic.into(),
+            source,
+        })
+    }
+
+    /// Which source, if any, publishes on `topic`.
+    pub fn source_of(&self, topic: &str) -> Option<usize> {
+        self.config
+            .sources
+            .iter()
+            .position(|s| s.enabled && s.topic == topic)
+    }
+
+    /// Processes one cloud of source `source`.
+    pub fn on_cloud(&mut self, source: usize, payload: &[u8]) -> Frame {
+        let start = Instant::now();
+        let mut stamp_ns = 0;
+        let result = self.process(source, payload, &mut stamp_ns);
+        let processing_s = start.elapsed().as_secs_f64();
+        let name = self.config.sources[source].name.clone();
+        let outputs = Outputs::new(
+            &self.config,
+            self.model.kinematics.root_link(),
+            &self.model.name,
+            &name,
+            stamp_ns,
+            &result,
+            processing_s,
+            &mut self.level,
+        );
+        Frame {
+            source: name,
+            stamp_ns,
+            result,
+            processing_s,
+            outputs,
+        }
+    }
+
+    fn process(
+        &mut self,
+        source: usize,
+        payload: &[u8],
+        stamp_ns: &mut i64,
+    ) -> Result<QueryResult, Fault> {
+        let message = pointcloud2::decode(payload)?;
+        *stamp_ns = message.header.stamp.as_nanos();
+        let mut cloud = message.to_cloud()?;
+        let frame = cloud.frame_id.take().filter(|f| !f.is_empty());
+        let frame = frame.ok_or(Fault::NoFrame)?;
+        let s = &self.config.sources[source];
+        if s.min_range_m > 0.0 || s.max_range_m.is_some() {
+            let (lo, hi) = (
+                (s.min_range_m * s.min_range_m) as f32,
+                s.max_range_m.map_or(f32::INFINITY, |m| (m * m) as f32),
+            );
+            for p in &mut cloud.points {
+                let r2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+                if !(r2 >= lo && r2 <= hi) {
+                    *p = [f32::NAN; 3];
+                }
+            }
+        }
+        let stamp = Some(*stamp_ns);
+        let q = self.joints.at(stamp, self.config.joint_state_tolerance_s)?;
+        let poses = self.model.kinematics.link_poses(&q);
+        let kinematics = &self.model.kinematics;
+        let link_pose = |name: &str| -> Option<Isometry3<f64>> {
+            kinematics.link_index(name).map(|i| poses[i])
+        };
+        let root_from_sensor = tf::root_from_sensor(
+            &self.tf,
+            &frame,
+            kinematics.root_link(),
+            stamp,
+            self.config.tf_tolerance_s,
+            &link_pose,
+        )?;
+        Ok(self
+            .engine
+            .query(&cloud.points, &root_from_sensor, &poses, &self.config.query)?)
+    }
+}

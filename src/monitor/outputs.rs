@@ -1,0 +1,326 @@
+//! The node's outputs for one frame, as ROS 2 messages, and the warning level with hysteresis.
+//!
+//! | topic | type | content |
+//! |---|---|---|
+//! | `~/min_distance` | `std_msgs/Float64` | the conservative distance: the certified lower bound (certified), the exact distance (exact), the inner-sphere distance (fast, not conservative); `max_distance` when nothing is nearer; not published on a fault or a cloud without valid points |
+//! | `~/link_distances` | `sensor_msgs/JointState` | `name` = links, `position` = each link's conservative distance (`max_distance` when nothing is nearer); `header` = cloud stamp, root frame |
+//! | `~/closest_points` | `visualization_msgs/MarkerArray` | a line from the robot to the nearest obstacle point and a text with the distance, coloured by level; DELETEALL on a fault |
+//! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source: level, reason, figures |
+//! | `~/safety_stop` | `std_msgs/Bool` | true at level ERROR (below `stop_distance`, or any fault) |
+//!
+//! Levels: OK above `warn_distance`, WARN below it, ERROR below `stop_distance` or on a fault. A
+//! level is left upward only once the distance exceeds its threshold by `hysteresis`, so a
+//! distance hovering at a threshold does not flicker. A cloud without valid points, or one over
+//! the latency budget, is at least WARN.
+
+use crate::config::Config;
+use crate::msg::{
+    Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
+    KeyValue, Marker, MarkerArray, Point, Pose, Time, Vector3,
+};
+use crate::query::{Outcome, QueryResult};
+
+use super::Fault;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "UPPERCASE")]
+pub enum Level {
+    Ok,
+    Warn,
+    Error,
+}
+
+impl Level {
+    pub fn diagnostic(self) -> u8 {
+        match self {
+            Level::Ok => DiagnosticStatus::OK,
+            Level::Warn => DiagnosticStatus::WARN,
+            Level::Error => DiagnosticStatus::ERROR,
+        }
+    }
+    fn color(self) -> ColorRgba {
+        let (r, g, b) = match self {
+            Level::Ok => (0.1, 0.8, 0.2),
+            Level::Warn => (1.0, 0.7, 0.0),
+            Level::Error => (0.9, 0.1, 0.1),
+        };
+        ColorRgba { r, g, b, a: 1.0 }
+    }
+}
+
+/// The distance level with hysteresis.
+#[derive(Debug, Clone)]
+pub struct LevelTracker {
+    warn_m: f64,
+    stop_m: f64,
+    hysteresis_m: f64,
+    level: Level,
+}
+
+impl LevelTracker {
+    pub fn new(config: &Config) -> Self {
+        Self {
+            warn_m: config.warn_distance_m,
+            stop_m: config.stop_distance_m,
+            hysteresis_m: config.hysteresis_m,
+            level: Level::Ok,
+        }
+    }
+
+    /// The level for a conservative distance `d` (`None`: a fault).
+    pub fn update(&mut self, d: Option<f64>) -> Level {
+        let Some(d) = d else {
+            self.level = Level::Error;
+            return self.level;
+        };
+        // Thresholds are raised by the hysteresis for the levels we are above.
+        let up = |level: Level, threshold: f64, current: Level| {
+            if current >= level {
+                threshold + self.hysteresis_m
+            } else {
+                threshold
+            }
+        };
+        let current = self.level;
+        self.level = if d < up(Level::Error, self.stop_m, current) {
+            Level::Error
+        } else if d < up(Level::Warn, self.warn_m, current) {
+            Level::Warn
+        } else {
+            Level::Ok
+        };
+        self.level
+    }
+}
+
+/// The messages of one frame. `min_distance` is `None` when nothing may be published.
+#[derive(Debug, Clone)]
+pub struct Outputs {
+    pub level: Level,
+    /// The conservative distance published on `~/min_distance`.
+    pub min_distance: Option<Float64>,
+    pub link_distances: JointState,
+    pub closest_points: MarkerArray<'static>,
+    pub diagnostics: DiagnosticArray,
+    pub safety_stop: Bool,
+}
+
+/// The conservative distance of a result: `None` when there were no valid points.
+pub fn conservative_distance(r: &QueryResult) -> Option<f64> {
+    match (&r.outcome, &r.nearest) {
+        (Outcome::Nearest, Some(n)) => Some(n.lower_m.unwrap_or(n.distance_m)),
+        (Outcome::NothingWithinMaxDistance, _) => Some(f64::from(r.max_distance_m)),
+        _ => None,
+    }
+}
+
+fn point(p: [f64; 3]) -> Point {
+    Point {
+        x: p[0],
+        y: p[1],
+        z: p[2],
+    }
+}
+
+impl Outputs {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        config: &Config,
+        root_frame: &str,
+        robot: &str,
+        source: &str,
+        stamp_ns: i64,
+        result: &Result<QueryResult, Fault>,
+        processing_s: f64,
+        tracker: &mut LevelTracker,
+    ) -> Self {
+        let header = Header {
+            stamp: Time::from_nanos(stamp_ns),
+            frame_id: root_frame.to_owned(),
+        };
+        let kv = |key: &str, value: String| KeyValue {
+            key: key.into(),
+            value,
+        };
+        let mut values = vec![
+            kv("source", source.into()),
+            kv("latency_ms", format!("{:.3}", processing_s * 1e3)),
+        ];
+        let over_budget = processing_s > config.latency_budget_s;
+        let (distance, mut message) = match result {
+            Err(fault) => {
+                values.push(kv("fault", fault.kind().into()));
+                (None, fault.to_string())
+            }
+            Ok(r) => {
+                let c = &r.counts;
+                let used = c.evaluated + c.pruned;
+                values.extend([
+                    kv("mode", format!("{:?}", r.mode).to_lowercase()),
+                    kv("points_total", c.total.to_string()),
+                    kv("points_used", used.to_string()),
+                    kv("points_culled", c.outside_roi.to_string()),
+                    kv("points_self_filtered", c.self_filtered.to_string()),
+                    kv("points_invalid", c.invalid.to_string()),
+                ]);
+                if let Some(n) = &r.nearest {
+                    values.extend([
+                        kv("distance_m", format!("{:.6}", n.distance_m)),
+                        kv("link", n.link.clone()),
+                    ]);
+                    if let Some(l) = n.lower_m {
+                        values.push(kv("lower_m", format!("{l:.6}")));
+                    }
+                }
+                let d = conservative_distance(r);
+                let message = match d {
+                    Some(d) if r.outcome == Outcome::Nearest => format!("min distance {d:.3} m"),
+                    Some(d) => format!("nothing within {d:.3} m"),
+                    None => "no valid points in the cloud".into(),
+                };
+                (d, message)
+            }
+        };
+        let faulted = result.is_err();
+        let mut level = tracker.update(if faulted {
+            None
+        } else {
+            distance.or(Some(f64::INFINITY))
+        });
+        if !faulted && (distance.is_none() || over_budget) {
+            level = level.max(Level::Warn);
+        }
+        if over_budget {
+            message.push_str(&format!(
+                "; over the latency budget ({:.1} ms > {:.1} ms)",
+                processing_s * 1e3,
+                config.latency_budget_s * 1e3
+            ));
+        }
+        let max_distance = f64::from(config.query.max_distance_m);
+        let link_distances = JointState {
+            header: header.clone(),
+            name: result
+                .as_ref()
+                .map(|r| r.links.iter().map(|l| l.link.clone()).collect())
+                .unwrap_or_default(),
+            position: result
+                .as_ref()
+                .map(|r| {
+                    r.links
+                        .iter()
+                        .map(|l| {
+                            l.exact_m
+                                .or(l.lower_m)
+                                .or(l.distance_m)
+                                .unwrap_or(max_distance)
+                        })
+                        .collect()
+                })
+                .unwrap_or_default(),
+            ..JointState::default()
+        };
+        let nearest = result.as_ref().ok().and_then(|r| r.nearest.as_ref());
+        let markers = match (nearest, distance) {
+            (Some(n), Some(d)) => {
+                let base = Marker {
+                    header: header.clone(),
+                    ns: format!("{source}/closest"),
+                    action: Marker::ADD,
+                    pose: Pose::default(),
+                    color: level.color(),
+                    lifetime: Duration { sec: 1, nanosec: 0 },
+                    ..Marker::default()
+                };
+                let mid = [0, 1, 2].map(|k| 0.5 * (n.point_root[k] + n.robot_point_root[k]));
+                vec![
+                    Marker {
+                        id: 0,
+                        r#type: Marker::LINE_LIST,
+                        scale: Vector3 {
+                            x: 0.005,
+                            ..Vector3::default()
+                        },
+                        points: vec![point(n.robot_point_root), point(n.point_root)],
+                        ..base.clone()
+                    },
+                    Marker {
+                        id: 1,
+                        r#type: Marker::TEXT_VIEW_FACING,
+                        pose: Pose {
+                            position: point(mid),
+                            ..Pose::default()
+                        },
+                        scale: Vector3 {
+                            z: 0.04,
+                            ..Vector3::default()
+                        },
+                        text: format!("{} {d:.3} m", n.link),
+                        ..base
+                    },
+                ]
+            }
+            _ => vec![Marker {
+                header: header.clone(),
+                ns: format!("{source}/closest"),
+                action: Marker::DELETEALL,
+                ..Marker::default()
+            }],
+        };
+        let diagnostics = DiagnosticArray {
+            header: Header {
+                frame_id: String::new(),
+                ..header
+            },
+            status: vec![DiagnosticStatus {
+                level: level.diagnostic(),
+                name: format!("{}: {source}", config.node_name),
+                message,
+                hardware_id: robot.to_owned(),
+                values,
+            }],
+        };
+        Self {
+            level,
+            min_distance: distance.filter(|_| !faulted).map(|data| Float64 { data }),
+            link_distances,
+            closest_points: MarkerArray { markers },
+            diagnostics,
+            safety_stop: Bool {
+                data: level == Level::Error,
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_have_hysteresis() {
+        let config = Config {
+            warn_distance_m: 0.3,
+            stop_distance_m: 0.1,
+            hysteresis_m: 0.02,
+            ..Config::default()
+        };
+        let mut t = LevelTracker::new(&config);
+        let seq = [
+            (0.5, Level::Ok),
+            (0.29, Level::Warn),
+            (0.31, Level::Warn),
+            (0.33, Level::Ok),
+            (0.09, Level::Error),
+            (0.11, Level::Error),
+            (0.125, Level::Warn),
+            (0.2, Level::Warn),
+            (0.5, Level::Ok),
+        ];
+        for (d, expected) in seq {
+            assert_eq!(t.update(Some(d)), expected, "{d}");
+        }
+        assert_eq!(t.update(None), Level::Error);
+        assert_eq!(t.update(Some(0.11)), Level::Error);
+    }
+}

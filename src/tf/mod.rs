@@ -1,0 +1,439 @@
+//! Poses stage, inputs: the TF buffer (`/tf`, `/tf_static`, static transforms from the config)
+//! and the joint-state buffer (`joints`), and the lookup of a sensor frame in the robot's root
+//! frame at a cloud's stamp.
+//!
+//! **TF buffer.** Every child frame has one parent and a short history of `parent_from_child`
+//! (f64), sorted by stamp; static transforms hold one value for all time. A lookup walks both
+//! frames up to their common ancestor and composes the edges, each sampled at the stamp: between
+//! two samples, translation is interpolated linearly and rotation by slerp; past either end, the
+//! nearest sample is used when it lies within the tolerance, otherwise the lookup fails — as
+//! stale when the newest sample is too old, as too old when the stamp precedes the history.
+//! Quaternions are normalized on the way in; zero, near-zero or non-finite ones are refused.
+//!
+//! **Sensor in the robot.** [`root_from_sensor`] walks up from the sensor frame; at the first
+//! frame that is a link of the URDF it composes the forward kinematics of that link (so the
+//! joint states, not `/tf`, decide where the robot's own links are, and a camera on the wrist
+//! moves with the arm). A sensor frame with no URDF link above it (a camera whose transform
+//! names the world as its child, say) is looked up against the root frame in the TF tree.
+//!
+//! Cost: a lookup is O(depth · log history), microseconds; it runs once per cloud.
+
+pub mod joints;
+
+pub use joints::{JointError, JointStateBuffer};
+
+use std::collections::{HashMap, VecDeque};
+
+use nalgebra::{Isometry3, Translation3};
+
+use crate::msg::TransformStamped;
+
+/// Longest chain of frames walked; deeper is taken for a loop.
+const MAX_DEPTH: usize = 64;
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TfError {
+    #[error("transform {parent} → {child}: quaternion is zero or not finite")]
+    BadQuaternion { parent: String, child: String },
+    #[error("transform {parent} → {child}: translation is not finite")]
+    NonFinite { parent: String, child: String },
+    #[error("transform with an empty frame id or a frame that is its own parent ('{0}')")]
+    BadFrames(String),
+    #[error("no transform path between frames {target} and {from}")]
+    NoPath { target: String, from: String },
+    #[error("frame {0}: loop or chain deeper than {MAX_DEPTH} frames")]
+    Loop(String),
+    #[error(
+        "transform {parent} → {child} is stale: newest at {newest_s:.3} s, needed at {stamp_s:.3} s (tolerance {tolerance_s} s)"
+    )]
+    Stale {
+        parent: String,
+        child: String,
+        newest_s: f64,
+        stamp_s: f64,
+        tolerance_s: f64,
+    },
+    #[error(
+        "transform {parent} → {child}: needed at {stamp_s:.3} s, before the oldest sample kept ({oldest_s:.3} s)"
+    )]
+    TooOld {
+        parent: String,
+        child: String,
+        oldest_s: f64,
+        stamp_s: f64,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct Edge {
+    parent: String,
+    is_static: bool,
+    /// `(stamp_ns, parent_from_child)`, sorted by stamp.
+    samples: VecDeque<(i64, Isometry3<f64>)>,
+}
+
+/// A TF buffer: the frame tree with a history per edge.
+#[derive(Debug, Clone)]
+pub struct TfBuffer {
+    edges: HashMap<String, Edge>,
+    cache_ns: i64,
+}
+
+fn strip(frame: &str) -> &str {
+    frame.strip_prefix('/').unwrap_or(frame)
+}
+
+fn seconds(ns: i64) -> f64 {
+    ns as f64 * 1e-9
+}
+
+/// Interpolates `a` (at `ta`) and `b` (at `tb`) at `t`: translation linear, rotation slerp.
+pub fn interpolate(
+    (ta, a): (i64, &Isometry3<f64>),
+    (tb, b): (i64, &Isometry3<f64>),
+    t: i64,
+) -> Isometry3<f64> {
+    if tb <= ta {
+        return *b;
+    }
+    let s = ((t - ta) as f64 / (tb - ta) as f64).clamp(0.0, 1.0);
+    let translation = a.translation.vector.lerp(&b.translation.vector, s);
+    Isometry3::from_parts(
+        Translation3::from(translation),
+        a.rotation.slerp(&b.rotation, s),
+    )
+}
+
+impl TfBuffer {
+    /// A buffer keeping `cache_s` seconds of history per dynamic edge.
+    pub fn new(cache_s: f64) -> Self {
+        Self {
+            edges: HashMap::new(),
+            cache_ns: (cache_s * 1e9) as i64,
+        }
+    }
+
+    /// Adds one transform (`header.frame_id` the parent, `parent_from_child`).
+    pub fn insert(&mut self, t: &TransformStamped, is_static: bool) -> Result<(), TfError> {
+        let parent = strip(&t.header.frame_id);
+        let child = strip(&t.child_frame_id);
+        if parent.is_empty() || child.is_empty() || parent == child {
+            return Err(TfError::BadFrames(child.to_owned()));
+        }
+        let names = || (parent.to_owned(), child.to_owned());
+        if t.transform.rotation.to_unit().is_none() {
+            let (parent, child) = names();
+            return Err(TfError::BadQuaternion { parent, child });
+        }
+        let Some(pose) = t.transform.to_isometry() else {
+            let (parent, child) = names();
+            return Err(TfError::NonFinite { parent, child });
+        };
+        let stamp = t.header.stamp.as_nanos();
+        let edge = self.edges.entry(child.to_owned()).or_insert_with(|| Edge {
+            parent: parent.to_owned(),
+            is_static,
+            samples: VecDeque::new(),
+        });
+        if edge.parent != parent || edge.is_static != is_static {
+            // Re-parented, or turned static/dynamic: the new statement replaces the old.
+            edge.parent = parent.to_owned();
+            edge.is_static = is_static;
+            edge.samples.clear();
+        }
+        if is_static {
+            edge.samples.clear();
+            edge.samples.push_back((stamp, pose));
+            return Ok(());
+        }
+        let at = edge.samples.partition_point(|(s, _)| *s <= stamp);
+        if at > 0 && edge.samples[at - 1].0 == stamp {
+            edge.samples[at - 1].1 = pose;
+        } else {
+            edge.samples.insert(at, (stamp, pose));
+        }
+        let newest = edge.samples.back().map_or(stamp, |s| s.0);
+        while edge.samples.len() > 2
+            && edge
+                .samples
+                .front()
+                .is_some_and(|s| s.0 < newest - self.cache_ns)
+        {
+            edge.samples.pop_front();
+        }
+        Ok(())
+    }
+
+    /// The parent of `frame`, when the buffer knows one.
+    pub fn parent(&self, frame: &str) -> Option<&str> {
+        self.edges.get(strip(frame)).map(|e| e.parent.as_str())
+    }
+
+    /// `parent_from_child` of the edge above `child` at `stamp_ns` (`None`: the newest).
+    fn sample(
+        &self,
+        child: &str,
+        stamp_ns: Option<i64>,
+        tolerance_ns: i64,
+    ) -> Result<Isometry3<f64>, TfError> {
+        let edge = &self.edges[child];
+        let (first, last) = match (edge.samples.front(), edge.samples.back()) {
+            (Some(f), Some(l)) => (f, l),
+            _ => unreachable!("edges are created with a sample"),
+        };
+        let Some(t) = stamp_ns.filter(|_| !edge.is_static) else {
+            return Ok(last.1);
+        };
+        let names = || (edge.parent.clone(), child.to_owned());
+        if t > last.0 {
+            if t - last.0 <= tolerance_ns {
+                return Ok(last.1);
+            }
+            let (parent, child) = names();
+            return Err(TfError::Stale {
+                parent,
+                child,
+                newest_s: seconds(last.0),
+                stamp_s: seconds(t),
+                tolerance_s: seconds(tolerance_ns),
+            });
+        }
+        if t < first.0 {
+            if first.0 - t <= tolerance_ns {
+                return Ok(first.1);
+            }
+            let (parent, child) = names();
+            return Err(TfError::TooOld {
+                parent,
+                child,
+                oldest_s: seconds(first.0),
+                stamp_s: seconds(t),
+            });
+        }
+        let i = edge.samples.partition_point(|(s, _)| *s < t);
+        let b = &edge.samples[i];
+        if b.0 == t || i == 0 {
+            return Ok(b.1);
+        }
+        let a = &edge.samples[i - 1];
+        Ok(interpolate((a.0, &a.1), (b.0, &b.1), t))
+    }
+
+    /// The frames from `start` up to the top of its tree, each with `frame_from_start`.
+    fn chain(
+        &self,
+        start: &str,
+        stamp_ns: Option<i64>,
+        tolerance_ns: i64,
+    ) -> Result<Vec<(String, Isometry3<f64>)>, TfError> {
+        let mut out = vec![(start.to_owned(), Isometry3::identity())];
+        let mut frame = start.to_owned();
+        while let Some(edge) = self.edges.get(&frame) {
+            if out.len() > MAX_DEPTH {
+                return Err(TfError::Loop(start.to_owned()));
+            }
+            let parent_from_frame = self.sample(&frame, stamp_ns, tolerance_ns)?;
+            let parent_from_start = parent_from_frame * out[out.len() - 1].1;
+            frame = edge.parent.clone();
+            out.push((frame.clone(), parent_from_start));
+        }
+        Ok(out)
+    }
+
+    /// `target_from_source` at `stamp_ns` (`None`: the newest of every edge), each dynamic edge
+    /// within `tolerance_s` of the stamp.
+    pub fn lookup(
+        &self,
+        target: &str,
+        source: &str,
+        stamp_ns: Option<i64>,
+        tolerance_s: f64,
+    ) -> Result<Isometry3<f64>, TfError> {
+        let (target, source) = (strip(target), strip(source));
+        if target == source {
+            return Ok(Isometry3::identity());
+        }
+        let tolerance_ns = (tolerance_s * 1e9) as i64;
+        let up_source = self.chain(source, stamp_ns, tolerance_ns)?;
+        let up_target = self.chain(target, stamp_ns, tolerance_ns)?;
+        for (frame, frame_from_source) in &up_source {
+            if let Some((_, frame_from_target)) = up_target.iter().find(|(f, _)| f == frame) {
+                return Ok(frame_from_target.inverse() * frame_from_source);
+            }
+        }
+        Err(TfError::NoPath {
+            target: target.to_owned(),
+            from: source.to_owned(),
+        })
+    }
+}
+
+/// `root_from_sensor` at `stamp_ns`: up from the sensor frame through TF to the first frame
+/// that `link_pose` knows (a URDF link: `root_from_link` by forward kinematics), or else the
+/// TF path to `root_frame`.
+pub fn root_from_sensor(
+    tf: &TfBuffer,
+    sensor_frame: &str,
+    root_frame: &str,
+    stamp_ns: Option<i64>,
+    tolerance_s: f64,
+    link_pose: &dyn Fn(&str) -> Option<Isometry3<f64>>,
+) -> Result<Isometry3<f64>, TfError> {
+    let tolerance_ns = (tolerance_s * 1e9) as i64;
+    let sensor_frame = strip(sensor_frame);
+    for (frame, frame_from_sensor) in tf.chain(sensor_frame, stamp_ns, tolerance_ns)? {
+        if let Some(root_from_frame) = link_pose(&frame) {
+            return Ok(root_from_frame * frame_from_sensor);
+        }
+    }
+    tf.lookup(root_frame, sensor_frame, stamp_ns, tolerance_s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::{Header, Quaternion, Time, Transform, Vector3};
+    use nalgebra::{UnitQuaternion, Vector3 as V3};
+
+    fn ts(parent: &str, child: &str, t_ns: i64, pose: Isometry3<f64>) -> TransformStamped {
+        TransformStamped {
+            header: Header {
+                stamp: Time::from_nanos(t_ns),
+                frame_id: parent.into(),
+            },
+            child_frame_id: child.into(),
+            transform: Transform::from_isometry(&pose),
+        }
+    }
+
+    fn pose(x: f64, yaw: f64) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(x, 0.0, 0.0),
+            UnitQuaternion::from_axis_angle(&V3::z_axis(), yaw),
+        )
+    }
+
+    #[test]
+    fn interpolates_with_slerp_and_honours_the_tolerance() {
+        let mut tf = TfBuffer::new(10.0);
+        tf.insert(&ts("world", "base", 1_000_000_000, pose(0.0, 0.0)), false)
+            .unwrap();
+        tf.insert(&ts("world", "base", 2_000_000_000, pose(1.0, 1.0)), false)
+            .unwrap();
+        let mid = tf
+            .lookup("world", "base", Some(1_500_000_000), 0.0)
+            .unwrap();
+        assert!((mid.translation.x - 0.5).abs() < 1e-12);
+        assert!((mid.rotation.angle() - 0.5).abs() < 1e-12);
+        // Within the tolerance past the newest: the newest; beyond it: stale.
+        let late = tf
+            .lookup("world", "base", Some(2_040_000_000), 0.05)
+            .unwrap();
+        assert!((late.translation.x - 1.0).abs() < 1e-12);
+        let e = tf
+            .lookup("world", "base", Some(2_100_000_000), 0.05)
+            .unwrap_err();
+        assert!(matches!(e, TfError::Stale { .. }), "{e}");
+        let e = tf.lookup("world", "base", Some(100), 0.05).unwrap_err();
+        assert!(matches!(e, TfError::TooOld { .. }), "{e}");
+        // The inverse direction.
+        let inv = tf
+            .lookup("base", "world", Some(2_000_000_000), 0.0)
+            .unwrap();
+        assert!((inv * pose(1.0, 1.0)).translation.vector.norm() < 1e-12);
+    }
+
+    #[test]
+    fn composes_through_the_common_ancestor() {
+        let mut tf = TfBuffer::new(10.0);
+        tf.insert(&ts("world", "a", 0, pose(1.0, 0.5)), true)
+            .unwrap();
+        tf.insert(&ts("world", "b", 0, pose(-2.0, -0.3)), true)
+            .unwrap();
+        tf.insert(&ts("b", "/c", 0, pose(0.25, 1.0)), true).unwrap();
+        let a_from_c = tf.lookup("a", "c", Some(123), 0.0).unwrap();
+        let expected = pose(1.0, 0.5).inverse() * pose(-2.0, -0.3) * pose(0.25, 1.0);
+        assert!((a_from_c.to_homogeneous() - expected.to_homogeneous()).norm() < 1e-12);
+        assert!(matches!(
+            tf.lookup("a", "nowhere", None, 0.0),
+            Err(TfError::NoPath { .. })
+        ));
+    }
+
+    #[test]
+    fn quaternions_are_normalized_or_refused() {
+        let mut tf = TfBuffer::new(10.0);
+        let mut t = ts("world", "cam", 0, pose(0.0, 0.0));
+        t.transform.rotation = Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 2.0,
+        };
+        tf.insert(&t, true).unwrap();
+        let p = tf.lookup("world", "cam", None, 0.0).unwrap();
+        assert!((p.rotation.quaternion().norm() - 1.0).abs() < 1e-12);
+        for bad in [
+            Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                w: 0.0,
+            },
+            Quaternion {
+                x: f64::NAN,
+                y: 0.0,
+                z: 0.0,
+                w: 1.0,
+            },
+        ] {
+            t.transform.rotation = bad;
+            assert!(matches!(
+                tf.insert(&t, true),
+                Err(TfError::BadQuaternion { .. })
+            ));
+        }
+        t.transform.rotation = Quaternion::default();
+        t.transform.translation = Vector3 {
+            x: f64::INFINITY,
+            y: 0.0,
+            z: 0.0,
+        };
+        assert!(matches!(
+            tf.insert(&t, true),
+            Err(TfError::NonFinite { .. })
+        ));
+        t.child_frame_id = "world".into();
+        assert!(matches!(tf.insert(&t, true), Err(TfError::BadFrames(_))));
+    }
+
+    #[test]
+    fn sensor_frames_resolve_through_urdf_links_or_the_root() {
+        let mut tf = TfBuffer::new(10.0);
+        // Optical frame under a URDF link; a second camera that names the world as its child.
+        tf.insert(&ts("camera_link", "optical", 0, pose(0.0, 1.0)), true)
+            .unwrap();
+        tf.insert(&ts("cam2", "world", 0, pose(3.0, 0.2)), true)
+            .unwrap();
+        tf.insert(&ts("world", "robot_root", 0, pose(0.5, 0.0)), true)
+            .unwrap();
+        let links = |name: &str| (name == "camera_link").then(|| pose(2.0, 0.0));
+        let r = root_from_sensor(&tf, "optical", "robot_root", None, 0.0, &links).unwrap();
+        assert!((r.translation.x - 2.0).abs() < 1e-12);
+        let r = root_from_sensor(&tf, "cam2", "robot_root", None, 0.0, &links).unwrap();
+        let expected = (pose(3.0, 0.2) * pose(0.5, 0.0)).inverse();
+        assert!((r.to_homogeneous() - expected.to_homogeneous()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn old_samples_are_dropped() {
+        let mut tf = TfBuffer::new(1.0);
+        for i in 0..100 {
+            tf.insert(&ts("w", "b", i * 100_000_000, pose(i as f64, 0.0)), false)
+                .unwrap();
+        }
+        assert!(tf.edges["b"].samples.len() <= 12);
+        let e = tf.lookup("w", "b", Some(0), 0.0).unwrap_err();
+        assert!(matches!(e, TfError::TooOld { .. }));
+    }
+}
