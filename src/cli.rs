@@ -20,6 +20,7 @@ use crate::monitor::Monitor;
 use crate::packing::PackingParams;
 use crate::query::{Engine, LinkSelection, Mode, Outcome, QueryOptions};
 use crate::robot::{PackagePath, RobotModel};
+use crate::scenario::{self, ScenarioParams, SceneKind};
 
 /// The demo robot shipped in `urdf/`, the default of every command.
 pub const DEMO_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/demo_arm.urdf");
@@ -45,9 +46,39 @@ enum Command {
     Query(QueryArgs),
     /// Replay a rosbag2 MCAP bag through the monitor: one line per cloud and a summary.
     Replay(ReplayArgs),
+    /// Make a bag: a simulated depth camera watching the robot and an obstacle, with the exact
+    /// minimum distance of every frame.
+    Generate(GenerateArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(Bench),
+}
+
+#[derive(Args)]
+struct GenerateArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// Output: a rosbag2 folder (or a .mcap file); it must not exist yet.
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, value_enum, default_value_t = SceneKind::Person)]
+    scene: SceneKind,
+    #[arg(long, default_value_t = ScenarioParams::default().frames)]
+    frames: usize,
+    #[arg(long, default_value_t = ScenarioParams::default().width)]
+    width: u32,
+    #[arg(long, default_value_t = ScenarioParams::default().height)]
+    height: u32,
+    /// Range noise σ, m (clipped at 2.5 σ).
+    #[arg(long, default_value_t = ScenarioParams::default().noise_m)]
+    noise: f64,
+    /// Fraction of pixels dropped (NaN holes).
+    #[arg(long, default_value_t = ScenarioParams::default().holes)]
+    holes: f64,
+    #[arg(long, default_value_t = ScenarioParams::default().seed)]
+    seed: u64,
+    #[arg(long, value_enum, default_value_t = Compression::Zstd)]
+    compression: Compression,
 }
 
 /// The bundled demo bag and its config, the defaults of `replay`.
@@ -288,6 +319,7 @@ pub fn run() -> Result<()> {
         Command::Poses(args) => poses(args),
         Command::Query(args) => query(args),
         Command::Replay(args) => replay(args),
+        Command::Generate(args) => generate(args),
         Command::Bench(Bench::Packing(args)) => bench_packing(args),
         Command::Bench(Bench::Query(args)) => crate::bench::bench_query(args),
     }
@@ -529,6 +561,46 @@ fn query(args: QueryArgs) -> Result<()> {
         }
     }
     println!("query time {:.3} ms (one cold query)", 1e3 * elapsed);
+    Ok(())
+}
+
+fn generate(args: GenerateArgs) -> Result<()> {
+    if args.out.exists() {
+        bail!("{} exists already", args.out.display());
+    }
+    if args.frames == 0 || args.width == 0 || args.height == 0 {
+        bail!("--frames, --width and --height must be at least 1");
+    }
+    if !(args.noise >= 0.0 && args.noise.is_finite() && (0.0..=1.0).contains(&args.holes)) {
+        bail!("--noise must be ≥ 0 and --holes in [0, 1]");
+    }
+    let model = args.robot.load()?;
+    let params = ScenarioParams {
+        scene: args.scene,
+        frames: args.frames,
+        width: args.width,
+        height: args.height,
+        noise_m: args.noise,
+        holes: args.holes,
+        seed: args.seed,
+        compression: args.compression,
+        ..ScenarioParams::default()
+    };
+    let g = scenario::generate(&model, &params, &args.out)?;
+    println!(
+        "{:>5} {:>10} {:>10} {:>10}",
+        "frame", "truth [m]", "obstacle", "robot"
+    );
+    for i in 0..g.frames {
+        println!(
+            "{:>5} {:>10} {:>10} {:>10}",
+            i,
+            g.truth_m[i].map_or_else(|| "-".into(), |t| format!("{t:.4}")),
+            g.obstacle_points[i],
+            g.robot_points[i]
+        );
+    }
+    println!("wrote {}", args.out.display());
     Ok(())
 }
 

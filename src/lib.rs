@@ -18,4 +18,5 @@ pub mod msg;
 pub mod packing;
 pub mod query;
 pub mod robot;
+pub mod scenario;
 pub mod tf;

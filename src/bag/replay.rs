@@ -67,7 +67,7 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
 
-/// Replays `bag` through `monitor`, calling `on_frame` for each cloud; writes the outputs to
+/// Replays `bag` through `monitor` (reset first), calling `on_frame` for each cloud; writes the outputs to
 /// `out` when given.
 pub fn replay(
     monitor: &mut Monitor,
@@ -75,6 +75,7 @@ pub fn replay(
     out: Option<(&Path, Compression)>,
     on_frame: &mut dyn FnMut(&ReplayFrame),
 ) -> Result<Summary> {
+    monitor.reset()?;
     let joint_topic = monitor.config.joint_states_topic.clone();
     let source_topics: Vec<String> = monitor
         .config

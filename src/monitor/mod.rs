@@ -127,6 +127,21 @@ impl Monitor {
     pub fn with_trees(config: Config, model: RobotModel, trees: &[LinkTree]) -> Result<Self> {
         config.query.validate().context("query parameters")?;
         let engine = Engine::new(&model, trees, &config.selection)?;
+        let (tf, joints) = Self::inputs(&config, &model)?;
+        let level = LevelTracker::new(&config);
+        Ok(Self {
+            config,
+            model,
+            engine,
+            tf,
+            joints,
+            level,
+        })
+    }
+
+    /// Empty input buffers, holding only what the config states (static transforms, fixed
+    /// joints).
+    fn inputs(config: &Config, model: &RobotModel) -> Result<(TfBuffer, JointStateBuffer)> {
         let mut tf = TfBuffer::new(10.0);
         for t in &config.static_transforms {
             tf.insert(t, true).with_context(|| {
@@ -141,15 +156,15 @@ impl Monitor {
             .set_fixed(&config.fixed_joint_state)
             .map_err(anyhow::Error::msg)
             .context("parameter fixed_joint_state.names")?;
-        let level = LevelTracker::new(&config);
-        Ok(Self {
-            config,
-            model,
-            engine,
-            tf,
-            joints,
-            level,
-        })
+        Ok((tf, joints))
+    }
+
+    /// Forgets every transform, joint state and level received, as at start-up (a replay of
+    /// another bag starts from here).
+    pub fn reset(&mut self) -> Result<()> {
+        (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
+        self.level = LevelTracker::new(&self.config);
+        Ok(())
     }
 
     /// The robot's root frame (the URDF's root link).

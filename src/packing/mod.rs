@@ -31,7 +31,7 @@ pub mod grid;
 
 use bytemuck::{Pod, Zeroable};
 use parry3d::math::Vector;
-use parry3d::query::PointQuery;
+use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{TriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -144,6 +144,16 @@ impl Solid {
         } else {
             (-d, q)
         }
+    }
+
+    /// Distance along the ray `origin + t·dir` (unit `dir`) to the first surface hit within
+    /// `max`, or 0 from inside.
+    pub fn cast_ray(&self, origin: [f32; 3], dir: [f32; 3], max: f32) -> Option<f32> {
+        let ray = Ray::new(
+            Vector::new(origin[0], origin[1], origin[2]),
+            Vector::new(dir[0], dir[1], dir[2]),
+        );
+        self.trimesh.cast_local_ray(&ray, max, true)
     }
 
     /// [`Self::distance`] when it is at most `max`, for a point known to be outside: the BVH

@@ -1,0 +1,302 @@
+//! Replay of recorded bags through the monitor: the bundled generated bags against their
+//! recorded truth, the real Kinect bag of ../shared against SCENARIO.md's references, faults in
+//! the inputs, the generator's reproducibility, and the written outputs read back by rosbags.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::ist_monitor;
+use ist_monitor::bag::replay::{replay, ReplayFrame, GROUND_TRUTH_TOPIC};
+use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
+use ist_monitor::cli::{DEMO_BAG, DEMO_CONFIG};
+use ist_monitor::config::Config;
+use ist_monitor::monitor::{Level, Monitor};
+use ist_monitor::msg::{self, Float64};
+use ist_monitor::robot::RobotModel;
+use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
+
+fn bundled(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("bags")
+        .join(name)
+}
+
+fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, ist_monitor::bag::replay::Summary) {
+    let config = Config::load(
+        Path::new(DEMO_CONFIG),
+        &[("mode".to_string(), mode.to_string())],
+    )
+    .unwrap();
+    let mut monitor = Monitor::new(config).unwrap();
+    let mut frames = Vec::new();
+    let summary = replay(&mut monitor, bag, None, &mut |f| frames.push(f.clone())).unwrap();
+    (frames, summary)
+}
+
+/// Every frame of both bundled bags: the recorded exact distance lies in the certified interval,
+/// and exact mode gives it within 1e-4 m.
+#[test]
+fn bundled_bags_match_their_ground_truth() {
+    for name in ["demo", "shelf"] {
+        let bag = bundled(name);
+        let (certified, summary) = run(&bag, "certified");
+        assert!(certified.len() >= 20, "{name}: {} frames", certified.len());
+        assert!(summary.faults.is_empty(), "{name}: {:?}", summary.faults);
+        for f in &certified {
+            let truth = f
+                .truth_m
+                .unwrap_or_else(|| panic!("{name} frame {}: no truth", f.index));
+            let (lower, upper) = (f.lower_m.unwrap(), f.distance_m.unwrap());
+            assert!(
+                lower - 1e-6 <= truth && truth <= upper + 1e-6,
+                "{name} frame {}: truth {truth} outside [{lower}, {upper}]",
+                f.index
+            );
+            // The conservative output is the lower bound.
+            assert_eq!(f.min_distance_m, Some(lower));
+        }
+        let (exact, summary) = run(&bag, "exact");
+        assert!(summary.faults.is_empty());
+        for f in &exact {
+            let (d, truth) = (f.min_distance_m.unwrap(), f.truth_m.unwrap());
+            assert!(
+                (d - truth).abs() <= 1e-4,
+                "{name} frame {}: exact {d} vs truth {truth}",
+                f.index
+            );
+        }
+        // The scenes end close to the robot: the level ends at ERROR after passing WARN.
+        assert_eq!(exact.last().unwrap().level, Level::Error, "{name}");
+        assert!(exact.iter().any(|f| f.level == Level::Warn), "{name}");
+    }
+}
+
+/// The real MoveIt Kinect bag with the Panda, through `ist_monitor replay`: SCENARIO.md's
+/// `ready` and `reach_table` distances within 1 mm in exact mode. The camera pose and the joint
+/// values come from the config, as the bag has only the cloud.
+#[test]
+fn real_kinect_bag_reference_distances() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
+    let config =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/panda_perception_tutorial.yaml");
+    let cases = [
+        (
+            "[0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785, 0.0]",
+            0.0979,
+            "panda_link0",
+        ),
+        (
+            "[1.5708, 0.5, 0.0, -2.0, 0.0, 2.5, 0.785, 0.04]",
+            0.0181,
+            "panda_leftfinger",
+        ),
+    ];
+    for (joints, expected, link) in cases {
+        let out = ist_monitor()
+            .arg("replay")
+            .arg(&bag)
+            .arg("--config")
+            .arg(&config)
+            .args(["-p", "mode:=exact", "-p", "max_spheres:=1024", "-p"])
+            .arg(format!("fixed_joint_state.positions:={joints}"))
+            .arg("--json")
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let frame = &v["frames"][0];
+        let d = frame["min_distance_m"].as_f64().unwrap();
+        assert!((d - expected).abs() < 1e-3, "{joints}: {d} vs {expected}");
+        assert_eq!(frame["link"], link);
+        assert_eq!(v["summary"]["frames"], 1);
+    }
+}
+
+/// Keeps, changes (log time, payload) or drops (`None`) one message of a bag.
+type Edit<'a> = dyn Fn(&str, u64, &[u8]) -> Option<(u64, Vec<u8>)> + 'a;
+
+/// Faults in the inputs: a malformed cloud, no joint states, no camera transform, stale joint
+/// states. Each is a fault of its frames with its reason, no distance is published for it, and
+/// the other frames are processed as usual.
+#[test]
+fn faulty_inputs_are_reported_never_safe() {
+    let messages = read_messages(&bundled("demo"), &|_| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, edit: &Edit<'_>| {
+        let path = dir.path().join(format!("{name}.mcap"));
+        let mut w = BagWriter::create(&path, Compression::None).unwrap();
+        for m in &messages {
+            if let Some((t, data)) = edit(&m.topic, m.log_time_ns, &m.data) {
+                w.write_cdr(&m.topic, &m.schema, t, &data).unwrap();
+            }
+        }
+        w.finish().unwrap();
+        path
+    };
+    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
+    let mut monitor = Monitor::new(config.clone()).unwrap();
+    let mut replay_bag = |path: &Path| {
+        let mut frames = Vec::new();
+        let s = replay(&mut monitor, path, None, &mut |f| frames.push(f.clone())).unwrap();
+        (frames, s)
+    };
+    // The 5th cloud truncated: one decode fault, the rest as usual.
+    let mut cloud_index = 0;
+    let clouds_seen = std::cell::Cell::new(0);
+    let truncated = write("truncated", &|topic, t, data| {
+        if topic == "/camera/depth/points" {
+            clouds_seen.set(clouds_seen.get() + 1);
+            if clouds_seen.get() == 5 {
+                return Some((t, data[..data.len() / 2].to_vec()));
+            }
+        }
+        Some((t, data.to_vec()))
+    });
+    let (frames, s) = replay_bag(&truncated);
+    assert_eq!(s.faults.get("decode"), Some(&1), "{:?}", s.faults);
+    for f in &frames {
+        if f.outcome == "fault" {
+            cloud_index = f.index;
+            assert!(f.fault.as_ref().unwrap().contains("decode"));
+            assert_eq!(f.min_distance_m, None);
+            assert_eq!(f.level, Level::Error);
+        } else {
+            assert!(f.min_distance_m.is_some());
+        }
+    }
+    assert_eq!(cloud_index, 4);
+    // No joint states: every frame faults, naming a joint.
+    let no_joints = write("no_joints", &|topic, t, data| {
+        (topic != "/joint_states").then(|| (t, data.to_vec()))
+    });
+    let (frames, s) = replay_bag(&no_joints);
+    assert_eq!(s.faults.get("joint_state"), Some(&frames.len()));
+    assert!(frames[0]
+        .fault
+        .as_ref()
+        .unwrap()
+        .contains("joint shoulder_pan"));
+    assert!(frames
+        .iter()
+        .all(|f| f.min_distance_m.is_none() && f.level == Level::Error));
+    // No /tf_static: the optical frame has no path to the robot.
+    let no_tf = write("no_tf", &|topic, t, data| {
+        (topic != "/tf_static").then(|| (t, data.to_vec()))
+    });
+    let (frames, s) = replay_bag(&no_tf);
+    assert_eq!(s.faults.get("tf"), Some(&frames.len()));
+    assert!(frames[0]
+        .fault
+        .as_ref()
+        .unwrap()
+        .contains("camera_optical_frame"));
+    // Joint states that stop after the first second: later clouds are stale, earlier fine.
+    let stale = write("stale", &|topic, t, data| {
+        let first = messages[0].log_time_ns;
+        (topic != "/joint_states" || t < first + 1_000_000_000).then(|| (t, data.to_vec()))
+    });
+    let (frames, s) = replay_bag(&stale);
+    let n_stale = s.faults.get("stale_joint_state").copied().unwrap_or(0);
+    assert!(n_stale > 10 && n_stale < frames.len(), "{:?}", s.faults);
+    assert!(frames[0].min_distance_m.is_some());
+    assert!(frames
+        .last()
+        .unwrap()
+        .fault
+        .as_ref()
+        .unwrap()
+        .contains("stale"));
+}
+
+/// The generator is reproducible, and the bundled bag is what it makes: a fresh `person` bag
+/// has the bundled demo bag's clouds, byte for byte, and its truths.
+#[test]
+fn generator_reproduces_the_bundled_bag() {
+    let model = RobotModel::load(Path::new(ist_monitor::cli::DEMO_URDF), &[]).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let params = ScenarioParams {
+        scene: SceneKind::Person,
+        ..ScenarioParams::default()
+    };
+    let g = scenario::generate(&model, &params, &out).unwrap();
+    let topics = |bag: &Path, topic: &str| -> Vec<Vec<u8>> {
+        read_messages(bag, &|t| t == topic)
+            .unwrap()
+            .into_iter()
+            .map(|m| m.data)
+            .collect()
+    };
+    let fresh = topics(&out, "/camera/depth/points");
+    assert_eq!(fresh.len(), g.frames);
+    assert!(fresh == topics(Path::new(DEMO_BAG), "/camera/depth/points"));
+    let truths: Vec<f64> = topics(Path::new(DEMO_BAG), GROUND_TRUTH_TOPIC)
+        .iter()
+        .map(|d| msg::decode::<Float64>(d).unwrap().data)
+        .collect();
+    let generated: Vec<f64> = g.truth_m.iter().map(|t| t.unwrap()).collect();
+    assert_eq!(truths, generated);
+    // Robot and obstacle both in view in every frame, and a real approach.
+    assert!(g.robot_points.iter().all(|&n| n > 100));
+    assert!(generated[0] > 0.5 && *generated.last().unwrap() < 0.05);
+}
+
+/// `replay --out` writes the node's topics, which rosbags reads back.
+#[test]
+fn replay_outputs_are_readable_by_rosbags() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("result.mcap");
+    let status = ist_monitor()
+        .args(["replay", "--out"])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let written = read_messages(&out, &|_| true).unwrap();
+    let count = |topic: &str| written.iter().filter(|m| &*m.topic == topic).count();
+    for topic in [
+        "/ist_monitor/min_distance",
+        "/ist_monitor/link_distances",
+        "/ist_monitor/closest_points",
+        "/ist_monitor/safety_stop",
+        "/diagnostics",
+    ] {
+        assert_eq!(count(topic), 30, "{topic}");
+    }
+    let Some(python) = common::venv_python() else {
+        return;
+    };
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/rosbags_interop.py");
+    let out = Command::new(python)
+        .arg(script)
+        .arg("read")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["/ist_monitor/min_distance"]["count"], 30);
+    assert_eq!(
+        v["/diagnostics"]["type"],
+        "diagnostic_msgs/msg/DiagnosticArray"
+    );
+    for (topic, entry) in v.as_object().unwrap() {
+        assert_eq!(entry["definition_matches"], true, "{topic}");
+    }
+    let status = &v["/diagnostics"]["first"]["status"][0];
+    assert_eq!(status["name"], "ist_monitor: camera");
+    assert_eq!(status["hardware_id"], "demo_arm");
+}
