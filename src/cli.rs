@@ -46,6 +46,8 @@ enum Command {
     Query(QueryArgs),
     /// Replay a rosbag2 MCAP bag through the monitor: one line per cloud and a summary.
     Replay(ReplayArgs),
+    /// Print the node's parameters (name, default, unit, meaning) as a Markdown table.
+    Params,
     /// Make a bag: a simulated depth camera watching the robot and an obstacle, with the exact
     /// minimum distance of every frame.
     Generate(GenerateArgs),
@@ -320,6 +322,10 @@ pub fn run() -> Result<()> {
         Command::Query(args) => query(args),
         Command::Replay(args) => replay(args),
         Command::Generate(args) => generate(args),
+        Command::Params => {
+            print!("{}", crate::config::markdown_table());
+            Ok(())
+        }
         Command::Bench(Bench::Packing(args)) => bench_packing(args),
         Command::Bench(Bench::Query(args)) => crate::bench::bench_query(args),
     }
@@ -607,7 +613,25 @@ fn generate(args: GenerateArgs) -> Result<()> {
 fn replay(args: ReplayArgs) -> Result<()> {
     let config = Config::load(&args.config, &args.params)
         .with_context(|| format!("config {}", args.config.display()))?;
-    let mut monitor = Monitor::new(config)?;
+    let model = RobotArgs {
+        urdf: config.robot_urdf()?,
+        package_paths: config.package_paths.clone(),
+    }
+    .load()?;
+    let trees: Vec<LinkTree> = build_trees(
+        &model,
+        &config.build,
+        Some(&TreeCache::new(
+            config
+                .cache_dir
+                .clone()
+                .unwrap_or_else(TreeCache::default_dir),
+        )),
+    )?
+    .into_iter()
+    .map(|(t, _)| t)
+    .collect();
+    let mut monitor = Monitor::with_trees(config, model, &trees)?;
     let out = args.out.as_deref().map(|p| (p, args.out_compression));
     let mut frames = Vec::new();
     let json = args.json;

@@ -17,7 +17,7 @@ use yaml_rust2::{Yaml, YamlLoader};
 use crate::ist::BuildOptions;
 use crate::msg::{Header, Quaternion, Time, Transform, TransformStamped, Vector3};
 use crate::query::{LinkSelection, Mode, QueryOptions};
-use crate::robot::PackagePath;
+use crate::robot::{urdf::resolve_uri, PackagePath};
 
 /// One declared parameter. `default` is YAML text; `~` means "no value" (optional).
 #[derive(Debug, Clone, Copy)]
@@ -281,6 +281,19 @@ fn show(y: &Yaml) -> String {
     }
 }
 
+/// The parameter table in Markdown, as `config/README.md` shows it (`ist_monitor params`).
+pub fn markdown_table() -> String {
+    let mut out = String::from("| parameter | default | unit | meaning |\n|---|---|---|---|\n");
+    for d in PARAMETERS {
+        let default = if d.default == "~" { "(none)" } else { d.default };
+        out.push_str(&format!(
+            "| `{}` | `{default}` | {} | {} |\n",
+            d.name, d.unit, d.doc
+        ));
+    }
+    out
+}
+
 /// Parses `name:=value` (a `-p` override; the value is YAML).
 pub fn parse_override(s: &str) -> Result<(String, String), String> {
     let (name, value) = s
@@ -524,6 +537,22 @@ impl Config {
             static_transforms,
             fixed_joint_state: names.into_iter().zip(positions).collect(),
         })
+    }
+
+    /// The URDF file: `robot_description` with `package://` resolved, or the demo robot.
+    pub fn robot_urdf(&self) -> Result<PathBuf, ConfigError> {
+        let Some(p) = &self.robot_description else {
+            return Ok(crate::cli::DEMO_URDF.into());
+        };
+        match p.to_str().filter(|s| s.starts_with("package://")) {
+            Some(uri) => resolve_uri(uri, Path::new("."), &self.package_paths).map_err(|e| {
+                ConfigError::Invalid {
+                    name: "robot_description".into(),
+                    message: format!("{uri}: {e}"),
+                }
+            }),
+            None => Ok(p.clone()),
+        }
     }
 
     /// The fully qualified name of a node-private topic `~/name`.

@@ -180,3 +180,26 @@ fn query_demo_robot() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no_such_link"));
 }
+
+/// `config/README.md` shows the declared parameters as `ist_monitor params` prints them, and
+/// every shipped config file loads.
+#[test]
+fn config_files_and_their_documentation() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("config/README.md")).unwrap();
+    assert!(
+        readme.contains(&ist_monitor::config::markdown_table()),
+        "config/README.md is out of date: paste `ist_monitor params` into it"
+    );
+    let mut files = 0;
+    for entry in std::fs::read_dir(root.join("config")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "yaml") {
+            let c = ist_monitor::config::Config::load(&path, &[])
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(!c.sources.is_empty());
+            files += 1;
+        }
+    }
+    assert!(files >= 2);
+}

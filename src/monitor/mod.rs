@@ -14,7 +14,6 @@ pub mod outputs;
 
 pub use outputs::{Level, LevelTracker, Outputs};
 
-use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -25,7 +24,7 @@ use crate::config::Config;
 use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::msg::{self, JointState, MsgError, TfMessage};
 use crate::query::{Engine, QueryError, QueryResult};
-use crate::robot::{urdf::resolve_uri, RobotModel};
+use crate::robot::RobotModel;
 use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
 
 /// Why a frame has no distance.
@@ -109,14 +108,7 @@ impl Monitor {
     /// Loads the robot, builds (or loads) its trees and applies the config's static transforms
     /// and fixed joints. Errors here are start-up errors.
     pub fn new(config: Config) -> Result<Self> {
-        let urdf = match &config.robot_description {
-            None => crate::cli::DEMO_URDF.into(),
-            Some(p) => match p.to_str().filter(|s| s.starts_with("package://")) {
-                Some(uri) => resolve_uri(uri, Path::new("."), &config.package_paths)
-                    .with_context(|| format!("parameter robot_description: {uri}"))?,
-                None => p.clone(),
-            },
-        };
+        let urdf = config.robot_urdf()?;
         let model = RobotModel::load(&urdf, &config.package_paths)
             .with_context(|| format!("loading robot {}", urdf.display()))?;
         let trees = trees(&model, &config)?;
