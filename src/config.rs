@@ -285,7 +285,11 @@ fn show(y: &Yaml) -> String {
 pub fn markdown_table() -> String {
     let mut out = String::from("| parameter | default | unit | meaning |\n|---|---|---|---|\n");
     for d in PARAMETERS {
-        let default = if d.default == "~" { "(none)" } else { d.default };
+        let default = if d.default == "~" {
+            "(none)"
+        } else {
+            d.default
+        };
         out.push_str(&format!(
             "| `{}` | `{default}` | {} | {} |\n",
             d.name, d.unit, d.doc

@@ -319,17 +319,7 @@ fn rosbags_reads_what_we_write() {
         write_samples(&mut w);
         w.write("/float64", 2000, &Float64 { data: 1.5 }).unwrap();
         w.finish().unwrap();
-        let out = Command::new(&python)
-            .args([SCRIPT, "read"])
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let v = common::json_output(Command::new(&python).args([SCRIPT, "read"]).arg(&path));
         let topics = v.as_object().unwrap();
         assert_eq!(topics.len(), 13, "{name}");
         for (topic, entry) in topics {

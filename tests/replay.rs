@@ -97,22 +97,16 @@ fn real_kinect_bag_reference_distances() {
         ),
     ];
     for (joints, expected, link) in cases {
-        let out = ist_monitor()
-            .arg("replay")
-            .arg(&bag)
-            .arg("--config")
-            .arg(&config)
-            .args(["-p", "mode:=exact", "-p", "max_spheres:=1024", "-p"])
-            .arg(format!("fixed_joint_state.positions:={joints}"))
-            .arg("--json")
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        let v = common::json_output(
+            ist_monitor()
+                .arg("replay")
+                .arg(&bag)
+                .arg("--config")
+                .arg(&config)
+                .args(["-p", "mode:=exact", "-p", "max_spheres:=1024", "-p"])
+                .arg(format!("fixed_joint_state.positions:={joints}"))
+                .arg("--json"),
         );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         let frame = &v["frames"][0];
         let d = frame["min_distance_m"].as_f64().unwrap();
         assert!((d - expected).abs() < 1e-3, "{joints}: {d} vs {expected}");
@@ -174,31 +168,24 @@ fn faulty_inputs_are_reported_never_safe() {
         }
     }
     assert_eq!(cloud_index, 4);
-    // No joint states: every frame faults, naming a joint.
-    let no_joints = write("no_joints", &|topic, t, data| {
-        (topic != "/joint_states").then(|| (t, data.to_vec()))
-    });
-    let (frames, s) = replay_bag(&no_joints);
-    assert_eq!(s.faults.get("joint_state"), Some(&frames.len()));
-    assert!(frames[0]
-        .fault
-        .as_ref()
-        .unwrap()
-        .contains("joint shoulder_pan"));
-    assert!(frames
-        .iter()
-        .all(|f| f.min_distance_m.is_none() && f.level == Level::Error));
-    // No /tf_static: the optical frame has no path to the robot.
-    let no_tf = write("no_tf", &|topic, t, data| {
-        (topic != "/tf_static").then(|| (t, data.to_vec()))
-    });
-    let (frames, s) = replay_bag(&no_tf);
-    assert_eq!(s.faults.get("tf"), Some(&frames.len()));
-    assert!(frames[0]
-        .fault
-        .as_ref()
-        .unwrap()
-        .contains("camera_optical_frame"));
+    // No joint states, or no /tf_static: every frame faults, naming the joint or the frame.
+    for (dropped, kind, named) in [
+        ("/joint_states", "joint_state", "joint shoulder_pan"),
+        ("/tf_static", "tf", "camera_optical_frame"),
+    ] {
+        let bag = write(&dropped[1..], &|topic, t, data| {
+            (topic != dropped).then(|| (t, data.to_vec()))
+        });
+        let (frames, s) = replay_bag(&bag);
+        assert_eq!(s.faults.get(kind), Some(&frames.len()), "{dropped}");
+        assert!(
+            frames[0].fault.as_ref().unwrap().contains(named),
+            "{dropped}"
+        );
+        assert!(frames
+            .iter()
+            .all(|f| f.min_distance_m.is_none() && f.level == Level::Error));
+    }
     // Joint states that stop after the first second: later clouds are stale, earlier fine.
     let stale = write("stale", &|topic, t, data| {
         let first = messages[0].log_time_ns;
@@ -276,18 +263,7 @@ fn replay_outputs_are_readable_by_rosbags() {
         return;
     };
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/rosbags_interop.py");
-    let out = Command::new(python)
-        .arg(script)
-        .arg("read")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = common::json_output(Command::new(python).arg(script).arg("read").arg(&out));
     assert_eq!(v["/ist_monitor/min_distance"]["count"], 30);
     assert_eq!(
         v["/diagnostics"]["type"],

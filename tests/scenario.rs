@@ -127,30 +127,24 @@ fn query_command_on_the_bag() {
     let s = kinect_root_from_sensor();
     let (t, q) = (s.translation.vector, s.rotation.coords);
     let pose = format!("{} {} {} {} {} {} {}", t.x, t.y, t.z, q.x, q.y, q.z, q.w);
-    let out = ist_monitor()
-        .args(["query", "--urdf"])
-        .arg(shared.join("robots/panda/robot.urdf"))
-        .args(["--max-spheres", "256", "--cache-dir"])
-        .arg(cache.path())
-        .args([
-            "--joints",
-            "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
-            "--mode",
-            "exact",
-            "--json",
-            "--sensor-pose",
-            &pose,
-            "--cloud",
-        ])
-        .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let json = common::json_output(
+        ist_monitor()
+            .args(["query", "--urdf"])
+            .arg(shared.join("robots/panda/robot.urdf"))
+            .args(["--max-spheres", "256", "--cache-dir"])
+            .arg(cache.path())
+            .args([
+                "--joints",
+                "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
+                "--mode",
+                "exact",
+                "--json",
+                "--sensor-pose",
+                &pose,
+                "--cloud",
+            ])
+            .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap")),
     );
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["outcome"], "nearest");
     assert_eq!(json["nearest"]["link"], "panda_link0");
     let d = json["nearest"]["distance_m"].as_f64().unwrap();

@@ -10,9 +10,9 @@
 //! config (`fixed_joint_state`, for bags without `/joint_states`) hold for all time and are
 //! overridden by messages.
 
-use std::collections::VecDeque;
-
 use crate::msg::JointState;
+
+use super::history::{History, Miss};
 
 /// Samples kept per joint at most (1 s at 1 kHz).
 const MAX_SAMPLES: usize = 1024;
@@ -41,8 +41,8 @@ pub enum JointError {
 #[derive(Debug, Clone)]
 pub struct JointStateBuffer {
     variables: Vec<String>,
-    /// Per variable: `(stamp_ns, value)`, sorted.
-    samples: Vec<VecDeque<(i64, f64)>>,
+    /// Per variable, its values over time.
+    samples: Vec<History<f64>>,
     fixed: Vec<Option<f64>>,
 }
 
@@ -51,7 +51,7 @@ impl JointStateBuffer {
     pub fn new(variables: &[String]) -> Self {
         Self {
             variables: variables.to_vec(),
-            samples: vec![VecDeque::new(); variables.len()],
+            samples: vec![History::default(); variables.len()],
             fixed: vec![None; variables.len()],
         }
     }
@@ -89,16 +89,7 @@ impl JointStateBuffer {
             return Err(JointError::NonFinite(self.variables[*i].clone()));
         }
         for (i, p) in known {
-            let s = &mut self.samples[i];
-            let at = s.partition_point(|(t, _)| *t <= stamp);
-            if at > 0 && s[at - 1].0 == stamp {
-                s[at - 1].1 = p;
-            } else {
-                s.insert(at, (stamp, p));
-            }
-            if s.len() > MAX_SAMPLES {
-                s.pop_front();
-            }
+            self.samples[i].insert(stamp, p, i64::MAX, MAX_SAMPLES);
         }
         Ok(())
     }
@@ -109,40 +100,22 @@ impl JointStateBuffer {
         let s = |ns: i64| ns as f64 * 1e-9;
         (0..self.variables.len())
             .map(|i| {
-                let samples = &self.samples[i];
                 let joint = || self.variables[i].clone();
-                let (Some(first), Some(last)) = (samples.front(), samples.back()) else {
-                    return self.fixed[i].ok_or_else(|| JointError::Missing(joint()));
-                };
-                let Some(t) = stamp_ns else {
-                    return Ok(last.1);
-                };
-                if t >= last.0 {
-                    return if t - last.0 <= tolerance_ns {
-                        Ok(last.1)
-                    } else {
-                        Err(JointError::Stale {
-                            joint: joint(),
-                            newest_s: s(last.0),
-                            stamp_s: s(t),
-                            tolerance_s,
-                        })
-                    };
+                let lerp = |a: &f64, b: &f64, w: f64| a + w * (b - a);
+                match self.samples[i].sample(stamp_ns, tolerance_ns, lerp) {
+                    None => self.fixed[i].ok_or_else(|| JointError::Missing(joint())),
+                    Some(Ok(q)) => Ok(q),
+                    Some(Err(Miss::Stale { newest_ns })) => Err(JointError::Stale {
+                        joint: joint(),
+                        newest_s: s(newest_ns),
+                        stamp_s: s(stamp_ns.unwrap_or_default()),
+                        tolerance_s,
+                    }),
+                    Some(Err(Miss::TooOld { .. })) => Err(JointError::TooOld {
+                        joint: joint(),
+                        stamp_s: s(stamp_ns.unwrap_or_default()),
+                    }),
                 }
-                if t <= first.0 {
-                    return if first.0 - t <= tolerance_ns {
-                        Ok(first.1)
-                    } else {
-                        Err(JointError::TooOld {
-                            joint: joint(),
-                            stamp_s: s(t),
-                        })
-                    };
-                }
-                let k = samples.partition_point(|(ts, _)| *ts < t);
-                let (a, b) = (samples[k - 1], samples[k]);
-                let w = (t - a.0) as f64 / (b.0 - a.0) as f64;
-                Ok(a.1 + w * (b.1 - a.1))
             })
             .collect()
     }

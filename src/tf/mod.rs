@@ -18,11 +18,14 @@
 //!
 //! Cost: a lookup is O(depth · log history), microseconds; it runs once per cloud.
 
+mod history;
 pub mod joints;
 
 pub use joints::{JointError, JointStateBuffer};
 
-use std::collections::{HashMap, VecDeque};
+use history::{History, Miss};
+
+use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Translation3};
 
@@ -68,8 +71,8 @@ pub enum TfError {
 struct Edge {
     parent: String,
     is_static: bool,
-    /// `(stamp_ns, parent_from_child)`, sorted by stamp.
-    samples: VecDeque<(i64, Isometry3<f64>)>,
+    /// `parent_from_child` over time.
+    samples: History<Isometry3<f64>>,
 }
 
 /// A TF buffer: the frame tree with a history per edge.
@@ -87,16 +90,8 @@ fn seconds(ns: i64) -> f64 {
     ns as f64 * 1e-9
 }
 
-/// Interpolates `a` (at `ta`) and `b` (at `tb`) at `t`: translation linear, rotation slerp.
-pub fn interpolate(
-    (ta, a): (i64, &Isometry3<f64>),
-    (tb, b): (i64, &Isometry3<f64>),
-    t: i64,
-) -> Isometry3<f64> {
-    if tb <= ta {
-        return *b;
-    }
-    let s = ((t - ta) as f64 / (tb - ta) as f64).clamp(0.0, 1.0);
+/// The pose a fraction `s` of the way from `a` to `b`: translation linear, rotation slerp.
+pub fn interpolate(a: &Isometry3<f64>, b: &Isometry3<f64>, s: f64) -> Isometry3<f64> {
     let translation = a.translation.vector.lerp(&b.translation.vector, s);
     Isometry3::from_parts(
         Translation3::from(translation),
@@ -133,7 +128,7 @@ impl TfBuffer {
         let edge = self.edges.entry(child.to_owned()).or_insert_with(|| Edge {
             parent: parent.to_owned(),
             is_static,
-            samples: VecDeque::new(),
+            samples: History::default(),
         });
         if edge.parent != parent || edge.is_static != is_static {
             // Re-parented, or turned static/dynamic: the new statement replaces the old.
@@ -143,24 +138,8 @@ impl TfBuffer {
         }
         if is_static {
             edge.samples.clear();
-            edge.samples.push_back((stamp, pose));
-            return Ok(());
         }
-        let at = edge.samples.partition_point(|(s, _)| *s <= stamp);
-        if at > 0 && edge.samples[at - 1].0 == stamp {
-            edge.samples[at - 1].1 = pose;
-        } else {
-            edge.samples.insert(at, (stamp, pose));
-        }
-        let newest = edge.samples.back().map_or(stamp, |s| s.0);
-        while edge.samples.len() > 2
-            && edge
-                .samples
-                .front()
-                .is_some_and(|s| s.0 < newest - self.cache_ns)
-        {
-            edge.samples.pop_front();
-        }
+        edge.samples.insert(stamp, pose, self.cache_ns, usize::MAX);
         Ok(())
     }
 
@@ -177,46 +156,31 @@ impl TfBuffer {
         tolerance_ns: i64,
     ) -> Result<Isometry3<f64>, TfError> {
         let edge = &self.edges[child];
-        let (first, last) = match (edge.samples.front(), edge.samples.back()) {
-            (Some(f), Some(l)) => (f, l),
-            _ => unreachable!("edges are created with a sample"),
-        };
-        let Some(t) = stamp_ns.filter(|_| !edge.is_static) else {
-            return Ok(last.1);
-        };
+        let stamp_ns = stamp_ns.filter(|_| !edge.is_static);
+        let sampled = edge.samples.sample(stamp_ns, tolerance_ns, interpolate);
         let names = || (edge.parent.clone(), child.to_owned());
-        if t > last.0 {
-            if t - last.0 <= tolerance_ns {
-                return Ok(last.1);
+        match sampled.expect("edges are created with a sample") {
+            Ok(pose) => Ok(pose),
+            Err(Miss::Stale { newest_ns }) => {
+                let (parent, child) = names();
+                Err(TfError::Stale {
+                    parent,
+                    child,
+                    newest_s: seconds(newest_ns),
+                    stamp_s: seconds(stamp_ns.unwrap_or_default()),
+                    tolerance_s: seconds(tolerance_ns),
+                })
             }
-            let (parent, child) = names();
-            return Err(TfError::Stale {
-                parent,
-                child,
-                newest_s: seconds(last.0),
-                stamp_s: seconds(t),
-                tolerance_s: seconds(tolerance_ns),
-            });
-        }
-        if t < first.0 {
-            if first.0 - t <= tolerance_ns {
-                return Ok(first.1);
+            Err(Miss::TooOld { oldest_ns }) => {
+                let (parent, child) = names();
+                Err(TfError::TooOld {
+                    parent,
+                    child,
+                    oldest_s: seconds(oldest_ns),
+                    stamp_s: seconds(stamp_ns.unwrap_or_default()),
+                })
             }
-            let (parent, child) = names();
-            return Err(TfError::TooOld {
-                parent,
-                child,
-                oldest_s: seconds(first.0),
-                stamp_s: seconds(t),
-            });
         }
-        let i = edge.samples.partition_point(|(s, _)| *s < t);
-        let b = &edge.samples[i];
-        if b.0 == t || i == 0 {
-            return Ok(b.1);
-        }
-        let a = &edge.samples[i - 1];
-        Ok(interpolate((a.0, &a.1), (b.0, &b.1), t))
     }
 
     /// The frames from `start` up to the top of its tree, each with `frame_from_start`.

@@ -75,3 +75,15 @@ pub fn venv_python() -> Option<PathBuf> {
     eprintln!("skipped: .venv/bin/python with rosbags is absent and CI is not set");
     None
 }
+
+/// Runs `command`, checks that it succeeded and parses its standard output as JSON.
+pub fn json_output(command: &mut Command) -> serde_json::Value {
+    let out = command.output().expect("run command");
+    assert!(
+        out.status.success(),
+        "{:?}: {}",
+        command,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on standard output")
+}

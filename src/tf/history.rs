@@ -1,0 +1,119 @@
+//! A time series of samples, sorted by stamp, sampled at a stamp with a tolerance: the one
+//! piece of code behind the TF edges and the joint states.
+
+use std::collections::VecDeque;
+
+/// Why a stamp could not be sampled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Miss {
+    /// The newest sample is older than the stamp by more than the tolerance.
+    Stale { newest_ns: i64 },
+    /// The stamp precedes the oldest sample kept by more than the tolerance.
+    TooOld { oldest_ns: i64 },
+}
+
+#[derive(Debug, Clone)]
+pub struct History<T> {
+    samples: VecDeque<(i64, T)>,
+}
+
+impl<T> Default for History<T> {
+    fn default() -> Self {
+        Self {
+            samples: VecDeque::new(),
+        }
+    }
+}
+
+impl<T: Clone> History<T> {
+    #[cfg(test)]
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+    pub fn clear(&mut self) {
+        self.samples.clear();
+    }
+
+    /// Adds a sample in stamp order; a sample at an existing stamp replaces it. Then drops the
+    /// oldest samples beyond `max_len`, and those older than the newest by more than `keep_ns`
+    /// (keeping two, so that an old pair still interpolates).
+    pub fn insert(&mut self, stamp_ns: i64, value: T, keep_ns: i64, max_len: usize) {
+        let at = self.samples.partition_point(|(s, _)| *s <= stamp_ns);
+        if at > 0 && self.samples[at - 1].0 == stamp_ns {
+            self.samples[at - 1].1 = value;
+        } else {
+            self.samples.insert(at, (stamp_ns, value));
+        }
+        let newest = self.samples.back().map_or(stamp_ns, |s| s.0);
+        while self.samples.len() > max_len
+            || (self.samples.len() > 2
+                && self
+                    .samples
+                    .front()
+                    .is_some_and(|s| s.0 < newest.saturating_sub(keep_ns)))
+        {
+            self.samples.pop_front();
+        }
+    }
+
+    /// The value at `stamp_ns` (`None`: the newest): `lerp(a, b, w)` between the two samples
+    /// around it, or the nearest sample when the stamp lies past either end by at most
+    /// `tolerance_ns`. `None` when there is no sample.
+    pub fn sample(
+        &self,
+        stamp_ns: Option<i64>,
+        tolerance_ns: i64,
+        lerp: impl Fn(&T, &T, f64) -> T,
+    ) -> Option<Result<T, Miss>> {
+        let (first, last) = (self.samples.front()?, self.samples.back()?);
+        let Some(t) = stamp_ns else {
+            return Some(Ok(last.1.clone()));
+        };
+        Some(if t >= last.0 {
+            if t - last.0 <= tolerance_ns {
+                Ok(last.1.clone())
+            } else {
+                Err(Miss::Stale { newest_ns: last.0 })
+            }
+        } else if t <= first.0 {
+            if first.0 - t <= tolerance_ns {
+                Ok(first.1.clone())
+            } else {
+                Err(Miss::TooOld { oldest_ns: first.0 })
+            }
+        } else {
+            let k = self.samples.partition_point(|(s, _)| *s < t);
+            let (a, b) = (&self.samples[k - 1], &self.samples[k]);
+            Ok(lerp(&a.1, &b.1, (t - a.0) as f64 / (b.0 - a.0) as f64))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_interpolate_and_miss() {
+        let mut h = History::default();
+        for (t, v) in [(30, 3.0), (10, 1.0), (20, 2.0), (20, 2.5)] {
+            h.insert(t, v, 1_000, 10);
+        }
+        assert_eq!(h.len(), 3);
+        let lerp = |a: &f64, b: &f64, w: f64| a + w * (b - a);
+        assert_eq!(h.sample(Some(15), 0, lerp), Some(Ok(1.75)));
+        assert_eq!(h.sample(Some(34), 5, lerp), Some(Ok(3.0)));
+        assert_eq!(
+            h.sample(Some(40), 5, lerp),
+            Some(Err(Miss::Stale { newest_ns: 30 }))
+        );
+        assert_eq!(
+            h.sample(Some(0), 5, lerp),
+            Some(Err(Miss::TooOld { oldest_ns: 10 }))
+        );
+        assert_eq!(h.sample(None, 0, lerp), Some(Ok(3.0)));
+        h.insert(5_000, 9.0, 1_000, 10);
+        assert_eq!(h.len(), 2, "samples older than keep_ns dropped, two kept");
+        assert!(History::<f64>::default().sample(None, 0, lerp).is_none());
+    }
+}
