@@ -27,7 +27,7 @@ use serde::Serialize;
 use crate::cli::median_and_spread;
 use crate::cloud::{self, Cloud};
 use crate::ist::{self, cache::TreeCache, BuildOptions, LinkTree};
-use crate::query::{peers, Engine, LinkSelection, Mode, QueryOptions};
+use crate::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptions};
 use crate::robot::RobotModel;
 
 /// `../shared` beside the checkout.
@@ -73,6 +73,165 @@ pub struct BenchQueryArgs {
     /// Write every row as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Where the engine's queries run (the peers always run on the CPU).
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    backend: Backend,
+}
+
+/// Arguments of `bench gpu`.
+#[derive(clap::Args)]
+pub struct BenchGpuArgs {
+    /// The shared data folder.
+    #[arg(long, default_value = SHARED)]
+    shared: PathBuf,
+    /// Cloud sizes for the CPU/GPU comparison: the Kinect cloud (307,200 points), tiled with
+    /// 1 mm offsets for larger sizes, cut for smaller ones.
+    #[arg(long, value_delimiter = ',', default_values_t = [307_200usize, 1_000_000, 5_000_000])]
+    sizes: Vec<usize>,
+    /// Sizes of the crossover sweep (the smallest at which the GPU wins end to end is printed).
+    #[arg(long, value_delimiter = ',', default_values_t = [1_000usize, 3_000, 10_000, 30_000, 100_000, 307_200])]
+    crossover: Vec<usize>,
+    #[arg(long, value_enum, default_value_t = Mode::Certified)]
+    mode: Mode,
+    /// Timed queries per size and backend (the median is reported).
+    #[arg(long, default_value_t = 20)]
+    runs: usize,
+    /// Tree cache folder (default as for `build`).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Write the rows as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+#[derive(Serialize)]
+struct GpuRow {
+    points: usize,
+    cpu_ms: (f64, f64, f64),
+    gpu_end_to_end_ms: (f64, f64, f64),
+    gpu_kernel_ms: Option<(f64, f64, f64)>,
+    cpu_over_gpu: f64,
+    max_difference_m: f64,
+}
+
+/// `bench gpu`: the Panda and the Kinect cloud at the `ready` pose on the CPU and the GPU, in
+/// one process: end-to-end time (upload, kernels, readback, assembly) and kernel time
+/// (timestamp queries, where the adapter has them) against the CPU path on the same machine,
+/// for several cloud sizes, and the crossover that `gpu_min_points` should be set to.
+pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
+    let scenario = load_scenario(&args.shared, ScenarioName::Kinect)?;
+    let cache_dir = args
+        .cache_dir
+        .clone()
+        .unwrap_or_else(TreeCache::default_dir);
+    let trees = trees(&scenario.model, BuildOptions::default(), &cache_dir)?;
+    let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
+    let Some(gpu) = engine.gpu() else {
+        bail!("no usable GPU adapter");
+    };
+    println!(
+        "GPU: {} ({:?}, {:?}); CPU: {} threads",
+        gpu.adapter.name,
+        gpu.adapter.device_type,
+        gpu.adapter.backend,
+        rayon::current_num_threads()
+    );
+    let base = &scenario.clouds[0].1.points;
+    let cloud = |n: usize| -> Vec<[f32; 3]> {
+        (0..n)
+            .map(|i| {
+                let p = base[i % base.len()];
+                let copy = (i / base.len()) as f32;
+                [p[0], p[1], p[2] + 0.001 * copy]
+            })
+            .collect()
+    };
+    let k = &scenario.model.kinematics;
+    let (_, joints) = &scenario.poses[0];
+    let poses = k.link_poses(&k.values_from_names(joints, Some(0.0))?);
+    let sensor = scenario.root_from_sensor;
+    let mut time = |points: &[[f32; 3]], backend: Backend| -> Result<(Vec<f64>, Vec<f64>, f64)> {
+        let options = QueryOptions {
+            mode: args.mode,
+            backend,
+            ..QueryOptions::default()
+        };
+        // One untimed query: shader compilation, buffer growth, caches.
+        let first = engine.query(points, &sensor, &poses, &options)?;
+        let (mut wall, mut kernel) = (Vec::new(), Vec::new());
+        for _ in 0..args.runs {
+            let start = Instant::now();
+            let r = engine.query(points, &sensor, &poses, &options)?;
+            wall.push(start.elapsed().as_secs_f64() * 1e3);
+            if backend == Backend::Gpu {
+                if let Some(s) = engine.gpu().and_then(|g| g.last_kernel_s) {
+                    kernel.push(s * 1e3);
+                }
+            }
+            std::hint::black_box(r);
+        }
+        let d = first.nearest.map_or(f64::INFINITY, |n| n.distance_m);
+        Ok((wall, kernel, d))
+    };
+    let mut rows = Vec::new();
+    println!(
+        "{:>10} {:>24} {:>24} {:>24} {:>8} {:>10}",
+        "points", "CPU ms [p10, p90]", "GPU end-to-end ms", "GPU kernel ms", "CPU/GPU", "|Δd| m"
+    );
+    let show = |t: (f64, f64, f64)| format!("{:.3} [{:.3}, {:.3}]", t.0, t.1, t.2);
+    for &n in &args.sizes {
+        let points = cloud(n);
+        let (cpu, _, dc) = time(&points, Backend::Cpu)?;
+        let (gpu, kernel, dg) = time(&points, Backend::Gpu)?;
+        let row = GpuRow {
+            points: n,
+            cpu_ms: median_and_spread(cpu),
+            gpu_end_to_end_ms: median_and_spread(gpu),
+            gpu_kernel_ms: (!kernel.is_empty()).then(|| median_and_spread(kernel)),
+            cpu_over_gpu: 0.0,
+            max_difference_m: (dc - dg).abs(),
+        };
+        let row = GpuRow {
+            cpu_over_gpu: row.cpu_ms.0 / row.gpu_end_to_end_ms.0,
+            ..row
+        };
+        println!(
+            "{:>10} {:>24} {:>24} {:>24} {:>8.2} {:>10.1e}",
+            n,
+            show(row.cpu_ms),
+            show(row.gpu_end_to_end_ms),
+            row.gpu_kernel_ms.map_or_else(|| "-".into(), show),
+            row.cpu_over_gpu,
+            row.max_difference_m
+        );
+        rows.push(row);
+    }
+    let mut crossover = None;
+    for &n in &args.crossover {
+        let points = cloud(n);
+        let (cpu, _, _) = time(&points, Backend::Cpu)?;
+        let (gpu, _, _) = time(&points, Backend::Gpu)?;
+        let (c, g) = (median_and_spread(cpu).0, median_and_spread(gpu).0);
+        println!("crossover sweep: {n:>9} points: CPU {c:.3} ms, GPU {g:.3} ms");
+        if g < c && crossover.is_none() {
+            crossover = Some(n);
+        }
+    }
+    match crossover {
+        Some(n) => {
+            println!("the GPU wins end to end from about {n} points: set gpu_min_points to {n}")
+        }
+        None => println!("the GPU never wins end to end here: keep backend auto off this GPU"),
+    }
+    if let Some(path) = &args.json {
+        std::fs::write(
+            path,
+            serde_json::to_string_pretty(
+                &serde_json::json!({"rows": rows, "crossover": crossover}),
+            )?,
+        )?;
+    }
+    Ok(())
 }
 
 /// A robot, a cloud and the poses to query.
@@ -394,6 +553,7 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                         mode,
                         per_link,
                         self_filter_padding_m: None,
+                        backend: args.backend,
                         ..QueryOptions::default()
                     };
                     let mut samples = Vec::new();

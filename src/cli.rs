@@ -18,7 +18,7 @@ use crate::ist::cache::TreeCache;
 use crate::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin, TreeBuilder};
 use crate::monitor::Monitor;
 use crate::packing::PackingParams;
-use crate::query::{Engine, LinkSelection, Mode, Outcome, QueryOptions};
+use crate::query::{Backend, Engine, LinkSelection, Mode, Outcome, QueryOptions};
 use crate::robot::{PackagePath, RobotModel};
 use crate::scenario::{self, ScenarioParams, SceneKind};
 
@@ -104,6 +104,9 @@ pub(crate) struct ReplayArgs {
     /// Chunk compression of --out.
     #[arg(long, value_enum, default_value_t = Compression::Zstd)]
     out_compression: Compression,
+    /// Where the queries run (overrides the config's `backend`): cpu, gpu or auto.
+    #[arg(long, value_enum)]
+    backend: Option<Backend>,
     /// Print the frames and the summary as JSON.
     #[arg(long)]
     json: bool,
@@ -220,6 +223,9 @@ enum Bench {
     /// Error against run time of the query modes over sphere budgets, with the peers, on the
     /// real scenarios of ../shared; prints a table and writes a PNG plot.
     Query(crate::bench::BenchQueryArgs),
+    /// The GPU backend against the CPU on the Panda and the Kinect cloud, for clouds of 307k to
+    /// 5M points: end-to-end and kernel time, and the crossover for `--backend auto`.
+    Gpu(crate::bench::BenchGpuArgs),
 }
 
 #[derive(Args)]
@@ -263,9 +269,22 @@ pub(crate) struct QueryArgs {
     /// Leave these links out (comma separated).
     #[arg(long, value_delimiter = ',')]
     exclude_links: Vec<String>,
+    #[command(flatten)]
+    backend: BackendArgs,
     /// Print the result object as JSON.
     #[arg(long)]
     json: bool,
+}
+
+/// Where queries run.
+#[derive(Args, Clone, Copy)]
+pub(crate) struct BackendArgs {
+    /// cpu, gpu, or auto (the GPU from --gpu-min-points points on, on a hardware GPU).
+    #[arg(long, value_enum, default_value_t = QueryOptions::default().backend)]
+    pub(crate) backend: Backend,
+    /// Crossover of --backend auto, in points.
+    #[arg(long, default_value_t = QueryOptions::default().gpu_min_points)]
+    pub(crate) gpu_min_points: usize,
 }
 
 /// Parses "x y z qx qy qz qw" (the quaternion is normalized; it must not be zero).
@@ -328,6 +347,7 @@ pub fn run() -> Result<()> {
         }
         Command::Bench(Bench::Packing(args)) => bench_packing(args),
         Command::Bench(Bench::Query(args)) => crate::bench::bench_query(args),
+        Command::Bench(Bench::Gpu(args)) => crate::bench::bench_gpu(args),
     }
 }
 
@@ -462,6 +482,8 @@ fn query(args: QueryArgs) -> Result<()> {
         max_distance_m: args.max_distance,
         self_filter_padding_m: (!args.no_self_filter).then_some(args.self_filter_padding),
         per_link: !args.no_per_link,
+        backend: args.backend.backend,
+        gpu_min_points: args.backend.gpu_min_points,
     };
     // Checked before the trees are built, by the rule the engine applies.
     options
@@ -611,8 +633,11 @@ fn generate(args: GenerateArgs) -> Result<()> {
 }
 
 fn replay(args: ReplayArgs) -> Result<()> {
-    let config = Config::load(&args.config, &args.params)
+    let mut config = Config::load(&args.config, &args.params)
         .with_context(|| format!("config {}", args.config.display()))?;
+    if let Some(backend) = args.backend {
+        config.query.backend = backend;
+    }
     let model = RobotArgs {
         urdf: config.robot_urdf()?,
         package_paths: config.package_paths.clone(),

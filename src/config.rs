@@ -16,7 +16,7 @@ use yaml_rust2::{Yaml, YamlLoader};
 
 use crate::ist::BuildOptions;
 use crate::msg::{Header, Quaternion, Time, Transform, TransformStamped, Vector3};
-use crate::query::{LinkSelection, Mode, QueryOptions};
+use crate::query::{Backend, LinkSelection, Mode, QueryOptions};
 use crate::robot::{urdf::resolve_uri, PackagePath};
 
 /// One declared parameter. `default` is YAML text; `~` means "no value" (optional).
@@ -52,6 +52,8 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("self_filter", "true", "", "drop cloud points on the robot itself"),
     p("self_filter_padding", "0.01", "m", "a point this close to the robot is the robot"),
     p("per_link", "true", "", "also compute the minimum of every link"),
+    p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points on a hardware GPU"),
+    p("gpu_min_points", "100000", "points", "crossover of backend auto (measure it with `ist_monitor bench gpu`)"),
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
     p("exclude_links", "[]", "", "leave these links out"),
     p("max_spheres", "8192", "", "inner spheres per link"),
@@ -399,6 +401,24 @@ impl Config {
                 .transpose()?
                 .map(|x| x as f32),
             per_link: v.bool("per_link", "per_link")?,
+            backend: match v.string("backend", "backend")?.as_str() {
+                "cpu" => Backend::Cpu,
+                "gpu" => Backend::Gpu,
+                "auto" => Backend::Auto,
+                other => {
+                    return Err(Values::bad(
+                        "backend",
+                        format!("'{other}' (expected cpu, gpu or auto)"),
+                    ))
+                }
+            },
+            gpu_min_points: {
+                let n = v.distance("gpu_min_points", "gpu_min_points")?;
+                if n.fract() != 0.0 {
+                    return Err(Values::bad("gpu_min_points", "must be a whole number"));
+                }
+                n as usize
+            },
         };
         let max_spheres = v.distance("max_spheres", "max_spheres")?;
         if max_spheres < 1.0 || max_spheres.fract() != 0.0 {

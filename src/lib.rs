@@ -2,9 +2,12 @@
 //!
 //! The data flows through the modules in this order: `robot` (URDF, collision meshes,
 //! kinematics) → `packing` (Protosphere inner spheres, surface gap) → `ist` (tree, quality,
-//! cache, validation) → `cloud` (PCD, PLY, PointCloud2, rosbag2 MCAP) → `query` (the parallel
-//! traversal: fast, certified and exact distances). `cli` wires them into the `ist_monitor`
-//! command; `bench` holds the error-against-run-time benchmark and its real scenarios.
+//! cache, validation) → `tf` (TF buffer, joint states) → `cloud` (PCD, PLY, PointCloud2) →
+//! `query` (the parallel traversal on the CPU, or on the GPU in `query::gpu`: fast, certified
+//! and exact distances) → `monitor` (the per-cloud pipeline and its output messages) → `bag`
+//! (rosbag2 MCAP in and out, replay). `msg` holds the ROS 2 messages, `config` the parameters,
+//! `scenario` the bag generator. `cli` wires them into the `ist_monitor` command; `bench`
+//! holds the benchmarks and their real scenarios.
 
 pub mod bag;
 pub mod bench;

@@ -173,6 +173,36 @@ fn query_demo_robot() {
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
     assert_eq!(json["outcome"], "nothing_within_max_distance");
 
+    // The GPU backend gives the same answer. With no usable GPU (here: only Metal allowed, on
+    // Linux), it falls back to the CPU with one message.
+    let certified = &[&pose[..], &["--mode", "certified"]].concat();
+    let gpu = query(&[&certified[..], &["--backend", "gpu"]].concat());
+    let gpu_json: serde_json::Value = serde_json::from_slice(&gpu.stdout).expect("json");
+    let d_gpu = gpu_json["nearest"]["distance_m"].as_f64().unwrap();
+    assert!((d_gpu - d).abs() < 1e-5, "{d_gpu} {d}");
+    let mut cmd = ist_monitor();
+    cmd.env("WGPU_BACKEND", "metal")
+        .args([
+            "query",
+            "--max-spheres",
+            "200",
+            "--json",
+            "--backend",
+            "gpu",
+            "--cache-dir",
+        ])
+        .arg(dir.path())
+        .arg("--cloud")
+        .arg(&ply)
+        .args(certified);
+    let out = cmd.output().expect("runs");
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.matches("no usable GPU").count(), 1, "{stderr}");
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(json["backend"], "cpu");
+    assert_eq!(json["nearest"]["distance_m"].as_f64().unwrap(), d);
+
     let out = query(&["--sensor-pose", "1 2 3"]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("7 finite numbers"));

@@ -7,7 +7,7 @@ use common::ist_monitor;
 use ist_monitor::bench::{kinect_poses, kinect_root_from_sensor};
 use ist_monitor::cloud;
 use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
-use ist_monitor::query::{Engine, LinkSelection, Mode, Outcome, QueryOptions};
+use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, Outcome, QueryOptions};
 use ist_monitor::robot::RobotModel;
 
 /// Exact mode within 1 mm of the reference distances, on the reference links and points; the
@@ -114,6 +114,50 @@ fn kinect_panda_reference_distances() {
     };
     let g = engine.query(&points, &sensor, &reach, &global).unwrap();
     assert_eq!(g.nearest.as_ref().unwrap().distance_m, n.distance_m);
+
+    // The GPU backend on the real scene (lavapipe in CI): the same distances within 1e-5 m
+    // (rounding of `length` only), per link too, and the same stage counts before pruning.
+    if !common::has_gpu(&mut engine) {
+        return;
+    }
+    for (joints, options) in [(&ready, &certified), (&reach, &exact), (&reach, &global)] {
+        let on = |backend| QueryOptions {
+            backend,
+            ..options.clone()
+        };
+        let c = engine
+            .query(&points, &sensor, joints, &on(Backend::Cpu))
+            .unwrap();
+        let g = engine
+            .query(&points, &sensor, joints, &on(Backend::Gpu))
+            .unwrap();
+        assert_eq!(g.backend, Backend::Gpu);
+        let (cn, gn) = (c.nearest.unwrap(), g.nearest.unwrap());
+        assert!(
+            (cn.distance_m - gn.distance_m).abs() < 1e-5,
+            "{cn:?} {gn:?}"
+        );
+        assert_eq!(cn.link, gn.link);
+        for (a, b) in c.links.iter().zip(&g.links) {
+            let close = |x: Option<f64>, y: Option<f64>| match (x, y) {
+                (Some(x), Some(y)) => (x - y).abs() < 1e-5,
+                (x, y) => x == y,
+            };
+            assert!(close(a.distance_m, b.distance_m), "{a:?} {b:?}");
+        }
+        assert_eq!(
+            (
+                c.counts.invalid,
+                c.counts.outside_roi,
+                c.counts.self_filtered
+            ),
+            (
+                g.counts.invalid,
+                g.counts.outside_roi,
+                g.counts.self_filtered
+            )
+        );
+    }
 }
 
 /// `ist_monitor query` on the bag folder, JSON out.

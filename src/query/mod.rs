@@ -40,6 +40,7 @@
 //! Every stage's count is reported in [`StageCounts`].
 
 pub mod exact;
+pub mod gpu;
 pub mod peers;
 mod traverse;
 
@@ -56,6 +57,10 @@ use crate::robot::{LinkGeometry, RobotModel};
 
 /// Most links with collision geometry one engine handles (a bit mask per point).
 pub const MAX_LINKS: usize = 128;
+
+/// Default crossover of `Backend::Auto`, in points. Not yet measured on a hardware GPU (none was
+/// available): `ist_monitor bench gpu` measures it; set `gpu_min_points` from its figure.
+pub const DEFAULT_GPU_MIN_POINTS: usize = 100_000;
 
 /// What the query computes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -81,6 +86,19 @@ pub struct QueryOptions {
     pub self_filter_padding_m: Option<f32>,
     /// Per-link minima (one bound per link); off leaves one shared bound, which prunes more.
     pub per_link: bool,
+    pub backend: Backend,
+    /// `Backend::Auto` uses the GPU from this many points on.
+    pub gpu_min_points: usize,
+}
+
+/// Where a query runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Backend {
+    Cpu,
+    Gpu,
+    /// The GPU for clouds of at least `gpu_min_points` on a hardware GPU, else the CPU.
+    Auto,
 }
 
 impl QueryOptions {
@@ -110,6 +128,8 @@ impl Default for QueryOptions {
             max_distance_m: 2.0,
             self_filter_padding_m: Some(0.01),
             per_link: true,
+            backend: Backend::Auto,
+            gpu_min_points: DEFAULT_GPU_MIN_POINTS,
         }
     }
 }
@@ -237,6 +257,14 @@ pub struct Engine {
     links: Vec<QueryLink>,
     pose_count: usize,
     scratch: traverse::Scratch,
+    gpu: GpuSlot,
+}
+
+/// The GPU backend, created on first use.
+enum GpuSlot {
+    Untried,
+    Unavailable,
+    Ready(Box<gpu::GpuEngine>),
 }
 
 impl Engine {
@@ -309,6 +337,7 @@ impl Engine {
             links,
             pose_count,
             scratch,
+            gpu: GpuSlot::Untried,
         })
     }
 
@@ -340,14 +369,65 @@ impl Engine {
         if points.len() > u32::MAX as usize {
             return Err(QueryError::TooManyPoints(points.len()));
         }
-        Ok(traverse::run(
-            &self.links,
-            &mut self.scratch,
+        let input = traverse::Input {
             points,
             root_from_sensor,
             link_poses,
             options,
-        ))
+        };
+        let wants_gpu = match options.backend {
+            Backend::Cpu => false,
+            Backend::Gpu => true,
+            Backend::Auto => points.len() >= options.gpu_min_points,
+        };
+        if wants_gpu {
+            self.gpu();
+            if let GpuSlot::Ready(gpu) = &mut self.gpu {
+                let usable = options.backend == Backend::Gpu || !gpu.is_software();
+                if usable {
+                    let robot_box = traverse::prepare(
+                        &self.links,
+                        &mut self.scratch,
+                        root_from_sensor,
+                        link_poses,
+                    );
+                    match gpu.query(&self.links, &mut self.scratch, &robot_box, input) {
+                        Ok(Some(mut r)) => {
+                            r.backend = Backend::Gpu;
+                            return Ok(r);
+                        }
+                        Ok(None) => log::debug!("exact candidates overflowed the GPU list: CPU"),
+                        Err(e) => log::warn!("GPU query failed ({e}): this query runs on the CPU"),
+                    }
+                }
+            }
+        }
+        Ok(traverse::run(&self.links, &mut self.scratch, input))
+    }
+
+    /// The GPU backend, created on first use; `None` (said once) when there is no usable GPU.
+    pub fn gpu(&mut self) -> Option<&mut gpu::GpuEngine> {
+        if matches!(self.gpu, GpuSlot::Untried) {
+            self.gpu = match gpu::GpuEngine::new(&self.links) {
+                Ok(g) => {
+                    log::info!(
+                        "GPU: {} ({:?}, {:?})",
+                        g.adapter.name,
+                        g.adapter.device_type,
+                        g.adapter.backend
+                    );
+                    GpuSlot::Ready(Box::new(g))
+                }
+                Err(e) => {
+                    eprintln!("no usable GPU ({e}): queries run on the CPU");
+                    GpuSlot::Unavailable
+                }
+            };
+        }
+        match &mut self.gpu {
+            GpuSlot::Ready(g) => Some(g),
+            _ => None,
+        }
     }
 }
 
@@ -444,6 +524,8 @@ pub struct LinkDistance {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct QueryResult {
     pub mode: Mode,
+    /// Where it ran.
+    pub backend: Backend,
     pub outcome: Outcome,
     pub max_distance_m: f32,
     pub nearest: Option<Nearest>,

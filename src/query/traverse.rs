@@ -125,11 +125,12 @@ pub(crate) struct Candidate {
 
 /// Memory reused from query to query.
 pub(super) struct Scratch {
-    posed: Vec<PosedLink>,
-    best: Vec<AtomicU64>,
-    global: AtomicU32,
-    global_lower: AtomicU32,
-    candidates: Mutex<Vec<Candidate>>,
+    pub posed: Vec<PosedLink>,
+    /// Per link: the minimum and its point, packed (`super::pack`).
+    pub best: Vec<AtomicU64>,
+    pub global: AtomicU32,
+    pub global_lower: AtomicU32,
+    pub candidates: Mutex<Vec<Candidate>>,
 }
 
 impl Scratch {
@@ -363,11 +364,12 @@ struct Pass<'a> {
 /// tight for an arm standing on its base, with the sensor-to-root transform in f32 (rounded from
 /// f64; the box is widened by `BOX_MARGIN` so that the rounding never drops a point).
 #[derive(Clone, Copy)]
-struct RobotBox {
-    rot: [[f32; 3]; 3],
-    trans: [f32; 3],
-    lo: [f32; 3],
-    hi: [f32; 3],
+pub(super) struct RobotBox {
+    /// `root_from_sensor`: rows of the rotation, then the translation.
+    pub rot: [[f32; 3]; 3],
+    pub trans: [f32; 3],
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
 }
 
 /// Widening of the robot box, m: far above the f32 rounding of a transformed point (~1e-6 m).
@@ -777,15 +779,14 @@ fn bound_block(chunk: &[[f32; 3]]) -> Block {
     }
 }
 
-pub(super) fn run(
+/// Step 1 of a query: poses the links (f64, rounded once) into `scratch`, resets its minima, and
+/// returns the robot's box. Shared by the CPU and GPU backends.
+pub(super) fn prepare(
     links: &[QueryLink],
     scratch: &mut Scratch,
-    points: &[[f32; 3]],
     root_from_sensor: &Isometry3<f64>,
     link_poses: &[Isometry3<f64>],
-    options: &QueryOptions,
-) -> QueryResult {
-    // 1. Pose, in f64, rounded once.
+) -> RobotBox {
     let sensor_from_root = root_from_sensor.inverse();
     for (link, posed) in links.iter().zip(&mut scratch.posed) {
         *posed = PosedLink::new(link, &sensor_from_root, link_poses);
@@ -796,7 +797,27 @@ pub(super) fn run(
     scratch.global.store(f32::INFINITY.to_bits(), Relaxed);
     scratch.global_lower.store(f32::INFINITY.to_bits(), Relaxed);
     scratch.candidates.get_mut().unwrap().clear();
+    RobotBox::new(links, root_from_sensor, link_poses)
+}
 
+/// What one query asks: the cloud, where its sensor is, how the robot is posed, the options.
+#[derive(Clone, Copy)]
+pub(super) struct Input<'a> {
+    pub points: &'a [[f32; 3]],
+    pub root_from_sensor: &'a Isometry3<f64>,
+    pub link_poses: &'a [Isometry3<f64>],
+    pub options: &'a QueryOptions,
+}
+
+pub(super) fn run(links: &[QueryLink], scratch: &mut Scratch, input: Input) -> QueryResult {
+    let Input {
+        points,
+        root_from_sensor,
+        link_poses,
+        options,
+    } = input;
+    // 1. Pose, in f64, rounded once.
+    let robot_box = prepare(links, scratch, root_from_sensor, link_poses);
     let pass = Pass {
         links,
         posed: &scratch.posed,
@@ -808,7 +829,7 @@ pub(super) fn run(
         mode: options.mode,
         per_link: options.per_link,
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
-        robot_box: RobotBox::new(links, root_from_sensor, link_poses),
+        robot_box,
         max_distance: options.max_distance_m,
     };
 
@@ -836,7 +857,7 @@ pub(super) fn run(
     });
 
     // 3. Main pass, one sweep over the cloud: each block is bounded, then culled or descended.
-    let mut counts = points
+    let counts = points
         .par_chunks(BLOCK)
         .enumerate()
         .with_min_len(16)
@@ -846,24 +867,38 @@ pub(super) fn run(
         })
         .reduce(StageCounts::default, |a, b| a + b);
 
+    finish(links, scratch, input, counts)
+}
+
+/// Steps 4 and 5 of a query, once `scratch` holds the minima, the exact candidates and the
+/// counts of the sweep (from either backend): exact refinement, then the result.
+pub(super) fn finish(
+    links: &[QueryLink],
+    scratch: &mut Scratch,
+    input: Input,
+    mut counts: StageCounts,
+) -> QueryResult {
+    let Input {
+        points,
+        root_from_sensor,
+        link_poses,
+        options,
+    } = input;
     // 4. Exact refinement.
     let refined = if options.mode == Mode::Exact {
-        let mut candidates = scratch.candidates.lock().unwrap();
+        let candidates = scratch.candidates.get_mut().unwrap();
         let upper = load_f32(&scratch.global);
-        let r = exact::refine(
+        exact::refine(
             links,
             &scratch.posed,
-            &mut candidates,
+            candidates,
             points,
             upper,
             &mut counts,
-        );
-        drop(candidates);
-        r
+        )
     } else {
         None
     };
-
     assemble(
         links,
         scratch,
@@ -1006,6 +1041,7 @@ fn assemble(
     };
     QueryResult {
         mode: options.mode,
+        backend: super::Backend::Cpu,
         outcome,
         max_distance_m: options.max_distance_m,
         nearest,

@@ -87,3 +87,16 @@ pub fn json_output(command: &mut Command) -> serde_json::Value {
     );
     serde_json::from_slice(&out.stdout).expect("JSON on standard output")
 }
+
+/// Whether `engine` has a GPU backend. In CI one must exist (Mesa's lavapipe, which `.ci/run`
+/// installs); elsewhere a GPU test may skip with a printed reason.
+pub fn has_gpu(engine: &mut ist_monitor::query::Engine) -> bool {
+    if engine.gpu().is_some() {
+        return true;
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!("CI is set but no GPU adapter (lavapipe: mesa-vulkan-drivers) was found");
+    }
+    eprintln!("skipped: no GPU adapter and CI is not set");
+    false
+}

@@ -1,0 +1,544 @@
+//! GPU backend of the query (wgpu, `shaders/traverse.wgsl`): the seed's parallel traversal, one
+//! invocation per cloud point, with the shared bounds in storage atomics.
+//!
+//! - **Once per robot**: the device is created and every link's `IstNode` and `InnerSphere`
+//!   arrays are uploaded as they are, concatenated (the CPU walks the same arrays).
+//! - **Per query**: the links are posed on the CPU exactly as for the CPU backend
+//!   (`traverse::prepare`: f64, rounded once), and only the posed links (`GpuLink`, 64 B each),
+//!   three small uniforms and the points are written. Three dispatches follow in one submission:
+//!   seed (every 61st point), main (every point), arg-min (ties resolved to the smallest index).
+//!   A few words come back: the minima, the counts and the exact-mode candidates.
+//! - **Then** the CPU's own `traverse::finish` refines the exact candidates and assembles the
+//!   result, so both backends report through one code path.
+//!
+//! The host structs here are `#[repr(C)]` Pod mirrors of the WGSL structs of the same role
+//! (`GpuLink` = `Link`, `GpuParams` = `Params`, `GpuState` = `State`, `GpuCandidate` =
+//! `Candidate`); their sizes are asserted below and checked against the shader by a naga test.
+//!
+//! Agreement with the CPU: the same posed links, trees, thresholds and order of operations; only
+//! the rounding of `length` may differ (a few ulps, far below 1 µm at robot scale).
+
+use std::borrow::Cow;
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::traverse::{self, Candidate, Input, RobotBox, Scratch};
+use super::{pack, Mode, QueryLink, QueryResult, StageCounts, EMPTY};
+use crate::ist::IstNode;
+use crate::packing::InnerSphere;
+
+/// The traversal shader, embedded.
+pub const SHADER: &str = include_str!("../../../shaders/traverse.wgsl");
+const WORKGROUP: u32 = 256;
+/// Seed stride, as the CPU's `SEED_STRIDE`.
+const SEED_STRIDE: u32 = 61;
+/// Depth-first stack of the shader (`STACK` there).
+pub const GPU_STACK: usize = 64;
+/// Exact-mode candidates kept; more sends the query to the CPU.
+const CANDIDATES: u32 = 1 << 16;
+
+/// WGSL `Link`: `link_from_sensor` rows (w: translation), the surface gap, the link's offsets
+/// in the concatenated node and sphere arrays.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct GpuLink {
+    pub rows: [[f32; 4]; 3],
+    pub gap: f32,
+    pub node_base: u32,
+    pub sphere_base: u32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<GpuLink>() == 64);
+
+/// WGSL `Params`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct GpuParams {
+    pub box_rows: [[f32; 4]; 3],
+    /// xyz: the robot box's low corner; w: max_distance.
+    pub box_lo: [f32; 4],
+    /// xyz: the high corner; w: self-filter padding (negative: off).
+    pub box_hi: [f32; 4],
+    pub n_points: u32,
+    pub n_links: u32,
+    pub mode: u32,
+    pub per_link: u32,
+    pub stride: u32,
+    pub offset: u32,
+    pub n_work: u32,
+    pub pass_kind: u32,
+    pub capacity: u32,
+    pub pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 128);
+
+/// WGSL `State`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct GpuState {
+    pub global: u32,
+    pub global_lower: u32,
+    pub candidate_count: u32,
+    pub pad: u32,
+    /// invalid, outside_roi, self_filtered, pruned, evaluated, inside.
+    pub counts: [u32; 6],
+    pub pad1: [u32; 2],
+}
+const _: () = assert!(std::mem::size_of::<GpuState>() == 48);
+
+/// WGSL `Candidate`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct GpuCandidate {
+    pub lower_bits: u32,
+    pub link: u32,
+    pub point: u32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<GpuCandidate>() == 16);
+
+/// The host sizes of the mirrored structs, by WGSL name (for the naga test).
+pub const MIRRORS: &[(&str, usize)] = &[
+    ("Node", std::mem::size_of::<IstNode>()),
+    ("Sphere", std::mem::size_of::<InnerSphere>()),
+    ("Link", std::mem::size_of::<GpuLink>()),
+    ("Params", std::mem::size_of::<GpuParams>()),
+    ("State", std::mem::size_of::<GpuState>()),
+    ("Candidate", std::mem::size_of::<GpuCandidate>()),
+];
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("no GPU adapter: {0}")]
+    NoAdapter(String),
+    #[error("GPU device: {0}")]
+    Device(String),
+    #[error("link {link}: tree depth needs more than the shader's stack of {GPU_STACK}")]
+    TooDeep { link: String },
+    #[error("{points} points exceed one dispatch ({max})")]
+    TooManyPoints { points: usize, max: usize },
+    #[error("{0} bytes exceed the device's storage buffer limit")]
+    TooLarge(u64),
+    #[error("reading back: {0}")]
+    Readback(String),
+}
+
+/// The buffers that grow with the cloud.
+struct Sized {
+    points: wgpu::Buffer,
+    capacity_points: usize,
+    bind_groups: [wgpu::BindGroup; 3],
+}
+
+/// A device with a robot's trees uploaded.
+pub struct GpuEngine {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    pipeline: wgpu::ComputePipeline,
+    /// The adapter, as wgpu describes it.
+    pub adapter: wgpu::AdapterInfo,
+    nodes: wgpu::Buffer,
+    spheres: wgpu::Buffer,
+    links: wgpu::Buffer,
+    params: [wgpu::Buffer; 3],
+    state: wgpu::Buffer,
+    minima: wgpu::Buffer,
+    candidates: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    bases: Vec<(u32, u32)>,
+    sized: Option<Sized>,
+    max_binding: u64,
+    /// Timestamps around the three dispatches, where the adapter has them.
+    timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
+    /// GPU time of the last query's three dispatches, s (with timestamp queries).
+    pub last_kernel_s: Option<f64>,
+}
+
+fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytes,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+impl GpuEngine {
+    /// Creates the device (the adapter `WGPU_ADAPTER_NAME` names, else the default one) and
+    /// uploads the trees of `links`.
+    pub fn new(links: &[QueryLink]) -> Result<Self, GpuError> {
+        for link in links {
+            if traverse::tree_depth(&link.nodes) * (crate::ist::build::BRANCHING - 1) + 1
+                > GPU_STACK
+            {
+                return Err(GpuError::TooDeep {
+                    link: link.name.clone(),
+                });
+            }
+        }
+        // Vulkan, Metal or DX12 unless WGPU_BACKEND says otherwise: compute needs no GL, and
+        // probing it prints EGL noise on headless machines.
+        let mut descriptor = wgpu::InstanceDescriptor::from_env_or_default();
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            descriptor.backends = wgpu::Backends::PRIMARY;
+        }
+        let instance = wgpu::Instance::new(&descriptor);
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, None,
+        ))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let limits = adapter.limits();
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("ist_monitor"),
+            required_features: features,
+            required_limits: limits.clone(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| GpuError::Device(e.to_string()))?;
+        device.on_uncaptured_error(Box::new(|e| log::error!("GPU: {e}")));
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("traverse.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(SHADER)),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("traverse"),
+            layout: None,
+            module: &module,
+            entry_point: Some("traverse"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let mut nodes: Vec<IstNode> = Vec::new();
+        let mut spheres: Vec<InnerSphere> = Vec::new();
+        let mut bases = Vec::new();
+        for link in links {
+            bases.push((nodes.len() as u32, spheres.len() as u32));
+            nodes.extend_from_slice(&link.nodes);
+            spheres.extend_from_slice(&link.spheres);
+        }
+        let max_binding = u64::from(limits.max_storage_buffer_binding_size);
+        let bytes = (nodes.len() * 32).max(spheres.len() * 16) as u64;
+        if bytes > max_binding {
+            return Err(GpuError::TooLarge(bytes));
+        }
+        let uniform = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: std::mem::size_of::<GpuParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let n = links.len();
+        let readback_size =
+            (std::mem::size_of::<GpuState>() + 8 * n + 16 + 16 * CANDIDATES as usize) as u64;
+        let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
+            (
+                device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("kernel time"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 2,
+                }),
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("timestamps"),
+                    size: 16,
+                    usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                }),
+            )
+        });
+        Ok(Self {
+            timestamps,
+            last_kernel_s: None,
+            nodes: storage(&device, "nodes", bytemuck::cast_slice(&nodes)),
+            spheres: storage(&device, "spheres", bytemuck::cast_slice(&spheres)),
+            links: storage(&device, "links", &vec![0u8; 64 * n]),
+            params: [uniform("seed"), uniform("main"), uniform("argmin")],
+            state: storage(&device, "state", &[0u8; std::mem::size_of::<GpuState>()]),
+            minima: storage(&device, "minima", &vec![0u8; 8 * n]),
+            candidates: storage(&device, "candidates", &vec![0u8; 16 * CANDIDATES as usize]),
+            readback: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size: readback_size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            adapter: adapter.get_info(),
+            device,
+            queue,
+            pipeline,
+            bases,
+            sized: None,
+            max_binding,
+        })
+    }
+
+    /// Whether the adapter is a software rasterizer (lavapipe, WARP, SwiftShader): correct, but
+    /// never faster than the CPU backend.
+    pub fn is_software(&self) -> bool {
+        self.adapter.device_type == wgpu::DeviceType::Cpu
+    }
+
+    fn ensure_points(&mut self, n: usize) -> Result<(), GpuError> {
+        if self.sized.as_ref().is_some_and(|s| s.capacity_points >= n) {
+            return Ok(());
+        }
+        let capacity = n.next_power_of_two().max(1024);
+        let bytes = (capacity * 12) as u64;
+        if bytes > self.max_binding {
+            return Err(GpuError::TooLarge(bytes));
+        }
+        let points = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("points"),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let layout = self.pipeline.get_bind_group_layout(0);
+        let group = |params: &wgpu::Buffer| {
+            let buffers = [
+                &self.nodes,
+                &self.spheres,
+                &self.links,
+                &points,
+                params,
+                &self.state,
+                &self.minima,
+                &self.candidates,
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("traverse"),
+                layout: &layout,
+                entries: &entries,
+            })
+        };
+        let bind_groups = [
+            group(&self.params[0]),
+            group(&self.params[1]),
+            group(&self.params[2]),
+        ];
+        self.sized = Some(Sized {
+            points,
+            capacity_points: capacity,
+            bind_groups,
+        });
+        Ok(())
+    }
+
+    /// The query on the GPU; `scratch` must hold the posed links (`traverse::prepare`).
+    /// Returns `Ok(None)` when the exact candidates overflowed (the caller runs the CPU).
+    pub(super) fn query(
+        &mut self,
+        links: &[QueryLink],
+        scratch: &mut Scratch,
+        robot_box: &RobotBox,
+        input: Input,
+    ) -> Result<Option<QueryResult>, GpuError> {
+        let Input {
+            points, options, ..
+        } = input;
+        let n = points.len();
+        let max = 65_535 * WORKGROUP as usize;
+        if n > max {
+            return Err(GpuError::TooManyPoints { points: n, max });
+        }
+        self.ensure_points(n)?;
+        let l = links.len();
+        let gpu_links: Vec<GpuLink> = scratch
+            .posed
+            .iter()
+            .zip(&self.bases)
+            .map(|(p, &(node_base, sphere_base))| GpuLink {
+                rows: std::array::from_fn(|r| [p.rot[r][0], p.rot[r][1], p.rot[r][2], p.trans[r]]),
+                gap: p.gap,
+                node_base,
+                sphere_base,
+                pad: 0,
+            })
+            .collect();
+        let base = GpuParams {
+            box_rows: std::array::from_fn(|r| {
+                let m = &robot_box.rot;
+                [m[r][0], m[r][1], m[r][2], robot_box.trans[r]]
+            }),
+            box_lo: [
+                robot_box.lo[0],
+                robot_box.lo[1],
+                robot_box.lo[2],
+                options.max_distance_m,
+            ],
+            box_hi: [
+                robot_box.hi[0],
+                robot_box.hi[1],
+                robot_box.hi[2],
+                options.self_filter_padding_m.unwrap_or(-1.0),
+            ],
+            n_points: n as u32,
+            n_links: l as u32,
+            mode: match options.mode {
+                Mode::Fast => 0,
+                Mode::Certified => 1,
+                Mode::Exact => 2,
+            },
+            per_link: options.per_link as u32,
+            stride: 1,
+            offset: 0,
+            n_work: n as u32,
+            pass_kind: 1,
+            capacity: CANDIDATES,
+            pad: [0; 3],
+        };
+        let seed = GpuParams {
+            stride: SEED_STRIDE,
+            n_work: (n as u32).div_ceil(SEED_STRIDE),
+            pass_kind: 0,
+            ..base
+        };
+        let argmin = GpuParams {
+            pass_kind: 2,
+            ..base
+        };
+        let q = &self.queue;
+        q.write_buffer(&self.links, 0, bytemuck::cast_slice(&gpu_links));
+        for (buffer, params) in self.params.iter().zip([seed, base, argmin]) {
+            q.write_buffer(buffer, 0, bytemuck::bytes_of(&params));
+        }
+        let state = GpuState {
+            global: f32::INFINITY.to_bits(),
+            global_lower: f32::INFINITY.to_bits(),
+            ..GpuState::zeroed()
+        };
+        q.write_buffer(&self.state, 0, bytemuck::bytes_of(&state));
+        let mut minima = vec![f32::INFINITY.to_bits(); l];
+        minima.extend(std::iter::repeat_n(u32::MAX, l));
+        q.write_buffer(&self.minima, 0, bytemuck::cast_slice(&minima));
+        let sized = self.sized.as_ref().expect("ensure_points made the buffers");
+        if n > 0 {
+            q.write_buffer(&sized.points, 0, bytemuck::cast_slice(points));
+        }
+        // Validation errors of this query come back as an error (the caller then runs the
+        // CPU), not as wgpu's default panic.
+        self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        for (k, params) in [seed, base, argmin].iter().enumerate() {
+            let timestamp_writes = self.timestamps.as_ref().filter(|_| k != 1).map(|(set, _)| {
+                wgpu::ComputePassTimestampWrites {
+                    query_set: set,
+                    beginning_of_pass_write_index: (k == 0).then_some(0),
+                    end_of_pass_write_index: (k == 2).then_some(1),
+                }
+            });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("traverse"),
+                timestamp_writes,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &sized.bind_groups[k], &[]);
+            pass.dispatch_workgroups(params.n_work.div_ceil(WORKGROUP).max(1), 1, 1);
+        }
+        let state_size = std::mem::size_of::<GpuState>() as u64;
+        let minima_size = 8 * l as u64;
+        encoder.copy_buffer_to_buffer(&self.state, 0, &self.readback, 0, state_size);
+        encoder.copy_buffer_to_buffer(&self.minima, 0, &self.readback, state_size, minima_size);
+        let stamps_at = state_size + minima_size;
+        if let Some((set, resolve)) = &self.timestamps {
+            encoder.resolve_query_set(set, 0..2, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, &self.readback, stamps_at, 16);
+        }
+        if options.mode == Mode::Exact {
+            encoder.copy_buffer_to_buffer(
+                &self.candidates,
+                0,
+                &self.readback,
+                stamps_at + 16,
+                16 * CANDIDATES as u64,
+            );
+        }
+        q.submit([encoder.finish()]);
+        for scope in [self.device.pop_error_scope(), self.device.pop_error_scope()] {
+            if let Some(e) = pollster::block_on(scope) {
+                return Err(GpuError::Device(e.to_string()));
+            }
+        }
+        let slice = self.readback.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        self.device
+            .poll(wgpu::PollType::Wait)
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let (state, minima, candidates) = {
+            let bytes = slice.get_mapped_range();
+            let state: GpuState = bytemuck::pod_read_unaligned(&bytes[..state_size as usize]);
+            let minima: Vec<u32> = bytemuck::pod_collect_to_vec(
+                &bytes[state_size as usize..(state_size + minima_size) as usize],
+            );
+            let stamps: [u64; 2] =
+                bytemuck::pod_read_unaligned(&bytes[stamps_at as usize..stamps_at as usize + 16]);
+            self.last_kernel_s = self.timestamps.as_ref().map(|_| {
+                stamps[1].saturating_sub(stamps[0]) as f64
+                    * f64::from(self.queue.get_timestamp_period())
+                    * 1e-9
+            });
+            let count = (state.candidate_count.min(CANDIDATES)) as usize;
+            let start = (stamps_at + 16) as usize;
+            let candidates: Vec<GpuCandidate> = if options.mode == Mode::Exact {
+                bytemuck::pod_collect_to_vec(&bytes[start..start + 16 * count])
+            } else {
+                Vec::new()
+            };
+            (state, minima, candidates)
+        };
+        self.readback.unmap();
+        if state.candidate_count > CANDIDATES {
+            return Ok(None);
+        }
+        // Into the CPU's layout, and on through the CPU's refinement and assembly.
+        for (k, best) in scratch.best.iter().enumerate() {
+            let (d, p) = (minima[k], minima[l + k]);
+            let v = if d == f32::INFINITY.to_bits() || p == u32::MAX {
+                EMPTY
+            } else {
+                pack(f32::from_bits(d), p)
+            };
+            best.store(v, std::sync::atomic::Ordering::Relaxed);
+        }
+        scratch
+            .global
+            .store(state.global, std::sync::atomic::Ordering::Relaxed);
+        scratch
+            .global_lower
+            .store(state.global_lower, std::sync::atomic::Ordering::Relaxed);
+        let list = scratch.candidates.get_mut().expect("no other holder");
+        list.extend(candidates.iter().map(|c| Candidate {
+            lower: f32::from_bits(c.lower_bits),
+            link: c.link,
+            point: c.point,
+        }));
+        let c = state.counts.map(u64::from);
+        let counts = StageCounts {
+            total: n as u64,
+            invalid: c[0],
+            outside_roi: c[1],
+            self_filtered: c[2],
+            pruned: c[3],
+            evaluated: c[4],
+            inside: c[5],
+            exact_refined: 0,
+        };
+        Ok(Some(traverse::finish(links, scratch, input, counts)))
+    }
+}
