@@ -46,6 +46,12 @@ enum Command {
     Query(QueryArgs),
     /// Replay a rosbag2 MCAP bag through the monitor: one line per cloud and a summary.
     Replay(ReplayArgs),
+    /// Run the live ROS 2 node.
+    Node(NodeArgs),
+    /// Publish a bag's clouds, joint states and transforms on DDS at their recorded pace.
+    Play(PlayArgs),
+    /// Record the node's outputs from DDS into an MCAP.
+    Record(RecordArgs),
     /// Print the node's parameters (name, default, unit, meaning) as a Markdown table.
     Params,
     /// Make a bag: a simulated depth camera watching the robot and an obstacle, with the exact
@@ -54,6 +60,55 @@ enum Command {
     /// Benchmarks.
     #[command(subcommand)]
     Bench(Bench),
+}
+
+#[derive(Args)]
+struct NodeArgs {
+    /// ROS 2 parameters file (default: config/demo_arm.yaml).
+    #[arg(long, default_value = DEMO_CONFIG)]
+    config: PathBuf,
+    /// `--ros-args -r __node:=NAME -r __ns:=/NS -p NAME:=VALUE ...`
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
+    ros_args: Vec<String>,
+}
+
+#[derive(Args)]
+struct PlayArgs {
+    /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag).
+    #[arg(default_value = DEMO_BAG)]
+    bag: PathBuf,
+    /// Playback rate (1 = recorded pace).
+    #[arg(long, default_value_t = 1.0)]
+    rate: f64,
+    /// How many times to play the bag (stamps are shifted to now at each start).
+    #[arg(long, default_value_t = 1)]
+    loops: usize,
+    /// Seconds to wait for discovery before the first message.
+    #[arg(long, default_value_t = 1.5)]
+    wait: f64,
+    /// Measure the node: match its outputs on this JointState topic (e.g.
+    /// /ist_monitor/link_distances) to the clouds, and report rate and latency.
+    #[arg(long)]
+    measure: Option<String>,
+    /// Seconds to wait for outputs after the last message.
+    #[arg(long, default_value_t = 0.5)]
+    linger: f64,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct RecordArgs {
+    /// Output MCAP (.mcap file, or a rosbag2 folder).
+    #[arg(long)]
+    out: PathBuf,
+    /// The node whose outputs to record.
+    #[arg(long, default_value = "/ist_monitor")]
+    node: String,
+    /// Seconds to record.
+    #[arg(long, default_value_t = 10.0)]
+    duration: f64,
 }
 
 #[derive(Args)]
@@ -341,6 +396,40 @@ pub fn run() -> Result<()> {
         Command::Query(args) => query(args),
         Command::Replay(args) => replay(args),
         Command::Generate(args) => generate(args),
+        Command::Node(args) => node(args),
+        Command::Play(args) => {
+            if !(args.rate > 0.0 && args.rate.is_finite()) {
+                bail!("--rate must be a positive number");
+            }
+            let options = crate::node::play::PlayOptions {
+                rate: args.rate,
+                loops: args.loops,
+                wait_s: args.wait,
+                measure: args.measure.clone(),
+                linger_s: args.linger,
+            };
+            let s = crate::node::play::play(&args.bag, &options)?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&s)?);
+            } else {
+                println!(
+                    "{} clouds and {} messages published; {} outputs received ({:.1} Hz); latency p50 {} ms, p99 {} ms, max {} ms",
+                    s.clouds_published,
+                    s.messages_published,
+                    s.outputs_received,
+                    s.output_rate_hz,
+                    s.latency_p50_ms.map_or("-".into(), |v| format!("{v:.2}")),
+                    s.latency_p99_ms.map_or("-".into(), |v| format!("{v:.2}")),
+                    s.latency_max_ms.map_or("-".into(), |v| format!("{v:.2}")),
+                );
+            }
+            Ok(())
+        }
+        Command::Record(args) => {
+            let n = crate::node::record::record(&args.node, &args.out, args.duration)?;
+            println!("{n} messages recorded to {}", args.out.display());
+            Ok(())
+        }
         Command::Params => {
             print!("{}", crate::config::markdown_table());
             Ok(())
@@ -590,6 +679,39 @@ fn query(args: QueryArgs) -> Result<()> {
     }
     println!("query time {:.3} ms (one cold query)", 1e3 * elapsed);
     Ok(())
+}
+
+fn node(args: NodeArgs) -> Result<()> {
+    let ros = crate::node::parse_ros_args(&args.ros_args)?;
+    let mut config = Config::load(&args.config, &ros.params)
+        .with_context(|| format!("config {}", args.config.display()))?;
+    if let Some(name) = ros.node {
+        config.node_name = name;
+    }
+    if let Some(ns) = ros.namespace {
+        config.namespace = ns;
+    }
+    let model = RobotArgs {
+        urdf: config.robot_urdf()?,
+        package_paths: config.package_paths.clone(),
+    }
+    .load()?;
+    let cache = TreeCache::new(
+        config
+            .cache_dir
+            .clone()
+            .unwrap_or_else(TreeCache::default_dir),
+    );
+    let trees: Vec<LinkTree> = build_trees(&model, &config.build, Some(&cache))?
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect();
+    let monitor = Monitor::with_trees(config, model, &trees)?;
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())?;
+    }
+    crate::node::run(monitor, stop)
 }
 
 fn generate(args: GenerateArgs) -> Result<()> {

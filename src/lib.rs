@@ -18,6 +18,7 @@ pub mod geometry;
 pub mod ist;
 pub mod monitor;
 pub mod msg;
+pub mod node;
 pub mod packing;
 pub mod query;
 pub mod robot;

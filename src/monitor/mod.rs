@@ -22,7 +22,7 @@ use nalgebra::Isometry3;
 use crate::cloud::{pointcloud2, CloudError};
 use crate::config::Config;
 use crate::ist::{self, cache::TreeCache, LinkTree};
-use crate::msg::{self, JointState, MsgError, TfMessage};
+use crate::msg::{self, JointState, MsgError, PointCloud2, TfMessage};
 use crate::query::{Engine, QueryError, QueryResult};
 use crate::robot::RobotModel;
 use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
@@ -40,6 +40,13 @@ pub enum Fault {
     Query(#[from] QueryError),
     #[error("cloud has no frame_id")]
     NoFrame,
+    #[error("source {source_name}: {what} for {silent_s:.2} s (source_timeout {timeout_s} s)")]
+    SourceTimeout {
+        source_name: String,
+        what: &'static str,
+        silent_s: f64,
+        timeout_s: f64,
+    },
 }
 
 impl Fault {
@@ -53,6 +60,7 @@ impl Fault {
             Fault::Tf(_) => "tf",
             Fault::Query(_) => "query",
             Fault::NoFrame => "decode",
+            Fault::SourceTimeout { .. } => "stale_source",
         }
     }
 }
@@ -175,6 +183,16 @@ impl Monitor {
             topic: topic.into(),
             source,
         })?;
+        self.on_tf_message(topic, &m, is_static)
+    }
+
+    /// Adds a decoded `tf2_msgs/TFMessage`.
+    pub fn on_tf_message(
+        &mut self,
+        topic: &str,
+        m: &TfMessage,
+        is_static: bool,
+    ) -> Result<(), InputError> {
         for t in &m.transforms {
             self.tf
                 .insert(t, is_static)
@@ -192,7 +210,16 @@ impl Monitor {
             topic: topic.into(),
             source,
         })?;
-        self.joints.insert(&m).map_err(|source| InputError::Joints {
+        self.on_joint_state_message(topic, &m)
+    }
+
+    /// Adds a decoded `sensor_msgs/JointState`.
+    pub fn on_joint_state_message(
+        &mut self,
+        topic: &str,
+        m: &JointState,
+    ) -> Result<(), InputError> {
+        self.joints.insert(m).map_err(|source| InputError::Joints {
             topic: topic.into(),
             source,
         })
@@ -206,11 +233,51 @@ impl Monitor {
             .position(|s| s.enabled && s.topic == topic)
     }
 
-    /// Processes one cloud of source `source`.
+    /// Processes one cloud of source `source`, from its CDR payload.
     pub fn on_cloud(&mut self, source: usize, payload: &[u8]) -> Frame {
         let start = Instant::now();
-        let mut stamp_ns = 0;
-        let result = self.process(source, payload, &mut stamp_ns);
+        match pointcloud2::decode(payload) {
+            Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
+                me.process(source, &m)
+            }),
+            Err(e) => self.finish_frame(source, start, 0, |_| Err(e.into())),
+        }
+    }
+
+    /// The outputs of a source silent for `silent_s` (never heard from: `never`): a fault.
+    pub fn on_source_timeout(&mut self, source: usize, silent_s: f64, never: bool) -> Frame {
+        let s = &self.config.sources[source];
+        let fault = Fault::SourceTimeout {
+            source_name: s.name.clone(),
+            what: if never {
+                "no cloud received yet"
+            } else {
+                "no cloud"
+            },
+            silent_s,
+            timeout_s: s.source_timeout_s,
+        };
+        let now_ns = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as i64);
+        self.finish_frame(source, Instant::now(), now_ns, |_| Err(fault))
+    }
+
+    /// Processes one decoded cloud of source `source`; `start` is when it was received.
+    pub fn on_cloud_message(&mut self, source: usize, m: &PointCloud2, start: Instant) -> Frame {
+        self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
+            me.process(source, m)
+        })
+    }
+
+    fn finish_frame(
+        &mut self,
+        source: usize,
+        start: Instant,
+        stamp_ns: i64,
+        process: impl FnOnce(&mut Self) -> Result<QueryResult, Fault>,
+    ) -> Frame {
+        let result = process(self);
         let processing_s = start.elapsed().as_secs_f64();
         let name = self.config.sources[source].name.clone();
         let outputs = Outputs::new(
@@ -232,14 +299,8 @@ impl Monitor {
         }
     }
 
-    fn process(
-        &mut self,
-        source: usize,
-        payload: &[u8],
-        stamp_ns: &mut i64,
-    ) -> Result<QueryResult, Fault> {
-        let message = pointcloud2::decode(payload)?;
-        *stamp_ns = message.header.stamp.as_nanos();
+    fn process(&mut self, source: usize, message: &PointCloud2) -> Result<QueryResult, Fault> {
+        let stamp_ns = message.header.stamp.as_nanos();
         let mut cloud = message.to_cloud()?;
         let frame = cloud.frame_id.take().filter(|f| !f.is_empty());
         let frame = frame.ok_or(Fault::NoFrame)?;
@@ -256,7 +317,7 @@ impl Monitor {
                 }
             }
         }
-        let stamp = Some(*stamp_ns);
+        let stamp = Some(stamp_ns);
         let q = self.joints.at(stamp, self.config.joint_state_tolerance_s)?;
         let poses = self.model.kinematics.link_poses(&q);
         let kinematics = &self.model.kinematics;

@@ -1,0 +1,430 @@
+//! The live ROS 2 node (ros2-client over RustDDS): the monitor fed from DDS, its outputs
+//! published, stale sources reported. `play` and `record` are the bag tools that drive and
+//! observe it (tests, benchmarks, demos).
+//!
+//! Threads: an executor thread runs the ros2-client spinner and one task per subscription.
+//! `/tf`, `/tf_static` and the joint states go straight into the monitor's buffers. Each cloud
+//! replaces the previous one in its source's slot: only the newest is ever processed, so no
+//! queue grows. The DDS reader keeps one sample (KeepLast 1), and a cloud that is overwritten
+//! before it is processed counts as dropped, as do gaps in the writer's sequence numbers. The
+//! processing thread waits for a slot, runs the monitor and publishes its outputs. It also
+//! checks every source: one silent for longer than its `source_timeout` (or never heard) is a
+//! fault. The node then publishes ERROR diagnostics with the reason and `safety_stop`, and never
+//! a distance.
+
+pub mod play;
+pub mod record;
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context as _, Result};
+use futures::StreamExt;
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+};
+use serde::de::DeserializeSeed;
+use serde::Deserialize;
+
+use crate::config::Config;
+use crate::monitor::{Frame, Monitor};
+use crate::msg::{
+    Bool, DiagnosticArray, Float64, JointState, MarkerArray, PointCloud2, RosMessage, TfMessage,
+};
+
+pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
+
+/// The ROS 2 package and type name of a message type (`pkg/msg/Type`).
+pub fn type_name<T: RosMessage>() -> MessageTypeName {
+    let package = T::TYPE.split('/').next().unwrap_or_default();
+    let name = T::TYPE.rsplit('/').next().unwrap_or_default();
+    MessageTypeName::new(package, name)
+}
+
+/// QoS of sensor data: best effort, newest only.
+pub const SENSOR_QOS: QosProfile = QosProfile::subscription_default()
+    .reliability_best_effort()
+    .history(History::KeepLast { depth: 1 });
+/// QoS of `/tf_static`: reliable, transient local (late joiners get the transforms).
+pub const TF_STATIC_QOS: QosProfile = QosProfile::subscription_default()
+    .reliability_reliable(WhenFull::DEFAULT)
+    .durability(Durability::TransientLocal)
+    .history(History::KeepLast { depth: 100 });
+/// QoS of `/tf` and outputs: reliable, a short history.
+pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
+    .reliability_reliable(WhenFull::DEFAULT)
+    .history(History::KeepLast { depth: 10 });
+
+/// A DDS context on `ROS_DOMAIN_ID` (0 when unset).
+pub fn context() -> Result<Context> {
+    let domain = std::env::var("ROS_DOMAIN_ID")
+        .ok()
+        .map(|d| d.parse::<u16>())
+        .transpose()
+        .context("ROS_DOMAIN_ID")?
+        .unwrap_or(0);
+    Context::with_options(ContextOptions::new().domain_id(domain))
+        .map_err(|e| anyhow!("DDS: {e:?}"))
+}
+
+/// A ROS 2 name from a fully qualified topic name.
+pub fn topic_name(full: &str) -> Result<Name> {
+    Name::parse(full).map_err(|e| anyhow!("topic {full}: {e:?}"))
+}
+
+/// Creates a publisher of `T` on `topic`.
+pub fn publisher<T: RosMessage>(
+    node: &mut Node,
+    topic: &str,
+    qos: QosProfile,
+) -> Result<Publisher<T>> {
+    let t = node
+        .create_topic(&topic_name(topic)?, type_name::<T>(), &qos)
+        .map_err(|e| anyhow!("topic {topic}: {e:?}"))?;
+    node.create_publisher(&t, Some(qos))
+        .map_err(|e| anyhow!("publisher {topic}: {e:?}"))
+}
+
+/// Deserializes a message that borrows (a PointCloud2, a MarkerArray) into its owned form.
+#[derive(Clone, Copy)]
+pub struct Owned<T>(std::marker::PhantomData<T>);
+
+impl<T> Default for Owned<T> {
+    fn default() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+impl<'de> DeserializeSeed<'de> for Owned<PointCloud2<'static>> {
+    type Value = PointCloud2<'static>;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        let m = PointCloud2::deserialize(d)?;
+        Ok(PointCloud2 {
+            data: std::borrow::Cow::Owned(m.data.into_owned()),
+            ..m
+        })
+    }
+}
+
+/// The node's command-line remappings (`--ros-args -r __node:=… -r __ns:=… -p name:=value`).
+#[derive(Debug, Default, Clone)]
+pub struct RosArgs {
+    pub node: Option<String>,
+    pub namespace: Option<String>,
+    pub params: Vec<(String, String)>,
+}
+
+/// Parses the arguments after `--ros-args`.
+pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
+    let mut out = RosArgs::default();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--ros-args" => {}
+            "-r" | "--remap" => {
+                let r = it.next().ok_or_else(|| anyhow!("{a} needs FROM:=TO"))?;
+                let (from, to) = r
+                    .split_once(":=")
+                    .ok_or_else(|| anyhow!("remapping '{r}' is not FROM:=TO"))?;
+                match from {
+                    "__node" | "__name" => out.node = Some(to.to_owned()),
+                    "__ns" => out.namespace = Some(to.to_owned()),
+                    other => {
+                        return Err(anyhow!(
+                            "remapping of {other} is not supported (only __node and __ns)"
+                        ))
+                    }
+                }
+            }
+            "-p" | "--param" => {
+                let p = it.next().ok_or_else(|| anyhow!("{a} needs NAME:=VALUE"))?;
+                out.params
+                    .push(crate::config::parse_override(p).map_err(anyhow::Error::msg)?);
+            }
+            other => return Err(anyhow!("unsupported ROS argument '{other}'")),
+        }
+    }
+    Ok(out)
+}
+
+/// The newest unprocessed cloud of a source.
+#[derive(Default)]
+struct Slot {
+    cloud: Option<(PointCloud2<'static>, Instant)>,
+    last_received: Option<Instant>,
+}
+
+struct Shared {
+    slots: Vec<Mutex<Slot>>,
+    wake: Condvar,
+    wake_lock: Mutex<bool>,
+    dropped: AtomicU64,
+    input_errors: AtomicU64,
+}
+
+/// The node's publishers.
+struct Outputs {
+    min_distance: Publisher<Float64>,
+    link_distances: Publisher<JointState>,
+    closest_points: Publisher<MarkerArray<'static>>,
+    diagnostics: Publisher<DiagnosticArray>,
+    safety_stop: Publisher<Bool>,
+}
+
+impl Outputs {
+    fn publish(&self, frame: Frame) {
+        let o = frame.outputs;
+        let result = (|| -> Result<(), String> {
+            if let Some(d) = o.min_distance {
+                self.min_distance.publish(d).map_err(|e| format!("{e:?}"))?;
+            }
+            self.link_distances
+                .publish(o.link_distances)
+                .map_err(|e| format!("{e:?}"))?;
+            self.closest_points
+                .publish(o.closest_points)
+                .map_err(|e| format!("{e:?}"))?;
+            self.diagnostics
+                .publish(o.diagnostics)
+                .map_err(|e| format!("{e:?}"))?;
+            self.safety_stop
+                .publish(o.safety_stop)
+                .map_err(|e| format!("{e:?}"))
+        })();
+        if let Err(e) = result {
+            log::warn!("publishing: {e}");
+        }
+    }
+}
+
+/// Runs the node until `stop` is set.
+pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
+    let config: Config = monitor.config.clone();
+    let ctx = context()?;
+    let mut node = ctx
+        .new_node(
+            NodeName::new(&config.namespace, &config.node_name).map_err(|e| {
+                anyhow!("node name {}{}: {e:?}", config.namespace, config.node_name)
+            })?,
+            NodeOptions::new().enable_rosout(false),
+        )
+        .map_err(|e| anyhow!("node: {e:?}"))?;
+    let executor = Arc::new(smol::Executor::new());
+    executor
+        .spawn(
+            node.spinner()
+                .map_err(|e| anyhow!("spinner: {e:?}"))?
+                .spin(),
+        )
+        .detach();
+    let sources = config.sources.clone();
+    let shared = Arc::new(Shared {
+        slots: sources
+            .iter()
+            .map(|_| Mutex::new(Slot::default()))
+            .collect(),
+        wake: Condvar::new(),
+        wake_lock: Mutex::new(false),
+        dropped: AtomicU64::new(0),
+        input_errors: AtomicU64::new(0),
+    });
+    // Inputs: clouds into slots; TF and joint states into a queue the processing thread drains
+    // (they are small; the monitor is owned by that thread).
+    let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
+    let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
+    for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
+        let qos = if s.reliable {
+            RELIABLE_QOS.history(History::KeepLast { depth: 1 })
+        } else {
+            SENSOR_QOS
+        };
+        let topic = node
+            .create_topic(&topic_name(&s.topic)?, type_name::<PointCloud2>(), &qos)
+            .map_err(|e| anyhow!("topic {}: {e:?}", s.topic))?;
+        let sub = node
+            .create_subscription::<PointCloud2<'static>>(&topic, Some(qos))
+            .map_err(|e| anyhow!("subscription {}: {e:?}", s.topic))?;
+        let shared = shared.clone();
+        executor
+            .spawn(async move {
+                let mut stream =
+                    std::pin::pin!(sub.async_stream_seed(Owned::<PointCloud2<'static>>::default()));
+                let mut last_seq: Option<i64> = None;
+                while let Some(item) = stream.next().await {
+                    match item {
+                        Ok((cloud, info)) => {
+                            let seq = info.sequence_number();
+                            if let Some(prev) = last_seq {
+                                if seq > prev + 1 {
+                                    shared
+                                        .dropped
+                                        .fetch_add((seq - prev - 1) as u64, Ordering::Relaxed);
+                                }
+                            }
+                            last_seq = Some(seq);
+                            let now = Instant::now();
+                            let mut slot = shared.slots[k].lock().expect("slot");
+                            if slot.cloud.replace((cloud, now)).is_some() {
+                                shared.dropped.fetch_add(1, Ordering::Relaxed);
+                            }
+                            slot.last_received = Some(now);
+                            drop(slot);
+                            *shared.wake_lock.lock().expect("wake") = true;
+                            shared.wake.notify_one();
+                        }
+                        Err(e) => {
+                            log::warn!("cloud: {e:?}");
+                            shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                }
+            })
+            .detach();
+    }
+    for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
+        let qos = if is_static {
+            TF_STATIC_QOS
+        } else {
+            RELIABLE_QOS.history(History::KeepLast { depth: 100 })
+        };
+        let topic = node
+            .create_topic(&topic_name(name)?, type_name::<TfMessage>(), &qos)
+            .map_err(|e| anyhow!("topic {name}: {e:?}"))?;
+        let sub = node
+            .create_subscription::<TfMessage>(&topic, Some(qos))
+            .map_err(|e| anyhow!("subscription {name}: {e:?}"))?;
+        let tx = tf_tx.clone();
+        executor
+            .spawn(async move {
+                let mut stream = std::pin::pin!(sub.async_stream());
+                while let Some(Ok((m, _))) = stream.next().await {
+                    if tx.send((m, is_static)).is_err() {
+                        break;
+                    }
+                }
+            })
+            .detach();
+    }
+    {
+        let qos = QosProfile::subscription_default()
+            .reliability_best_effort()
+            .history(History::KeepLast { depth: 100 });
+        let name = &config.joint_states_topic;
+        let topic = node
+            .create_topic(&topic_name(name)?, type_name::<JointState>(), &qos)
+            .map_err(|e| anyhow!("topic {name}: {e:?}"))?;
+        let sub = node
+            .create_subscription::<JointState>(&topic, Some(qos))
+            .map_err(|e| anyhow!("subscription {name}: {e:?}"))?;
+        executor
+            .spawn(async move {
+                let mut stream = std::pin::pin!(sub.async_stream());
+                while let Some(Ok((m, _))) = stream.next().await {
+                    if js_tx.send(m).is_err() {
+                        break;
+                    }
+                }
+            })
+            .detach();
+    }
+    let out_qos = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
+        .history(History::KeepLast { depth: 10 });
+    let outputs = Outputs {
+        min_distance: publisher(
+            &mut node,
+            &config.private_topic("min_distance"),
+            out_qos.clone(),
+        )?,
+        link_distances: publisher(
+            &mut node,
+            &config.private_topic("link_distances"),
+            out_qos.clone(),
+        )?,
+        closest_points: publisher(
+            &mut node,
+            &config.private_topic("closest_points"),
+            out_qos.clone(),
+        )?,
+        diagnostics: publisher(&mut node, "/diagnostics", out_qos.clone())?,
+        safety_stop: publisher(
+            &mut node,
+            &config.private_topic("safety_stop"),
+            out_qos.clone(),
+        )?,
+    };
+    let ex = executor.clone();
+    // The executor outlives the node: dropping the node tells its spinner to stop.
+    let stop_ex = Arc::new(AtomicBool::new(false));
+    let stop_spinner = stop_ex.clone();
+    let spin_thread = std::thread::Builder::new()
+        .name("ros2 executor".into())
+        .spawn(move || {
+            smol::block_on(ex.run(async {
+                while !stop_ex.load(Ordering::Relaxed) {
+                    smol::Timer::after(Duration::from_millis(50)).await;
+                }
+            }))
+        })?;
+    log::info!(
+        "node {}/{} up: {} source(s)",
+        config.namespace.trim_end_matches('/'),
+        config.node_name,
+        sources.len()
+    );
+    let started = Instant::now();
+    let mut last_fault_report = vec![None::<Instant>; sources.len()];
+    while !stop.load(Ordering::Relaxed) {
+        {
+            let mut woken = shared.wake_lock.lock().expect("wake");
+            if !*woken {
+                woken = shared
+                    .wake
+                    .wait_timeout(woken, Duration::from_millis(20))
+                    .expect("wake")
+                    .0;
+            }
+            *woken = false;
+        }
+        while let Ok((m, is_static)) = tf_rx.try_recv() {
+            let topic = if is_static { "/tf_static" } else { "/tf" };
+            if let Err(e) = monitor.on_tf_message(topic, &m, is_static) {
+                log::warn!("{e}");
+                shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        while let Ok(m) = js_rx.try_recv() {
+            if let Err(e) = monitor.on_joint_state_message(&config.joint_states_topic, &m) {
+                log::warn!("{e}");
+                shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        let now = Instant::now();
+        for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
+            let (cloud, last) = {
+                let mut slot = shared.slots[k].lock().expect("slot");
+                (slot.cloud.take(), slot.last_received)
+            };
+            if let Some((cloud, received)) = cloud {
+                let frame = monitor.on_cloud_message(k, &cloud, received);
+                outputs.publish(frame);
+                last_fault_report[k] = None;
+                continue;
+            }
+            let silent = now.duration_since(last.unwrap_or(started));
+            let timeout = Duration::from_secs_f64(s.source_timeout_s);
+            let due = last_fault_report[k].is_none_or(|t| now.duration_since(t) >= timeout / 2);
+            if silent > timeout && due {
+                outputs.publish(monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none()));
+                last_fault_report[k] = Some(now);
+            }
+        }
+    }
+    drop(outputs);
+    drop(node);
+    std::thread::sleep(Duration::from_millis(50));
+    stop_spinner.store(true, Ordering::Relaxed);
+    let _ = spin_thread.join();
+    Ok(())
+}

@@ -1,0 +1,217 @@
+//! `ist_monitor play`: a bag's PointCloud2, JointState and TF messages published on DDS at their
+//! recorded pace, as `ros2 bag play` would. Stamps are shifted so that each loop starts now,
+//! which keeps them consistent with each other. It can also measure the node: with a `measure`
+//! topic (the node's `~/link_distances`, whose stamp is the cloud's), each output is matched to
+//! the cloud it answers, and the delivered rate and latency (cloud published → output received)
+//! are reported.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::{anyhow, Result};
+use futures::StreamExt;
+use ros2_client::Publisher;
+use serde::Serialize;
+
+use super::{
+    context, publisher, topic_name, type_name, History, QosProfile, RELIABLE_QOS, TF_STATIC_QOS,
+};
+use crate::bag::read_messages;
+use crate::msg::{self, JointState, PointCloud2, RosMessage, TfMessage, Time};
+
+#[derive(Debug, Clone)]
+pub struct PlayOptions {
+    pub rate: f64,
+    pub loops: usize,
+    /// Wait for discovery before the first message, s.
+    pub wait_s: f64,
+    /// Topic of `sensor_msgs/JointState` outputs stamped with the cloud's stamp.
+    pub measure: Option<String>,
+    /// After the last message, wait this long for outputs, s.
+    pub linger_s: f64,
+}
+
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct PlaySummary {
+    pub clouds_published: usize,
+    pub messages_published: usize,
+    pub outputs_received: usize,
+    /// Outputs received per second over the play time.
+    pub output_rate_hz: f64,
+    pub latency_p50_ms: Option<f64>,
+    pub latency_p99_ms: Option<f64>,
+    pub latency_max_ms: Option<f64>,
+}
+
+enum Out {
+    Cloud(Publisher<PointCloud2<'static>>),
+    Joints(Publisher<JointState>),
+    Tf(Publisher<TfMessage>),
+}
+
+fn now_ns() -> i64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i64)
+}
+
+fn shift(t: &mut Time, offset_ns: i64) {
+    *t = Time::from_nanos(t.as_nanos() + offset_ns);
+}
+
+/// Plays `bag`; returns what was published and, with `measure`, what came back.
+pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
+    let known = [PointCloud2::TYPE, JointState::TYPE, TfMessage::TYPE];
+    let all = read_messages(bag, &|_| true)?;
+    let messages: Vec<_> = all.iter().filter(|m| known.contains(&&*m.schema)).collect();
+    let first = messages
+        .first()
+        .ok_or_else(|| anyhow!("{}: nothing to play", bag.display()))?;
+    let (t0, t1) = (
+        first.log_time_ns,
+        messages.last().map_or(0, |m| m.log_time_ns),
+    );
+    let ctx = context()?;
+    let mut node = ctx
+        .new_node(
+            ros2_client::NodeName::new("/", &format!("ist_monitor_play_{}", std::process::id()))
+                .map_err(|e| anyhow!("{e:?}"))?,
+            ros2_client::NodeOptions::new().enable_rosout(false),
+        )
+        .map_err(|e| anyhow!("node: {e:?}"))?;
+    let executor = Arc::new(smol::Executor::new());
+    executor
+        .spawn(node.spinner().map_err(|e| anyhow!("{e:?}"))?.spin())
+        .detach();
+    let mut outs: HashMap<String, Out> = HashMap::new();
+    for m in &messages {
+        if outs.contains_key(&*m.topic) {
+            continue;
+        }
+        let out = match &*m.schema {
+            s if s == PointCloud2::TYPE => {
+                let qos = QosProfile::publisher_default()
+                    .reliability_best_effort()
+                    .history(History::KeepLast { depth: 1 });
+                Out::Cloud(publisher(&mut node, &m.topic, qos)?)
+            }
+            s if s == JointState::TYPE => {
+                Out::Joints(publisher(&mut node, &m.topic, RELIABLE_QOS)?)
+            }
+            _ if &*m.topic == "/tf_static" => {
+                Out::Tf(publisher(&mut node, &m.topic, TF_STATIC_QOS)?)
+            }
+            _ => Out::Tf(publisher(&mut node, &m.topic, RELIABLE_QOS)?),
+        };
+        outs.insert(m.topic.to_string(), out);
+    }
+    // Published clouds by stamp, and the latencies of the outputs that answer them.
+    let sent: Arc<Mutex<HashMap<i64, Instant>>> = Arc::default();
+    let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
+    if let Some(measure) = &options.measure {
+        let qos = RELIABLE_QOS;
+        let topic = node
+            .create_topic(&topic_name(measure)?, type_name::<JointState>(), &qos)
+            .map_err(|e| anyhow!("topic {measure}: {e:?}"))?;
+        let sub = node
+            .create_subscription::<JointState>(&topic, Some(qos))
+            .map_err(|e| anyhow!("{e:?}"))?;
+        let (sent, latencies) = (sent.clone(), latencies.clone());
+        executor
+            .spawn(async move {
+                let mut stream = std::pin::pin!(sub.async_stream());
+                while let Some(Ok((m, _))) = stream.next().await {
+                    let now = Instant::now();
+                    let at = sent
+                        .lock()
+                        .expect("sent")
+                        .get(&m.header.stamp.as_nanos())
+                        .copied();
+                    if let Some(at) = at {
+                        latencies
+                            .lock()
+                            .expect("latencies")
+                            .push(now.duration_since(at).as_secs_f64() * 1e3);
+                    }
+                }
+            })
+            .detach();
+    }
+    let ex = executor.clone();
+    let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let done_ex = done.clone();
+    let spin = std::thread::spawn(move || {
+        smol::block_on(ex.run(async {
+            while !done_ex.load(std::sync::atomic::Ordering::Relaxed) {
+                smol::Timer::after(Duration::from_millis(20)).await;
+            }
+        }))
+    });
+    std::thread::sleep(Duration::from_secs_f64(options.wait_s));
+    let mut summary = PlaySummary::default();
+    let started = Instant::now();
+    for _ in 0..options.loops.max(1) {
+        let loop_start = Instant::now();
+        let offset = now_ns() - t0 as i64;
+        for m in &messages {
+            let due = Duration::from_secs_f64((m.log_time_ns - t0) as f64 * 1e-9 / options.rate);
+            if let Some(wait) = due.checked_sub(loop_start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+            let published = match &outs[&*m.topic] {
+                Out::Cloud(p) => {
+                    let mut c: PointCloud2 = msg::decode(&m.data)?;
+                    shift(&mut c.header.stamp, offset);
+                    let c = PointCloud2 {
+                        data: std::borrow::Cow::Owned(c.data.into_owned()),
+                        ..c
+                    };
+                    sent.lock()
+                        .expect("sent")
+                        .insert(c.header.stamp.as_nanos(), Instant::now());
+                    summary.clouds_published += 1;
+                    p.publish(c).map_err(|e| format!("{e:?}"))
+                }
+                Out::Joints(p) => {
+                    let mut j: JointState = msg::decode(&m.data)?;
+                    shift(&mut j.header.stamp, offset);
+                    p.publish(j).map_err(|e| format!("{e:?}"))
+                }
+                Out::Tf(p) => {
+                    let mut t: TfMessage = msg::decode(&m.data)?;
+                    for ts in &mut t.transforms {
+                        shift(&mut ts.header.stamp, offset);
+                    }
+                    p.publish(t).map_err(|e| format!("{e:?}"))
+                }
+            };
+            match published {
+                Ok(()) => summary.messages_published += 1,
+                Err(e) => log::warn!("{}: {e}", m.topic),
+            }
+        }
+        // The loop lasts as long as the bag, even when its last message is early.
+        let span = Duration::from_secs_f64((t1 - t0) as f64 * 1e-9 / options.rate);
+        if let Some(wait) = span.checked_sub(loop_start.elapsed()) {
+            std::thread::sleep(wait);
+        }
+    }
+    let played = started.elapsed().as_secs_f64();
+    std::thread::sleep(Duration::from_secs_f64(options.linger_s));
+    drop(outs);
+    drop(node);
+    std::thread::sleep(Duration::from_millis(50));
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let _ = spin.join();
+    let mut l = latencies.lock().expect("latencies").clone();
+    l.sort_by(f64::total_cmp);
+    summary.outputs_received = l.len();
+    summary.output_rate_hz = l.len() as f64 / played.max(1e-9);
+    let q = |f: f64| (!l.is_empty()).then(|| l[((l.len() - 1) as f64 * f).round() as usize]);
+    summary.latency_p50_ms = q(0.5);
+    summary.latency_p99_ms = q(0.99);
+    summary.latency_max_ms = l.last().copied();
+    Ok(summary)
+}

@@ -1,0 +1,145 @@
+//! The live node over DDS, inside a private network namespace with only loopback
+//! (`../shared/tools/netns-run`): the test re-executes itself there, then starts the node, a
+//! recorder of its outputs and `ist_monitor play` of the demo bag as separate processes.
+
+mod common;
+
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use common::ist_monitor;
+use ist_monitor::bag::read_messages;
+use ist_monitor::msg::{self, DiagnosticArray, DiagnosticStatus, Float64};
+
+/// True inside the private network; outside, runs `test` of this binary there and returns false.
+fn in_private_network(test: &str) -> bool {
+    if std::env::var_os("IST_NETNS_INSIDE").is_some() {
+        return true;
+    }
+    let Some(shared) = common::shared() else {
+        return false;
+    };
+    let status = Command::new(shared.join("tools/netns-run"))
+        .arg(std::env::current_exe().unwrap())
+        .args(["--exact", test, "--nocapture", "--test-threads=1"])
+        .status()
+        .unwrap();
+    assert!(status.success(), "{test} inside the private network failed");
+    false
+}
+
+fn spawn(args: &[&str]) -> Child {
+    ist_monitor()
+        .args(args)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// The node serves the demo bag: every cloud gets its outputs, with `--ros-args` remappings;
+/// when the source stops, an ERROR diagnostic comes within `source_timeout` (0.5 s here), and
+/// when it plays again, the node recovers.
+#[test]
+fn node_serves_clouds_and_reports_a_stopped_source() {
+    if !in_private_network("node_serves_clouds_and_reports_a_stopped_source") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let record = dir.path().join("outputs.mcap");
+    let record_arg = record.to_str().unwrap();
+    let mut node = spawn(&[
+        "node",
+        "--ros-args",
+        "-r",
+        "__node:=watch",
+        "-r",
+        "__ns:=/robot1",
+        "-p",
+        "camera.source_timeout:=0.5",
+    ]);
+    let mut recorder = spawn(&[
+        "record",
+        "--node",
+        "/robot1/watch",
+        "--duration",
+        "11",
+        "--out",
+        record_arg,
+    ]);
+    // The node builds or loads its trees first; the player waits for discovery.
+    std::thread::sleep(Duration::from_secs(2));
+    let play = |wait: &str| {
+        common::json_output(ist_monitor().args([
+            "play",
+            "--json",
+            "--wait",
+            wait,
+            "--measure",
+            "/robot1/watch/link_distances",
+        ]))
+    };
+    let first = play("1.5");
+    std::thread::sleep(Duration::from_millis(1500));
+    let second = play("0.2");
+    assert!(recorder.wait().unwrap().success());
+    // SIGTERM: the node stops cleanly.
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    assert!(node.wait().unwrap().success());
+    for run in [&first, &second] {
+        assert_eq!(run["clouds_published"], 30);
+        let received = run["outputs_received"].as_u64().unwrap();
+        assert!(
+            received >= 27,
+            "only {received} of 30 clouds answered: {run}"
+        );
+    }
+    // What the node published, in order.
+    let messages = read_messages(&record, &|_| true).unwrap();
+    let diagnostics: Vec<(u64, DiagnosticStatus)> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/diagnostics")
+        .map(|m| {
+            let d: DiagnosticArray = msg::decode(&m.data).unwrap();
+            (m.log_time_ns, d.status[0].clone())
+        })
+        .collect();
+    let stale = |s: &DiagnosticStatus| s.message.contains("no cloud for");
+    let first_stale = diagnostics
+        .iter()
+        .position(|(_, s)| stale(s))
+        .expect("a stale-source ERROR");
+    let (t_stale, status) = &diagnostics[first_stale];
+    assert_eq!(status.level, DiagnosticStatus::ERROR);
+    assert_eq!(status.name, "watch: camera");
+    assert!(status
+        .values
+        .iter()
+        .any(|kv| kv.key == "fault" && kv.value == "stale_source"));
+    // The last distance before it, and how long the node took to report the silence.
+    let (t_last, _) = diagnostics[..first_stale]
+        .iter()
+        .rev()
+        .find(|(_, s)| s.message.starts_with("min distance"))
+        .expect("distances before the source stopped");
+    let reported_after = (t_stale - t_last) as f64 * 1e-9;
+    assert!(
+        reported_after <= 0.1 + 0.5 + 0.3,
+        "stale source reported {reported_after:.2} s after the last cloud"
+    );
+    // Recovery: distances again after the stale reports.
+    assert!(diagnostics[first_stale..]
+        .iter()
+        .any(|(_, s)| s.message.starts_with("min distance")));
+    // Distances: conservative values of a real approach, never published for the faults.
+    let distances: Vec<f64> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/robot1/watch/min_distance")
+        .map(|m| msg::decode::<Float64>(&m.data).unwrap().data)
+        .collect();
+    assert!(distances.len() >= 54, "{} distances", distances.len());
+    assert!(distances.iter().all(|d| (0.0..1.3).contains(d)));
+    assert!(distances.iter().any(|d| *d < 0.05));
+}
