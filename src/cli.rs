@@ -136,6 +136,9 @@ struct GenerateArgs {
     seed: u64,
     #[arg(long, value_enum, default_value_t = Compression::Zstd)]
     compression: Compression,
+    /// Bytes per point: 16 (x y z) or 32 (x y z, rgb), as RGB-D drivers publish.
+    #[arg(long, default_value_t = 16)]
+    point_step: u32,
 }
 
 /// The bundled demo bag and its config, the defaults of `replay`.
@@ -681,16 +684,9 @@ fn query(args: QueryArgs) -> Result<()> {
     Ok(())
 }
 
-fn node(args: NodeArgs) -> Result<()> {
-    let ros = crate::node::parse_ros_args(&args.ros_args)?;
-    let mut config = Config::load(&args.config, &ros.params)
-        .with_context(|| format!("config {}", args.config.display()))?;
-    if let Some(name) = ros.node {
-        config.node_name = name;
-    }
-    if let Some(ns) = ros.namespace {
-        config.namespace = ns;
-    }
+/// The monitor of a config: the robot loaded, its trees built with a progress bar or loaded
+/// from the cache.
+fn monitor_from_config(config: Config) -> Result<Monitor> {
     let model = RobotArgs {
         urdf: config.robot_urdf()?,
         package_paths: config.package_paths.clone(),
@@ -706,7 +702,20 @@ fn node(args: NodeArgs) -> Result<()> {
         .into_iter()
         .map(|(t, _)| t)
         .collect();
-    let monitor = Monitor::with_trees(config, model, &trees)?;
+    Monitor::with_trees(config, model, &trees)
+}
+
+fn node(args: NodeArgs) -> Result<()> {
+    let ros = crate::node::parse_ros_args(&args.ros_args)?;
+    let mut config = Config::load(&args.config, &ros.params)
+        .with_context(|| format!("config {}", args.config.display()))?;
+    if let Some(name) = ros.node {
+        config.node_name = name;
+    }
+    if let Some(ns) = ros.namespace {
+        config.namespace = ns;
+    }
+    let monitor = monitor_from_config(config)?;
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
@@ -717,6 +726,9 @@ fn node(args: NodeArgs) -> Result<()> {
 fn generate(args: GenerateArgs) -> Result<()> {
     if args.out.exists() {
         bail!("{} exists already", args.out.display());
+    }
+    if args.point_step != 16 && args.point_step != 32 {
+        bail!("--point-step must be 16 or 32");
     }
     if args.frames == 0 || args.width == 0 || args.height == 0 {
         bail!("--frames, --width and --height must be at least 1");
@@ -734,6 +746,7 @@ fn generate(args: GenerateArgs) -> Result<()> {
         holes: args.holes,
         seed: args.seed,
         compression: args.compression,
+        point_step: args.point_step,
         ..ScenarioParams::default()
     };
     let g = scenario::generate(&model, &params, &args.out)?;
@@ -760,25 +773,7 @@ fn replay(args: ReplayArgs) -> Result<()> {
     if let Some(backend) = args.backend {
         config.query.backend = backend;
     }
-    let model = RobotArgs {
-        urdf: config.robot_urdf()?,
-        package_paths: config.package_paths.clone(),
-    }
-    .load()?;
-    let trees: Vec<LinkTree> = build_trees(
-        &model,
-        &config.build,
-        Some(&TreeCache::new(
-            config
-                .cache_dir
-                .clone()
-                .unwrap_or_else(TreeCache::default_dir),
-        )),
-    )?
-    .into_iter()
-    .map(|(t, _)| t)
-    .collect();
-    let mut monitor = Monitor::with_trees(config, model, &trees)?;
+    let mut monitor = monitor_from_config(config)?;
     let out = args.out.as_deref().map(|p| (p, args.out_compression));
     let mut frames = Vec::new();
     let json = args.json;

@@ -68,6 +68,9 @@ pub struct ScenarioParams {
     pub max_range_m: f64,
     pub seed: u64,
     pub compression: Compression,
+    /// Bytes per point: 16 (x y z, padding) or 32 (x y z, padding, rgb, padding), as RGB-D
+    /// drivers publish.
+    pub point_step: u32,
 }
 
 impl Default for ScenarioParams {
@@ -83,6 +86,7 @@ impl Default for ScenarioParams {
             max_range_m: 4.0,
             seed: 1,
             compression: Compression::Zstd,
+            point_step: 16,
         }
     }
 }
@@ -418,21 +422,32 @@ fn cloud_message(
         datatype: PointField::FLOAT32,
         count: 1,
     };
-    let mut data = Vec::with_capacity(points.len() * 16);
+    let step = params.point_step as usize;
+    let mut data = Vec::with_capacity(points.len() * step);
     for p in points {
         for v in p {
             data.extend_from_slice(&v.to_le_bytes());
         }
         data.extend_from_slice(&[0; 4]);
+        if step == 32 {
+            let grey = (255.0 - (p[2] * 60.0).clamp(0.0, 255.0)) as u32;
+            let rgb = f32::from_bits((grey << 16) | (grey << 8) | grey);
+            data.extend_from_slice(&rgb.to_le_bytes());
+            data.extend_from_slice(&[0; 12]);
+        }
+    }
+    let mut fields = vec![field("x", 0), field("y", 4), field("z", 8)];
+    if step == 32 {
+        fields.push(field("rgb", 16));
     }
     PointCloud2 {
         header: header.clone(),
         height: params.height,
         width: params.width,
-        fields: vec![field("x", 0), field("y", 4), field("z", 8)],
+        fields,
         is_bigendian: false,
-        point_step: 16,
-        row_step: 16 * params.width,
+        point_step: params.point_step,
+        row_step: params.point_step * params.width,
         data: Cow::Owned(data),
         is_dense: false,
     }

@@ -21,9 +21,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context as _, Result};
 use futures::StreamExt;
-use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
-};
+use ros2_client::{Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher};
 use serde::de::DeserializeSeed;
 use serde::Deserialize;
 
@@ -56,16 +54,31 @@ pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_reliable(WhenFull::DEFAULT)
     .history(History::KeepLast { depth: 10 });
 
-/// A DDS context on `ROS_DOMAIN_ID` (0 when unset).
-pub fn context() -> Result<Context> {
+/// A DDS context on `ROS_DOMAIN_ID` (0 when unset), its UDP sockets asking for
+/// `receive_buffer` bytes of kernel receive buffer (SO_RCVBUF; the kernel clamps it to
+/// `net.core.rmem_max`). A 640×480 cloud of 32-byte points is 9.8 MB, which arrives as one
+/// burst of about 150 datagrams: the buffer must hold it while the reader reassembles.
+pub fn context_with_buffer(receive_buffer: usize) -> Result<Context> {
     let domain = std::env::var("ROS_DOMAIN_ID")
         .ok()
         .map(|d| d.parse::<u16>())
         .transpose()
         .context("ROS_DOMAIN_ID")?
         .unwrap_or(0);
-    Context::with_options(ContextOptions::new().domain_id(domain))
-        .map_err(|e| anyhow!("DDS: {e:?}"))
+    let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
+        .socket_receive_buffer_size(receive_buffer)
+        .socket_send_buffer_size(receive_buffer)
+        .build()
+        .map_err(|e| anyhow!("DDS: {e:?}"))?;
+    Context::from_domain_participant(participant).map_err(|e| anyhow!("DDS: {e:?}"))
+}
+
+/// Kernel socket buffer asked for by default, bytes.
+pub const SOCKET_BUFFER: usize = 64 << 20;
+
+/// [`context_with_buffer`] with the default buffer.
+pub fn context() -> Result<Context> {
+    context_with_buffer(SOCKET_BUFFER)
 }
 
 /// A ROS 2 name from a fully qualified topic name.
@@ -427,4 +440,48 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
     stop_spinner.store(true, Ordering::Relaxed);
     let _ = spin_thread.join();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ros_args_remap_and_set_parameters() {
+        let args: Vec<String> = [
+            "--ros-args",
+            "-r",
+            "__node:=watch",
+            "-r",
+            "__ns:=/robot1",
+            "-p",
+            "mode:=exact",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let r = parse_ros_args(&args).unwrap();
+        assert_eq!(r.node.as_deref(), Some("watch"));
+        assert_eq!(r.namespace.as_deref(), Some("/robot1"));
+        assert_eq!(r.params, vec![("mode".to_string(), "exact".to_string())]);
+        for bad in [
+            &["-r", "foo:=bar"][..],
+            &["-p", "mode"],
+            &["--enclave", "x"],
+            &["-r"],
+        ] {
+            let bad: Vec<String> = bad.iter().map(|s| s.to_string()).collect();
+            assert!(parse_ros_args(&bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn message_type_names_follow_ros() {
+        let t = type_name::<PointCloud2>();
+        assert_eq!(t.dds_msg_type(), "sensor_msgs::msg::dds_::PointCloud2_");
+        assert_eq!(
+            type_name::<DiagnosticArray>().dds_msg_type(),
+            "diagnostic_msgs::msg::dds_::DiagnosticArray_"
+        );
+    }
 }

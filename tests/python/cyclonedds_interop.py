@@ -1,0 +1,90 @@
+"""Interop with an independent DDS implementation: Eclipse Cyclone DDS (the `cyclonedds`
+package) talks to ist_monitor under the ROS 2 naming, as a standard ROS 2 node would.
+
+    cyclonedds_interop.py   publish a sensor_msgs/PointCloud2 on rt/camera/depth/points (frame
+                            camera_link, one plane of points in front of the camera) at 10 Hz
+                            and print, as JSON, the first std_msgs/Float64 received on
+                            rt/ist_monitor/min_distance (or null after 15 s)
+"""
+import json
+import struct
+import time
+from dataclasses import dataclass
+
+from cyclonedds.core import Qos, Policy
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import float64, int32, sequence, uint8, uint32
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+
+
+@dataclass
+class Time_(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+class Header_(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time_
+    frame_id: str
+
+
+@dataclass
+class PointField_(IdlStruct, typename="sensor_msgs::msg::dds_::PointField_"):
+    name: str
+    offset: uint32
+    datatype: uint8
+    count: uint32
+
+
+@dataclass
+class PointCloud2_(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
+    header: Header_
+    height: uint32
+    width: uint32
+    fields: sequence[PointField_]
+    is_bigendian: bool
+    point_step: uint32
+    row_step: uint32
+    data: sequence[uint8]
+    is_dense: bool
+
+
+@dataclass
+class Float64_(IdlStruct, typename="std_msgs::msg::dds_::Float64_"):
+    data: float64
+
+
+def cloud():
+    # camera_link is x forward: a 20 × 20 patch 0.6 m ahead of the camera.
+    points = [(0.6, -0.2 + 0.02 * i, -0.2 + 0.02 * j) for i in range(20) for j in range(20)]
+    data = b"".join(struct.pack("<fffI", x, y, z, 0) for x, y, z in points)
+    now = time.time()
+    fields = [PointField_(n, o, 7, 1) for n, o in (("x", 0), ("y", 4), ("z", 8))]
+    return PointCloud2_(
+        header=Header_(Time_(int(now), int((now % 1) * 1e9)), "camera_link"),
+        height=1, width=len(points), fields=fields, is_bigendian=False,
+        point_step=16, row_step=16 * len(points), data=list(data), is_dense=True)
+
+
+def main():
+    dp = DomainParticipant(0)
+    cloud_topic = Topic(dp, "rt/camera/depth/points", PointCloud2_)
+    writer = DataWriter(dp, cloud_topic, qos=Qos(Policy.Reliability.BestEffort))
+    out_topic = Topic(dp, "rt/ist_monitor/min_distance", Float64_)
+    reader = DataReader(dp, out_topic, qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1)))
+    deadline = time.time() + 15
+    received = None
+    while time.time() < deadline and received is None:
+        writer.write(cloud())
+        time.sleep(0.1)
+        for sample in reader.take(N=10):
+            received = sample.data
+    print(json.dumps({"min_distance": received}))
+
+
+if __name__ == "__main__":
+    main()
