@@ -228,6 +228,11 @@ fn config_files_and_their_documentation() {
             let c = ist_monitor::config::Config::load(&path, &[])
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             assert!(!c.sources.is_empty());
+            // package:// descriptions resolve (to ../shared for the third-party robots).
+            if common::shared().is_some() {
+                let urdf = c.robot_urdf().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert!(urdf.exists(), "{}: {}", path.display(), urdf.display());
+            }
             files += 1;
         }
     }
