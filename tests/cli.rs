@@ -230,7 +230,9 @@ fn config_files_and_their_documentation() {
             assert!(!c.sources.is_empty());
             // package:// descriptions resolve (to ../shared for the third-party robots).
             if common::shared().is_some() {
-                let urdf = c.robot_urdf().unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                let urdf = c
+                    .robot_urdf()
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 assert!(urdf.exists(), "{}: {}", path.display(), urdf.display());
             }
             files += 1;
