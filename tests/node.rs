@@ -134,6 +134,8 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
         reported_after <= 0.1 + 0.5 + 0.3,
         "stale source reported {reported_after:.2} s after the last cloud"
     );
+    // The node's own counts ride along.
+    assert!(status.values.iter().any(|kv| kv.key == "clouds_dropped"));
     // Recovery: distances again after the stale reports.
     assert!(diagnostics[first_stale..]
         .iter()

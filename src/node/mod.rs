@@ -186,8 +186,22 @@ struct Outputs {
 }
 
 impl Outputs {
-    fn publish(&self, frame: Frame) {
-        let o = frame.outputs;
+    /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
+    /// join the diagnostics.
+    fn publish(&self, frame: Frame, dropped: u64, input_errors: u64) {
+        let mut o = frame.outputs;
+        for status in &mut o.diagnostics.status {
+            status.values.extend([
+                crate::msg::KeyValue {
+                    key: "clouds_dropped".into(),
+                    value: dropped.to_string(),
+                },
+                crate::msg::KeyValue {
+                    key: "input_errors".into(),
+                    value: input_errors.to_string(),
+                },
+            ]);
+        }
         let result = (|| -> Result<(), String> {
             if let Some(d) = o.min_distance {
                 self.min_distance.publish(d).map_err(|e| format!("{e:?}"))?;
@@ -387,6 +401,12 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         sources.len()
     );
     let started = Instant::now();
+    let counts = || {
+        (
+            shared.dropped.load(Ordering::Relaxed),
+            shared.input_errors.load(Ordering::Relaxed),
+        )
+    };
     let mut last_fault_report = vec![None::<Instant>; sources.len()];
     while !stop.load(Ordering::Relaxed) {
         {
@@ -421,7 +441,10 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             };
             if let Some((cloud, received)) = cloud {
                 let frame = monitor.on_cloud_message(k, &cloud, received);
-                outputs.publish(frame);
+                {
+                    let (d, e) = counts();
+                    outputs.publish(frame, d, e);
+                }
                 last_fault_report[k] = None;
                 continue;
             }
@@ -429,7 +452,11 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             let timeout = Duration::from_secs_f64(s.source_timeout_s);
             let due = last_fault_report[k].is_none_or(|t| now.duration_since(t) >= timeout / 2);
             if silent > timeout && due {
-                outputs.publish(monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none()));
+                let frame = monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none());
+                {
+                    let (d, e) = counts();
+                    outputs.publish(frame, d, e);
+                }
                 last_fault_report[k] = Some(now);
             }
         }
