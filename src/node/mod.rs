@@ -322,12 +322,21 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             .create_subscription::<TfMessage>(&topic, Some(qos))
             .map_err(|e| anyhow!("subscription {name}: {e:?}"))?;
         let tx = tf_tx.clone();
+        let shared = shared.clone();
         executor
             .spawn(async move {
                 let mut stream = std::pin::pin!(sub.async_stream());
-                while let Some(Ok((m, _))) = stream.next().await {
-                    if tx.send((m, is_static)).is_err() {
-                        break;
+                while let Some(item) = stream.next().await {
+                    match item {
+                        Ok((m, _)) => {
+                            if tx.send((m, is_static)).is_err() {
+                                break;
+                            }
+                        }
+                        Err(e) => {
+                            log::warn!("{name}: {e:?}");
+                            shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                        }
                     }
                 }
             })
@@ -344,12 +353,21 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         let sub = node
             .create_subscription::<JointState>(&topic, Some(qos))
             .map_err(|e| anyhow!("subscription {name}: {e:?}"))?;
+        let shared = shared.clone();
         executor
             .spawn(async move {
                 let mut stream = std::pin::pin!(sub.async_stream());
-                while let Some(Ok((m, _))) = stream.next().await {
-                    if js_tx.send(m).is_err() {
-                        break;
+                while let Some(item) = stream.next().await {
+                    match item {
+                        Ok((m, _)) => {
+                            if js_tx.send(m).is_err() {
+                                break;
+                            }
+                        }
+                        Err(e) => {
+                            log::warn!("joint states: {e:?}");
+                            shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                        }
                     }
                 }
             })
