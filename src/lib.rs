@@ -5,7 +5,8 @@
 //! cache, validation) → `tf` (TF buffer, joint states) → `cloud` (PCD, PLY, PointCloud2) →
 //! `query` (the parallel traversal on the CPU, or on the GPU in `query::gpu`: fast, certified
 //! and exact distances) → `monitor` (the per-cloud pipeline and its output messages) → `bag`
-//! (rosbag2 MCAP in and out, replay). `msg` holds the ROS 2 messages, `config` the parameters,
+//! (rosbag2 MCAP in and out, replay) and `node` (the live ROS 2 node, and the `play` and
+//! `record` tools). `msg` holds the ROS 2 messages, `config` the parameters,
 //! `scenario` the bag generator. `cli` wires them into the `ist_monitor` command; `bench`
 //! holds the benchmarks and their real scenarios.
 
