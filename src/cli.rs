@@ -1,7 +1,8 @@
 //! Command line: `build` (trees, quality table, cache, export), `poses` (forward kinematics),
-//! `query` (one cloud against the posed robot), `bench packing` (quality and time against the
-//! sphere budget, cache load, tree builders) and `bench query` (error against run time, peers;
-//! in `crate::bench`).
+//! `query` (one cloud against the posed robot), `replay` (a bag through the monitor), `node`
+//! (the live ROS 2 node), `play` and `record` (DDS bag tools), `generate` (scenario bags),
+//! `params` (the parameter table), and `bench packing`, `bench query` and `bench gpu` (in
+//! `crate::bench`).
 //! Every option is defined once here and validated into the library's typed options.
 
 use std::path::{Path, PathBuf};
