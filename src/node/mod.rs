@@ -21,8 +21,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context as _, Result};
 use futures::StreamExt;
-use ros2_client::{Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher};
-use serde::de::DeserializeSeed;
+use ros2_client::{
+    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
+};
+use serde::de::{DeserializeOwned, DeserializeSeed};
 use serde::Deserialize;
 
 use crate::config::Config;
@@ -97,6 +99,74 @@ pub fn publisher<T: RosMessage>(
         .map_err(|e| anyhow!("topic {topic}: {e:?}"))?;
     node.create_publisher(&t, Some(qos))
         .map_err(|e| anyhow!("publisher {topic}: {e:?}"))
+}
+
+/// The node of a command-line tool, `/<prefix>_<pid>`, its spinner spawned on `executor`. The
+/// context is returned too: it must outlive the node.
+pub fn tool_node(prefix: &str, executor: &smol::Executor<'static>) -> Result<(Context, Node)> {
+    let ctx = context()?;
+    let name = format!("{prefix}_{}", std::process::id());
+    let mut node = ctx
+        .new_node(
+            NodeName::new("/", &name).map_err(|e| anyhow!("node name {name}: {e:?}"))?,
+            NodeOptions::new().enable_rosout(false),
+        )
+        .map_err(|e| anyhow!("node {name}: {e:?}"))?;
+    executor
+        .spawn(
+            node.spinner()
+                .map_err(|e| anyhow!("spinner: {e:?}"))?
+                .spin(),
+        )
+        .detach();
+    Ok((ctx, node))
+}
+
+/// Creates a subscription of `T` on `topic`.
+pub fn subscription<T: RosMessage + 'static>(
+    node: &mut Node,
+    topic: &str,
+    qos: QosProfile,
+) -> Result<Subscription<T>> {
+    let t = node
+        .create_topic(&topic_name(topic)?, type_name::<T>(), &qos)
+        .map_err(|e| anyhow!("topic {topic}: {e:?}"))?;
+    node.create_subscription(&t, Some(qos))
+        .map_err(|e| anyhow!("subscription {topic}: {e:?}"))
+}
+
+/// Forwards each message of `sub`, as `wrap` makes it, to `tx` (the processing thread); a
+/// message that fails to decode is counted and skipped.
+fn forward<T, U>(
+    executor: &smol::Executor<'static>,
+    sub: Subscription<T>,
+    what: &'static str,
+    tx: std::sync::mpsc::Sender<U>,
+    wrap: impl Fn(T) -> U + Send + 'static,
+    shared: &Arc<Shared>,
+) where
+    T: RosMessage + DeserializeOwned + Send + Sync + 'static,
+    U: Send + 'static,
+{
+    let shared = shared.clone();
+    executor
+        .spawn(async move {
+            let mut stream = std::pin::pin!(sub.async_stream());
+            while let Some(item) = stream.next().await {
+                match item {
+                    Ok((m, _)) => {
+                        if tx.send(wrap(m)).is_err() {
+                            break;
+                        }
+                    }
+                    Err(e) => {
+                        log::warn!("{what}: {e:?}");
+                        shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
+        })
+        .detach();
 }
 
 /// Deserializes a message that borrows (a PointCloud2, a MarkerArray) into its owned form.
@@ -266,12 +336,7 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         } else {
             SENSOR_QOS
         };
-        let topic = node
-            .create_topic(&topic_name(&s.topic)?, type_name::<PointCloud2>(), &qos)
-            .map_err(|e| anyhow!("topic {}: {e:?}", s.topic))?;
-        let sub = node
-            .create_subscription::<PointCloud2<'static>>(&topic, Some(qos))
-            .map_err(|e| anyhow!("subscription {}: {e:?}", s.topic))?;
+        let sub = subscription::<PointCloud2<'static>>(&mut node, &s.topic, qos)?;
         let shared = shared.clone();
         executor
             .spawn(async move {
@@ -315,64 +380,21 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         } else {
             RELIABLE_QOS.history(History::KeepLast { depth: 100 })
         };
-        let topic = node
-            .create_topic(&topic_name(name)?, type_name::<TfMessage>(), &qos)
-            .map_err(|e| anyhow!("topic {name}: {e:?}"))?;
-        let sub = node
-            .create_subscription::<TfMessage>(&topic, Some(qos))
-            .map_err(|e| anyhow!("subscription {name}: {e:?}"))?;
-        let tx = tf_tx.clone();
-        let shared = shared.clone();
-        executor
-            .spawn(async move {
-                let mut stream = std::pin::pin!(sub.async_stream());
-                while let Some(item) = stream.next().await {
-                    match item {
-                        Ok((m, _)) => {
-                            if tx.send((m, is_static)).is_err() {
-                                break;
-                            }
-                        }
-                        Err(e) => {
-                            log::warn!("{name}: {e:?}");
-                            shared.input_errors.fetch_add(1, Ordering::Relaxed);
-                        }
-                    }
-                }
-            })
-            .detach();
+        let sub = subscription::<TfMessage>(&mut node, name, qos)?;
+        forward(
+            &executor,
+            sub,
+            name,
+            tf_tx.clone(),
+            move |m| (m, is_static),
+            &shared,
+        );
     }
-    {
-        let qos = QosProfile::subscription_default()
-            .reliability_best_effort()
-            .history(History::KeepLast { depth: 100 });
-        let name = &config.joint_states_topic;
-        let topic = node
-            .create_topic(&topic_name(name)?, type_name::<JointState>(), &qos)
-            .map_err(|e| anyhow!("topic {name}: {e:?}"))?;
-        let sub = node
-            .create_subscription::<JointState>(&topic, Some(qos))
-            .map_err(|e| anyhow!("subscription {name}: {e:?}"))?;
-        let shared = shared.clone();
-        executor
-            .spawn(async move {
-                let mut stream = std::pin::pin!(sub.async_stream());
-                while let Some(item) = stream.next().await {
-                    match item {
-                        Ok((m, _)) => {
-                            if js_tx.send(m).is_err() {
-                                break;
-                            }
-                        }
-                        Err(e) => {
-                            log::warn!("joint states: {e:?}");
-                            shared.input_errors.fetch_add(1, Ordering::Relaxed);
-                        }
-                    }
-                }
-            })
-            .detach();
-    }
+    let joint_qos = QosProfile::subscription_default()
+        .reliability_best_effort()
+        .history(History::KeepLast { depth: 100 });
+    let sub = subscription::<JointState>(&mut node, &config.joint_states_topic, joint_qos)?;
+    forward(&executor, sub, "joint states", js_tx, |m| m, &shared);
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });

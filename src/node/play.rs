@@ -15,9 +15,7 @@ use futures::StreamExt;
 use ros2_client::Publisher;
 use serde::Serialize;
 
-use super::{
-    context, publisher, topic_name, type_name, History, QosProfile, RELIABLE_QOS, TF_STATIC_QOS,
-};
+use super::{publisher, subscription, tool_node, History, QosProfile, RELIABLE_QOS, TF_STATIC_QOS};
 use crate::bag::read_messages;
 use crate::msg::{self, JointState, PointCloud2, RosMessage, TfMessage, Time};
 
@@ -73,18 +71,8 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
         first.log_time_ns,
         messages.last().map_or(0, |m| m.log_time_ns),
     );
-    let ctx = context()?;
-    let mut node = ctx
-        .new_node(
-            ros2_client::NodeName::new("/", &format!("ist_monitor_play_{}", std::process::id()))
-                .map_err(|e| anyhow!("{e:?}"))?,
-            ros2_client::NodeOptions::new().enable_rosout(false),
-        )
-        .map_err(|e| anyhow!("node: {e:?}"))?;
     let executor = Arc::new(smol::Executor::new());
-    executor
-        .spawn(node.spinner().map_err(|e| anyhow!("{e:?}"))?.spin())
-        .detach();
+    let (_ctx, mut node) = tool_node("ist_monitor_play", &executor)?;
     let mut outs: HashMap<String, Out> = HashMap::new();
     for m in &messages {
         if outs.contains_key(&*m.topic) {
@@ -111,13 +99,7 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
     let sent: Arc<Mutex<HashMap<i64, Instant>>> = Arc::default();
     let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
     if let Some(measure) = &options.measure {
-        let qos = RELIABLE_QOS;
-        let topic = node
-            .create_topic(&topic_name(measure)?, type_name::<JointState>(), &qos)
-            .map_err(|e| anyhow!("topic {measure}: {e:?}"))?;
-        let sub = node
-            .create_subscription::<JointState>(&topic, Some(qos))
-            .map_err(|e| anyhow!("{e:?}"))?;
+        let sub = subscription::<JointState>(&mut node, measure, RELIABLE_QOS)?;
         let (sent, latencies) = (sent.clone(), latencies.clone());
         executor
             .spawn(async move {

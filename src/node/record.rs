@@ -6,28 +6,18 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use anyhow::{anyhow, Result};
+use anyhow::Result;
 use futures::StreamExt;
 use serde::de::DeserializeOwned;
 
-use super::{context, topic_name, type_name, RELIABLE_QOS};
+use super::{subscription, tool_node, RELIABLE_QOS};
 use crate::bag::{writer::Compression, BagWriter};
 use crate::msg::{Bool, DiagnosticArray, Float64, JointState, RosMessage};
 
 /// Records the outputs of the node `node` (`/ns/name`) for `duration_s` into `out`.
 pub fn record(node_path: &str, out: &Path, duration_s: f64) -> Result<usize> {
-    let ctx = context()?;
-    let mut node = ctx
-        .new_node(
-            ros2_client::NodeName::new("/", &format!("ist_monitor_record_{}", std::process::id()))
-                .map_err(|e| anyhow!("{e:?}"))?,
-            ros2_client::NodeOptions::new().enable_rosout(false),
-        )
-        .map_err(|e| anyhow!("node: {e:?}"))?;
     let executor = smol::Executor::new();
-    executor
-        .spawn(node.spinner().map_err(|e| anyhow!("{e:?}"))?.spin())
-        .detach();
+    let (_ctx, mut node) = tool_node("ist_monitor_record", &executor)?;
     let writer = Arc::new(Mutex::new(Some(BagWriter::create(out, Compression::Zstd)?)));
     let count = Arc::new(Mutex::new(0usize));
     let base = node_path.trim_end_matches('/');
@@ -38,12 +28,7 @@ pub fn record(node_path: &str, out: &Path, duration_s: f64) -> Result<usize> {
         writer: Arc<Mutex<Option<BagWriter>>>,
         count: Arc<Mutex<usize>>,
     ) -> Result<()> {
-        let t = node
-            .create_topic(&topic_name(&topic)?, type_name::<T>(), &RELIABLE_QOS)
-            .map_err(|e| anyhow!("topic {topic}: {e:?}"))?;
-        let sub = node
-            .create_subscription::<T>(&t, Some(RELIABLE_QOS))
-            .map_err(|e| anyhow!("{e:?}"))?;
+        let sub = subscription::<T>(node, &topic, RELIABLE_QOS)?;
         executor
             .spawn(async move {
                 let mut stream = std::pin::pin!(sub.async_stream());
