@@ -716,10 +716,14 @@ fn node(args: NodeArgs) -> Result<()> {
     if let Some(ns) = ros.namespace {
         config.namespace = ns;
     }
-    let monitor = monitor_from_config(config)?;
+    // Signals first: a stop during the tree build ends the node cleanly once it is built.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
+    }
+    let monitor = monitor_from_config(config)?;
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Ok(());
     }
     crate::node::run(monitor, stop)
 }

@@ -33,6 +33,23 @@ fn in_private_network(test: &str) -> bool {
     false
 }
 
+/// The demo arm's trees, built into the default cache before a node starts, so that the node
+/// loads them in milliseconds instead of building them while the test's clock runs.
+fn demo_trees() -> (RobotModel, Vec<ist_monitor::ist::LinkTree>) {
+    let model = RobotModel::load(Path::new(ist_monitor::cli::DEMO_URDF), &[]).unwrap();
+    let trees = build_robot(
+        &model,
+        &BuildOptions::default(),
+        Some(&TreeCache::new(TreeCache::default_dir())),
+        &|_| {},
+    )
+    .unwrap()
+    .into_iter()
+    .map(|(t, _)| t)
+    .collect();
+    (model, trees)
+}
+
 fn spawn(args: &[&str]) -> Child {
     ist_monitor()
         .args(args)
@@ -49,6 +66,7 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     if !in_private_network("node_serves_clouds_and_reports_a_stopped_source") {
         return;
     }
+    demo_trees();
     let dir = tempfile::tempdir().unwrap();
     let record = dir.path().join("outputs.mcap");
     let record_arg = record.to_str().unwrap();
@@ -164,6 +182,7 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
     let Some(python) = common::venv_python() else {
         return;
     };
+    let (model, trees) = demo_trees();
     let joints =
         "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
     let mut node = spawn(&[
@@ -188,17 +207,6 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
         .as_f64()
         .expect("a min_distance from the node");
     // The same cloud through the library: the patch 0.6 m ahead of camera_link, all joints 0.
-    let model = RobotModel::load(Path::new(ist_monitor::cli::DEMO_URDF), &[]).unwrap();
-    let trees: Vec<_> = build_robot(
-        &model,
-        &BuildOptions::default(),
-        Some(&TreeCache::new(TreeCache::default_dir())),
-        &|_| {},
-    )
-    .unwrap()
-    .into_iter()
-    .map(|(t, _)| t)
-    .collect();
     let mut engine = Engine::new(&model, &trees, &LinkSelection::default()).unwrap();
     let k = &model.kinematics;
     let poses = k.link_poses(&vec![0.0; k.variables().len()]);
