@@ -88,27 +88,44 @@ pub fn topic_name(full: &str) -> Result<Name> {
     Name::parse(full).map_err(|e| anyhow!("topic {full}: {e:?}"))
 }
 
+/// The DDS topic of `T` named `topic`.
+fn topic<T: RosMessage>(
+    node: &mut Node,
+    topic: &str,
+    qos: &QosProfile,
+) -> Result<ros2_client::dds::rustdds::Topic> {
+    node.create_topic(&topic_name(topic)?, type_name::<T>(), qos)
+        .map_err(|e| anyhow!("topic {topic}: {e:?}"))
+}
+
 /// Creates a publisher of `T` on `topic`.
 pub fn publisher<T: RosMessage>(
     node: &mut Node,
-    topic: &str,
+    name: &str,
     qos: QosProfile,
 ) -> Result<Publisher<T>> {
-    let t = node
-        .create_topic(&topic_name(topic)?, type_name::<T>(), &qos)
-        .map_err(|e| anyhow!("topic {topic}: {e:?}"))?;
+    let t = topic::<T>(node, name, &qos)?;
     node.create_publisher(&t, Some(qos))
-        .map_err(|e| anyhow!("publisher {topic}: {e:?}"))
+        .map_err(|e| anyhow!("publisher {name}: {e:?}"))
 }
 
-/// The node of a command-line tool, `/<prefix>_<pid>`, its spinner spawned on `executor`. The
-/// context is returned too: it must outlive the node.
+/// The node of a command-line tool, `/<prefix>_<pid>`; see [`spinning_node`].
 pub fn tool_node(prefix: &str, executor: &smol::Executor<'static>) -> Result<(Context, Node)> {
+    spinning_node("/", &format!("{prefix}_{}", std::process::id()), executor)
+}
+
+/// A node `namespace`/`name` on a new context, its spinner spawned on `executor`. The context
+/// is returned too: it must outlive the node.
+pub fn spinning_node(
+    namespace: &str,
+    name: &str,
+    executor: &smol::Executor<'static>,
+) -> Result<(Context, Node)> {
     let ctx = context()?;
-    let name = format!("{prefix}_{}", std::process::id());
     let mut node = ctx
         .new_node(
-            NodeName::new("/", &name).map_err(|e| anyhow!("node name {name}: {e:?}"))?,
+            NodeName::new(namespace, name)
+                .map_err(|e| anyhow!("node name {namespace} {name}: {e:?}"))?,
             NodeOptions::new().enable_rosout(false),
         )
         .map_err(|e| anyhow!("node {name}: {e:?}"))?;
@@ -125,14 +142,12 @@ pub fn tool_node(prefix: &str, executor: &smol::Executor<'static>) -> Result<(Co
 /// Creates a subscription of `T` on `topic`.
 pub fn subscription<T: RosMessage + 'static>(
     node: &mut Node,
-    topic: &str,
+    name: &str,
     qos: QosProfile,
 ) -> Result<Subscription<T>> {
-    let t = node
-        .create_topic(&topic_name(topic)?, type_name::<T>(), &qos)
-        .map_err(|e| anyhow!("topic {topic}: {e:?}"))?;
+    let t = topic::<T>(node, name, &qos)?;
     node.create_subscription(&t, Some(qos))
-        .map_err(|e| anyhow!("subscription {topic}: {e:?}"))
+        .map_err(|e| anyhow!("subscription {name}: {e:?}"))
 }
 
 /// Forwards each message of `sub`, as `wrap` makes it, to `tx` (the processing thread); a
@@ -298,23 +313,8 @@ impl Outputs {
 /// Runs the node until `stop` is set.
 pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
     let config: Config = monitor.config.clone();
-    let ctx = context()?;
-    let mut node = ctx
-        .new_node(
-            NodeName::new(&config.namespace, &config.node_name).map_err(|e| {
-                anyhow!("node name {}{}: {e:?}", config.namespace, config.node_name)
-            })?,
-            NodeOptions::new().enable_rosout(false),
-        )
-        .map_err(|e| anyhow!("node: {e:?}"))?;
     let executor = Arc::new(smol::Executor::new());
-    executor
-        .spawn(
-            node.spinner()
-                .map_err(|e| anyhow!("spinner: {e:?}"))?
-                .spin(),
-        )
-        .detach();
+    let (_ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;
     let sources = config.sources.clone();
     let shared = Arc::new(Shared {
         slots: sources
