@@ -396,7 +396,9 @@ impl Engine {
                             r.backend = Backend::Gpu;
                             return Ok(r);
                         }
-                        Ok(None) => log::debug!("exact candidates overflowed the GPU list: CPU"),
+                        Ok(None) => log::debug!(
+                            "GPU result incomplete (candidate list full, or an arg-min lost): CPU"
+                        ),
                         Err(e) => log::warn!("GPU query failed ({e}): this query runs on the CPU"),
                     }
                 }

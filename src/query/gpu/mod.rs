@@ -338,7 +338,8 @@ impl GpuEngine {
     }
 
     /// The query on the GPU; `scratch` must hold the posed links (`traverse::prepare`).
-    /// Returns `Ok(None)` when the exact candidates overflowed (the caller runs the CPU).
+    /// Returns `Ok(None)` when the exact candidates overflowed, or an arg-min was not found again
+    /// (the caller runs the CPU).
     pub(super) fn query(
         &mut self,
         links: &[QueryLink],
@@ -504,6 +505,11 @@ impl GpuEngine {
         };
         self.readback.unmap();
         if state.candidate_count > CANDIDATES {
+            return Ok(None);
+        }
+        // A minimum whose point the arg-min pass did not find again bit for bit (a compiler
+        // that rounds the two descents differently) is not trusted: the CPU answers.
+        if (0..l).any(|k| minima[k] != f32::INFINITY.to_bits() && minima[l + k] == u32::MAX) {
             return Ok(None);
         }
         // Into the CPU's layout, and on through the CPU's refinement and assembly.
