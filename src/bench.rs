@@ -183,17 +183,14 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         let points = cloud(n);
         let (cpu, _, dc) = time(&points, Backend::Cpu)?;
         let (gpu, kernel, dg) = time(&points, Backend::Gpu)?;
+        let (cpu_ms, gpu_end_to_end_ms) = (median_and_spread(cpu), median_and_spread(gpu));
         let row = GpuRow {
             points: n,
-            cpu_ms: median_and_spread(cpu),
-            gpu_end_to_end_ms: median_and_spread(gpu),
+            cpu_ms,
+            gpu_end_to_end_ms,
             gpu_kernel_ms: (!kernel.is_empty()).then(|| median_and_spread(kernel)),
-            cpu_over_gpu: 0.0,
+            cpu_over_gpu: cpu_ms.0 / gpu_end_to_end_ms.0,
             max_difference_m: (dc - dg).abs(),
-        };
-        let row = GpuRow {
-            cpu_over_gpu: row.cpu_ms.0 / row.gpu_end_to_end_ms.0,
-            ..row
         };
         println!(
             "{:>10} {:>24} {:>24} {:>24} {:>8.2} {:>10.1e}",

@@ -685,25 +685,15 @@ fn query(args: QueryArgs) -> Result<()> {
     Ok(())
 }
 
-/// The monitor of a config: the robot loaded, its trees built with a progress bar or loaded
-/// from the cache.
+/// The monitor of a config, with a progress line while its trees are built or loaded.
 fn monitor_from_config(config: Config) -> Result<Monitor> {
-    let model = RobotArgs {
-        urdf: config.robot_urdf()?,
-        package_paths: config.package_paths.clone(),
-    }
-    .load()?;
-    let cache = TreeCache::new(
-        config
-            .cache_dir
-            .clone()
-            .unwrap_or_else(TreeCache::default_dir),
-    );
-    let trees: Vec<LinkTree> = build_trees(&model, &config.build, Some(&cache))?
-        .into_iter()
-        .map(|(t, _)| t)
-        .collect();
-    Monitor::with_trees(config, model, &trees)
+    let bar = indicatif::ProgressBar::new_spinner();
+    let monitor = Monitor::new(config, &|link| {
+        bar.set_message(format!("inner sphere trees: {link}"));
+        bar.tick();
+    });
+    bar.finish_and_clear();
+    monitor
 }
 
 fn node(args: NodeArgs) -> Result<()> {

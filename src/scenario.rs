@@ -235,6 +235,11 @@ pub fn generate(model: &RobotModel, params: &ScenarioParams, out: &Path) -> Resu
     let (w, h) = (params.width as usize, params.height as usize);
     let fx = 0.5 * w as f64 / (0.5 * params.hfov_deg.to_radians()).tan();
     let (cx, cy) = (0.5 * (w as f64 - 1.0), 0.5 * (h as f64 - 1.0));
+    // The unit ray of pixel `i` (row-major) in the optical frame.
+    let ray = |i: usize| {
+        let (u, v) = ((i % w) as f64, (i / w) as f64);
+        Vector3::new((u - cx) / fx, (v - cy) / fx, 1.0).normalize()
+    };
     let mut noise = Noise(params.seed);
     let mut writer = BagWriter::create(out, params.compression)?;
     let stamp = |ns: i64| Header {
@@ -296,9 +301,7 @@ pub fn generate(model: &RobotModel, params: &ScenarioParams, out: &Path) -> Resu
         let hits: Vec<Option<(f64, bool)>> = (0..w * h)
             .into_par_iter()
             .map(|i| {
-                let (u, v) = ((i % w) as f64, (i / w) as f64);
-                let d_optical = Vector3::new((u - cx) / fx, (v - cy) / fx, 1.0).normalize();
-                let d = world_from_optical.rotation * d_optical;
+                let d = world_from_optical.rotation * ray(i);
                 let mut best: Option<(f64, bool)> = None;
                 let mut take = |t: Option<f64>, robot: bool| {
                     if let Some(t) = t.filter(|t| best.is_none_or(|b| *t < b.0)) {
@@ -337,9 +340,7 @@ pub fn generate(model: &RobotModel, params: &ScenarioParams, out: &Path) -> Resu
             if dropped {
                 continue;
             }
-            let (u, v) = ((i % w) as f64, (i / w) as f64);
-            let d_optical = Vector3::new((u - cx) / fx, (v - cy) / fx, 1.0).normalize();
-            let p = d_optical * (t + n);
+            let p = ray(i) * (t + n);
             points[i] = [p.x as f32, p.y as f32, p.z as f32];
             if on_robot {
                 robot_points += 1;

@@ -233,7 +233,7 @@ fn our_payloads(dir: &Path) -> std::collections::HashMap<String, Vec<u8>> {
     let mut w = BagWriter::create(&path, Compression::None).unwrap();
     write_samples(&mut w);
     w.finish().unwrap();
-    read_messages(&path, &|_| true)
+    read_messages(&path, &|_, _| true)
         .unwrap()
         .into_iter()
         .map(|m| (m.topic.to_string(), m.data))
@@ -261,7 +261,7 @@ fn rosbags_fixture_is_read_value_for_value_and_byte_for_byte() {
         .status()
         .unwrap();
     assert!(status.success());
-    let theirs = read_messages(&bag, &|_| true).unwrap();
+    let theirs = read_messages(&bag, &|_, _| true).unwrap();
     assert_eq!(theirs.len(), 14);
     let ours = our_payloads(dir.path());
     for m in &theirs {

@@ -120,7 +120,7 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
         );
     }
     // What the node published, in order.
-    let messages = read_messages(&record, &|_| true).unwrap();
+    let messages = read_messages(&record, &|_, _| true).unwrap();
     let diagnostics: Vec<(u64, DiagnosticStatus)> = messages
         .iter()
         .filter(|m| &*m.topic == "/diagnostics")

@@ -29,7 +29,7 @@ fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, ist_monitor::bag::replay::S
         &[("mode".to_string(), mode.to_string())],
     )
     .unwrap();
-    let mut monitor = Monitor::new(config).unwrap();
+    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
     let mut frames = Vec::new();
     let summary = replay(&mut monitor, bag, None, &mut |f| frames.push(f.clone())).unwrap();
     (frames, summary)
@@ -123,7 +123,7 @@ type Edit<'a> = dyn Fn(&str, u64, &[u8]) -> Option<(u64, Vec<u8>)> + 'a;
 /// the other frames are processed as usual.
 #[test]
 fn faulty_inputs_are_reported_never_safe() {
-    let messages = read_messages(&bundled("demo"), &|_| true).unwrap();
+    let messages = read_messages(&bundled("demo"), &|_, _| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, edit: &Edit<'_>| {
         let path = dir.path().join(format!("{name}.mcap"));
@@ -137,7 +137,7 @@ fn faulty_inputs_are_reported_never_safe() {
         path
     };
     let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
-    let mut monitor = Monitor::new(config.clone()).unwrap();
+    let mut monitor = Monitor::new(config.clone(), &|_| {}).unwrap();
     let mut replay_bag = |path: &Path| {
         let mut frames = Vec::new();
         let s = replay(&mut monitor, path, None, &mut |f| frames.push(f.clone())).unwrap();
@@ -217,7 +217,7 @@ fn generator_reproduces_the_bundled_bag() {
     };
     let g = scenario::generate(&model, &params, &out).unwrap();
     let topics = |bag: &Path, topic: &str| -> Vec<Vec<u8>> {
-        read_messages(bag, &|t| t == topic)
+        read_messages(bag, &|t, _| t == topic)
             .unwrap()
             .into_iter()
             .map(|m| m.data)
@@ -248,7 +248,7 @@ fn replay_outputs_are_readable_by_rosbags() {
         .status()
         .unwrap();
     assert!(status.success());
-    let written = read_messages(&out, &|_| true).unwrap();
+    let written = read_messages(&out, &|_, _| true).unwrap();
     let count = |topic: &str| written.iter().filter(|m| &*m.topic == topic).count();
     for topic in [
         "/ist_monitor/min_distance",

@@ -81,10 +81,11 @@ pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     Ok(files)
 }
 
-/// The messages of the bag at `path` whose topic passes `keep`, in log-time order.
+/// The messages of the bag at `path` whose channel passes `keep(topic, schema)`, in log-time
+/// order. Only those are kept in memory.
 pub fn read_messages(
     path: &Path,
-    keep: &dyn Fn(&str) -> bool,
+    keep: &dyn Fn(&str, &str) -> bool,
 ) -> Result<Vec<BagMessage>, BagError> {
     let mut out = Vec::new();
     for file in files(path)? {
@@ -98,7 +99,8 @@ pub fn read_messages(
         for message in mcap::MessageStream::new(&bytes).map_err(bad)? {
             let message = message.map_err(bad)?;
             let c = &message.channel;
-            if !keep(&c.topic) {
+            let schema = c.schema.as_ref().map_or("", |s| s.name.as_str());
+            if !keep(&c.topic, schema) {
                 continue;
             }
             let (topic, schema, encoding) = channels
@@ -106,7 +108,7 @@ pub fn read_messages(
                 .or_insert_with(|| {
                     (
                         Arc::from(c.topic.as_str()),
-                        Arc::from(c.schema.as_ref().map(|s| s.name.as_str()).unwrap_or("")),
+                        Arc::from(schema),
                         Arc::from(c.message_encoding.as_str()),
                     )
                 })

@@ -83,7 +83,7 @@ pub fn replay(
         .iter()
         .map(|s| s.topic.clone())
         .collect();
-    let keep = |t: &str| {
+    let keep = |t: &str, _: &str| {
         t == "/tf"
             || t == "/tf_static"
             || t == joint_topic

@@ -85,11 +85,8 @@ pub fn load(path: &Path, message: usize) -> Result<Cloud, CloudError> {
 
 /// The `index`-th PointCloud2 message (0 first, in log-time order) of a bag.
 pub fn point_cloud_from_bag(path: &Path, index: usize) -> Result<Cloud, CloudError> {
-    let messages = crate::bag::read_messages(path, &|_| true)?;
-    let clouds: Vec<_> = messages
-        .iter()
-        .filter(|m| &*m.schema == crate::msg::PointCloud2::TYPE)
-        .collect();
+    let clouds =
+        crate::bag::read_messages(path, &|_, schema| schema == crate::msg::PointCloud2::TYPE)?;
     let m = clouds.get(index).ok_or_else(|| CloudError::NoMessage {
         path: path.to_owned(),
         count: clouds.len(),

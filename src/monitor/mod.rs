@@ -96,30 +96,24 @@ pub struct Monitor {
     level: LevelTracker,
 }
 
-/// The trees of `model` built or loaded from the cache as `config` says.
-pub fn trees(model: &RobotModel, config: &Config) -> Result<Vec<LinkTree>> {
-    let cache = TreeCache::new(
-        config
-            .cache_dir
-            .clone()
-            .unwrap_or_else(TreeCache::default_dir),
-    );
-    Ok(
-        ist::build_robot(model, &config.build, Some(&cache), &|_| {})?
-            .into_iter()
-            .map(|(t, _)| t)
-            .collect(),
-    )
-}
-
 impl Monitor {
-    /// Loads the robot, builds (or loads) its trees and applies the config's static transforms
-    /// and fixed joints. Errors here are start-up errors.
-    pub fn new(config: Config) -> Result<Self> {
+    /// Loads the robot, builds (or loads from the cache) its trees and applies the config's
+    /// static transforms and fixed joints; `built` is called with each link's name as its tree
+    /// is ready. Errors here are start-up errors.
+    pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self> {
         let urdf = config.robot_urdf()?;
         let model = RobotModel::load(&urdf, &config.package_paths)
             .with_context(|| format!("loading robot {}", urdf.display()))?;
-        let trees = trees(&model, &config)?;
+        let cache = TreeCache::new(
+            config
+                .cache_dir
+                .clone()
+                .unwrap_or_else(TreeCache::default_dir),
+        );
+        let trees: Vec<LinkTree> = ist::build_robot(&model, &config.build, Some(&cache), built)?
+            .into_iter()
+            .map(|(t, _)| t)
+            .collect();
         Self::with_trees(config, model, &trees)
     }
 
@@ -165,11 +159,6 @@ impl Monitor {
         (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
         self.level = LevelTracker::new(&self.config);
         Ok(())
-    }
-
-    /// The robot's root frame (the URDF's root link).
-    pub fn root_frame(&self) -> &str {
-        self.model.kinematics.root_link()
     }
 
     /// Adds a `tf2_msgs/TFMessage` from `/tf` or (`is_static`) `/tf_static`.

@@ -56,11 +56,14 @@ pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_reliable(WhenFull::DEFAULT)
     .history(History::KeepLast { depth: 10 });
 
-/// A DDS context on `ROS_DOMAIN_ID` (0 when unset), its UDP sockets asking for
-/// `receive_buffer` bytes of kernel receive buffer (SO_RCVBUF; the kernel clamps it to
-/// `net.core.rmem_max`). A 640×480 cloud of 32-byte points is 9.8 MB, which arrives as one
-/// burst of about 150 datagrams: the buffer must hold it while the reader reassembles.
-pub fn context_with_buffer(receive_buffer: usize) -> Result<Context> {
+/// Kernel socket buffer asked for, bytes (SO_RCVBUF and SO_SNDBUF; the kernel clamps it to
+/// `net.core.rmem_max`/`wmem_max`). A 640×480 cloud of 32-byte points is 9.8 MB, which
+/// arrives as one burst of about 150 datagrams: the buffer must hold it while the reader
+/// reassembles.
+pub const SOCKET_BUFFER: usize = 64 << 20;
+
+/// A DDS context on `ROS_DOMAIN_ID` (0 when unset), with [`SOCKET_BUFFER`] socket buffers.
+pub fn context() -> Result<Context> {
     let domain = std::env::var("ROS_DOMAIN_ID")
         .ok()
         .map(|d| d.parse::<u16>())
@@ -68,19 +71,11 @@ pub fn context_with_buffer(receive_buffer: usize) -> Result<Context> {
         .context("ROS_DOMAIN_ID")?
         .unwrap_or(0);
     let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
-        .socket_receive_buffer_size(receive_buffer)
-        .socket_send_buffer_size(receive_buffer)
+        .socket_receive_buffer_size(SOCKET_BUFFER)
+        .socket_send_buffer_size(SOCKET_BUFFER)
         .build()
         .map_err(|e| anyhow!("DDS: {e:?}"))?;
     Context::from_domain_participant(participant).map_err(|e| anyhow!("DDS: {e:?}"))
-}
-
-/// Kernel socket buffer asked for by default, bytes.
-pub const SOCKET_BUFFER: usize = 64 << 20;
-
-/// [`context_with_buffer`] with the default buffer.
-pub fn context() -> Result<Context> {
-    context_with_buffer(SOCKET_BUFFER)
 }
 
 /// A ROS 2 name from a fully qualified topic name.

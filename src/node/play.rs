@@ -62,8 +62,7 @@ fn shift(t: &mut Time, offset_ns: i64) {
 /// Plays `bag`; returns what was published and, with `measure`, what came back.
 pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
     let known = [PointCloud2::TYPE, JointState::TYPE, TfMessage::TYPE];
-    let all = read_messages(bag, &|_| true)?;
-    let messages: Vec<_> = all.iter().filter(|m| known.contains(&&*m.schema)).collect();
+    let messages = read_messages(bag, &|_, schema| known.contains(&schema))?;
     let first = messages
         .first()
         .ok_or_else(|| anyhow!("{}: nothing to play", bag.display()))?;

@@ -143,11 +143,6 @@ impl TfBuffer {
         Ok(())
     }
 
-    /// The parent of `frame`, when the buffer knows one.
-    pub fn parent(&self, frame: &str) -> Option<&str> {
-        self.edges.get(strip(frame)).map(|e| e.parent.as_str())
-    }
-
     /// `parent_from_child` of the edge above `child` at `stamp_ns` (`None`: the newest).
     fn sample(
         &self,
