@@ -4,7 +4,13 @@
 //! full error-against-time sweep; this is the quick, statistically careful check of one setting.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use ist_monitor::bench::{load_scenario, ScenarioName, SHARED};
+#[path = "../src/bin/ist_monitor/bench/scenes.rs"]
+mod scenes;
+
+use scenes::{load_scenario, ScenarioName};
+
+/// `../shared` beside the checkout.
+const SHARED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared");
 use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
 use ist_monitor::query::{peers, Engine, LinkSelection, Mode, QueryOptions};
 

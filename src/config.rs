@@ -45,7 +45,7 @@ const fn p(
 /// Every parameter of the node. `<source>.x` and `<transform>.x` are declared for each name in
 /// `sources` and `static_transforms`.
 pub const PARAMETERS: &[ParamDecl] = &[
-    p("robot_description", "~", "path", "URDF file; relative paths are relative to this file; package:// is resolved through package_paths (default: the demo robot)"),
+    p("robot_description", "~", "path", "URDF file (required); relative paths are relative to this file; package:// is resolved through package_paths"),
     p("package_paths", "[]", "NAME=DIR", "where package://NAME is found"),
     p("mode", "certified", "", "fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or exact (distance to the collision meshes)"),
     p("max_distance", "2.0", "m", "points farther than this from the robot's bounding box are culled"),
@@ -300,6 +300,14 @@ pub fn markdown_table() -> String {
     out
 }
 
+/// The declared default (YAML text) of parameter `name`; `None` for an undeclared name.
+pub fn default_of(name: &str) -> Option<&'static str> {
+    PARAMETERS
+        .iter()
+        .find(|d| d.name == name)
+        .map(|d| d.default)
+}
+
 /// Parses `name:=value` (a `-p` override; the value is YAML).
 pub fn parse_override(s: &str) -> Result<(String, String), String> {
     let (name, value) = s
@@ -343,6 +351,17 @@ impl Config {
         }
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_values(&node_name, &namespace, Some(base), values)
+    }
+
+    /// The declared defaults with `overrides` (`name`, YAML value) applied, for a node named
+    /// `ist_monitor`; relative paths are taken from the current folder. The command line reads
+    /// its query options through this, so that they have the parameters' defaults and checks.
+    pub fn from_overrides(overrides: &[(String, String)]) -> Result<Self, ConfigError> {
+        let values = overrides
+            .iter()
+            .map(|(name, value)| (name.clone(), scalar_yaml(value)))
+            .collect();
+        Self::from_values("ist_monitor", "/", Some(Path::new(".")), values)
     }
 
     /// Validates flattened values; relative paths are taken from `base`.
@@ -563,10 +582,15 @@ impl Config {
         })
     }
 
-    /// The URDF file: `robot_description` with `package://` resolved, or the demo robot.
+    /// The URDF file: `robot_description` with `package://` resolved. A safety monitor never
+    /// guesses its robot: without `robot_description` this is an error naming the parameter.
     pub fn robot_urdf(&self) -> Result<PathBuf, ConfigError> {
         let Some(p) = &self.robot_description else {
-            return Ok(crate::cli::DEMO_URDF.into());
+            return Err(ConfigError::Invalid {
+                name: "robot_description".into(),
+                message: "not set: the monitor needs the robot's URDF (a path, or package://)"
+                    .into(),
+            });
         };
         match p.to_str().filter(|s| s.starts_with("package://")) {
             Some(uri) => resolve_uri(uri, Path::new("."), &self.package_paths).map_err(|e| {
@@ -579,10 +603,15 @@ impl Config {
         }
     }
 
+    /// The node's fully qualified name, `/ns/name`.
+    pub fn node_path(&self) -> String {
+        let ns = self.namespace.trim_end_matches('/');
+        format!("{ns}/{}", self.node_name)
+    }
+
     /// The fully qualified name of a node-private topic `~/name`.
     pub fn private_topic(&self, name: &str) -> String {
-        let ns = self.namespace.trim_end_matches('/');
-        format!("{ns}/{}/{name}", self.node_name)
+        format!("{}/{name}", self.node_path())
     }
 }
 
@@ -627,6 +656,37 @@ mod tests {
         assert!(!c.sources[1].enabled);
         assert_eq!(c.static_transforms[0].transform.translation.z, 3.0);
         assert_eq!(c.fixed_joint_state, vec![("j1".to_string(), 0.5)]);
+    }
+
+    #[test]
+    fn the_library_defaults_are_the_declared_ones() {
+        // One default per parameter: the typed defaults of the library equal the table's.
+        let c = Config::default();
+        assert_eq!(c.query, QueryOptions::default());
+        assert_eq!(c.selection, LinkSelection::default());
+        assert_eq!(
+            c.build.packing.max_spheres,
+            BuildOptions::default().packing.max_spheres
+        );
+        assert_eq!(default_of("mode"), Some("certified"));
+        assert_eq!(default_of("no_such_parameter"), None);
+    }
+
+    #[test]
+    fn overrides_are_checked_like_a_file() {
+        let o = |n: &str, v: &str| vec![(n.to_owned(), v.to_owned())];
+        let c = Config::from_overrides(&o("mode", "exact")).unwrap();
+        assert_eq!(c.query.mode, Mode::Exact);
+        let e = Config::from_overrides(&o("max_distance", "-2"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("max_distance"), "{e}");
+    }
+
+    #[test]
+    fn no_robot_description_is_an_error_naming_it() {
+        let e = Config::default().robot_urdf().unwrap_err().to_string();
+        assert!(e.contains("robot_description"), "{e}");
     }
 
     #[test]

@@ -1,18 +1,34 @@
 //! ist_monitor: minimum distance between a robot and point clouds with inner sphere trees.
 //!
-//! The data flows through the modules in this order: `robot` (URDF, collision meshes,
-//! kinematics) → `packing` (Protosphere inner spheres, surface gap) → `ist` (tree, quality,
-//! cache, validation) → `tf` (TF buffer, joint states) → `cloud` (PCD, PLY, PointCloud2) →
-//! `query` (the parallel traversal on the CPU, or on the GPU in `query::gpu`: fast, certified
-//! and exact distances) → `monitor` (the per-cloud pipeline and its output messages) → `bag`
-//! (rosbag2 MCAP in and out, replay) and `node` (the live ROS 2 node, and the `play` and
-//! `record` tools). `msg` holds the ROS 2 messages, `config` the parameters,
-//! `scenario` the bag generator. `cli` wires them into the `ist_monitor` command; `bench`
-//! holds the benchmarks and their real scenarios.
+//! The library's modules follow the data, and each depends only on the ones before it:
+//!
+//! ```text
+//! robot ─▶ packing ─▶ ist ─▶ query ─▶ config ─▶ monitor ─▶ node
+//! (URDF,   (inner     (tree,  (CPU and  (params)  (pipeline,  (ROS 2 node,
+//!  meshes,  spheres,   cache)  GPU over           outputs,    play, record)
+//!  FK)      gap h)             one layout)        replay)
+//!                                                   ▲
+//! msg ─▶ bag (MCAP in/out) ─▶ cloud (PCD, PLY, ─────┤
+//!  │                           PointCloud2)         │
+//!  └───▶ tf (TF buffer, joint states) ──────────────┘
+//! ```
+//!
+//! - `robot` (URDF, collision meshes, kinematics) → `packing` (Protosphere inner spheres, the
+//!   certified surface gap) → `ist` (tree, quality, cache, validation)
+//!   → `query` (the layout shared with the GPU, posing, the CPU traversal, the GPU host, exact
+//!   refinement and one result assembly for both) → `config` (the parameters, each declared
+//!   once) → `monitor` (the per-cloud pipeline, faults and levels, the output table, replay) →
+//!   `node` (the live ROS 2 node, and the `play` and `record` tools);
+//! - `msg` (the ROS 2 messages) → `bag` (rosbag2 MCAP in and out) → `cloud` (PCD, PLY,
+//!   PointCloud2, with one encoder) and `msg` → `tf` (TF buffer, joint states), both into
+//!   `monitor`;
+//! - beside them: `geometry` (mesh helpers, under `robot`), `scenario` (the bag generator, on
+//!   the meshes, clouds and bags), `stats` (percentiles of timings).
+//!
+//! The `ist_monitor` command, its benchmarks and the demo paths live on top, in the binary
+//! (`src/bin/ist_monitor/`); nothing here knows the command line or the checkout.
 
 pub mod bag;
-pub mod bench;
-pub mod cli;
 pub mod cloud;
 pub mod config;
 pub mod geometry;
@@ -24,4 +40,5 @@ pub mod packing;
 pub mod query;
 pub mod robot;
 pub mod scenario;
+pub mod stats;
 pub mod tf;

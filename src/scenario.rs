@@ -24,17 +24,17 @@
 //! Cost: one ray per pixel against every collision element, then one exact distance per
 //! obstacle point (pruned by bounding boxes); about a second for 30 frames of 128×96.
 
-use std::borrow::Cow;
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
 use parry3d::shape::{Capsule, Cuboid};
 use rayon::prelude::*;
 
-use crate::bag::{replay::GROUND_TRUTH_TOPIC, writer::Compression, BagWriter};
+use crate::bag::{writer::Compression, BagWriter, GROUND_TRUTH_TOPIC};
+use crate::cloud::pointcloud2::{encode, Colour, Layout};
+use crate::cloud::CloudError;
 use crate::msg::{
     CameraInfo, Header, JointState, PointCloud2, PointField, TfMessage, Time, Transform,
     TransformStamped,
@@ -213,25 +213,44 @@ pub fn link_from_optical() -> Isometry3<f64> {
     )
 }
 
+/// Why a scenario cannot be generated.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("the robot has no link {CAMERA_LINK} to mount the camera on")]
+    NoCameraLink,
+    #[error("link {0} has collision geometry but is not in the robot's kinematics")]
+    NotInKinematics(String),
+    #[error("joint values: {0}")]
+    Joints(#[from] crate::robot::RobotError),
+    #[error(transparent)]
+    Bag(#[from] crate::bag::BagError),
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+}
+
 /// Generates a bag at `out` (a rosbag2 folder, or a `.mcap` file).
-pub fn generate(model: &RobotModel, params: &ScenarioParams, out: &Path) -> Result<Generated> {
+pub fn generate(
+    model: &RobotModel,
+    params: &ScenarioParams,
+    out: &Path,
+) -> Result<Generated, ScenarioError> {
     let k = &model.kinematics;
     let camera = k
         .link_index(CAMERA_LINK)
-        .with_context(|| format!("the robot has no link {CAMERA_LINK} to mount the camera on"))?;
+        .ok_or(ScenarioError::NoCameraLink)?;
     let solids: Vec<(usize, Vec<Solid>)> = model
         .links
         .iter()
         .map(|l| {
             let index = k
                 .link_index(&l.name)
-                .expect("geometry links are kinematic links");
-            (
+                .ok_or_else(|| ScenarioError::NotInKinematics(l.name.clone()))?;
+            Ok((
                 index,
                 l.elements.iter().map(|e| Solid::new(&e.mesh)).collect(),
-            )
+            ))
         })
-        .collect();
+        .collect::<Result<_, ScenarioError>>()?;
     let (w, h) = (params.width as usize, params.height as usize);
     let fx = 0.5 * w as f64 / (0.5 * params.hfov_deg.to_radians()).tan();
     let (cx, cy) = (0.5 * (w as f64 - 1.0), 0.5 * (h as f64 - 1.0));
@@ -382,7 +401,7 @@ pub fn generate(model: &RobotModel, params: &ScenarioParams, out: &Path) -> Resu
         writer.write(
             CLOUD_TOPIC,
             log_ns,
-            &cloud_message(&header, params, &points),
+            &cloud_message(&header, params, &points)?,
         )?;
         writer.write(
             CAMERA_INFO_TOPIC,
@@ -411,45 +430,25 @@ pub fn generate(model: &RobotModel, params: &ScenarioParams, out: &Path) -> Resu
     Ok(result)
 }
 
-/// An organized PointCloud2: x y z FLOAT32 and 4 bytes of padding per point.
+/// An organized PointCloud2: x y z FLOAT32 and zero padding per point (16 bytes), or with a
+/// grey `rgb` by depth at offset 16 (32 bytes, as RGB-D drivers publish).
 fn cloud_message(
     header: &Header,
     params: &ScenarioParams,
     points: &[[f32; 3]],
-) -> PointCloud2<'static> {
-    let field = |name: &str, offset| PointField {
-        name: name.into(),
-        offset,
-        datatype: PointField::FLOAT32,
-        count: 1,
-    };
-    let step = params.point_step as usize;
-    let mut data = Vec::with_capacity(points.len() * step);
-    for p in points {
-        for v in p {
-            data.extend_from_slice(&v.to_le_bytes());
-        }
-        data.extend_from_slice(&[0; 4]);
-        if step == 32 {
-            let grey = (255.0 - (p[2] * 60.0).clamp(0.0, 255.0)) as u32;
-            let rgb = f32::from_bits((grey << 16) | (grey << 8) | grey);
-            data.extend_from_slice(&rgb.to_le_bytes());
-            data.extend_from_slice(&[0; 12]);
-        }
+) -> Result<PointCloud2<'static>, CloudError> {
+    fn grey(p: [f32; 3]) -> [u8; 3] {
+        [(255.0 - (p[2] * 60.0).clamp(0.0, 255.0)) as u8; 3]
     }
-    let mut fields = vec![field("x", 0), field("y", 4), field("z", 8)];
-    if step == 32 {
-        fields.push(field("rgb", 16));
-    }
-    PointCloud2 {
-        header: header.clone(),
-        height: params.height,
+    let layout = Layout {
         width: params.width,
-        fields,
-        is_bigendian: false,
+        height: params.height,
+        datatype: PointField::FLOAT32,
+        big_endian: false,
         point_step: params.point_step,
-        row_step: params.point_step * params.width,
-        data: Cow::Owned(data),
-        is_dense: false,
-    }
+        row_padding: 0,
+        rgb: (params.point_step == 32).then_some((16, grey as Colour)),
+        pad: 0,
+    };
+    encode(header.clone(), points, &layout)
 }

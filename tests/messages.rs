@@ -10,6 +10,7 @@ use std::path::Path;
 use std::process::Command;
 
 use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
+use ist_monitor::cloud::pointcloud2;
 use ist_monitor::msg::*;
 use serde::de::DeserializeOwned;
 
@@ -28,37 +29,14 @@ fn header(frame: &str) -> Header {
     }
 }
 
-fn cloud_data(big_endian: bool) -> Vec<u8> {
-    [1.0f32, 2.0, 3.0, 0.0, -1.5, 0.25, 4.0, 0.0]
-        .iter()
-        .flat_map(|v| {
-            if big_endian {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            }
-        })
-        .collect()
-}
-
+/// Two points, 16-byte FLOAT32 points (4 zero bytes after z), through the library's encoder.
 fn cloud(big_endian: bool) -> PointCloud2<'static> {
-    let field = |name: &str, offset| PointField {
-        name: name.into(),
-        offset,
-        datatype: PointField::FLOAT32,
-        count: 1,
+    let layout = pointcloud2::Layout {
+        big_endian,
+        ..pointcloud2::Layout::unorganized(2)
     };
-    PointCloud2 {
-        header: header("camera_optical_frame"),
-        height: 1,
-        width: 2,
-        fields: vec![field("x", 0), field("y", 4), field("z", 8)],
-        is_bigendian: big_endian,
-        point_step: 16,
-        row_step: 32,
-        data: Cow::Owned(cloud_data(big_endian)),
-        is_dense: true,
-    }
+    let points = [[1.0, 2.0, 3.0], [-1.5, 0.25, 4.0]];
+    pointcloud2::encode(header("camera_optical_frame"), &points, &layout).unwrap()
 }
 
 fn transform_stamped() -> TransformStamped {

@@ -36,7 +36,7 @@ fn in_private_network(test: &str) -> bool {
 /// The demo arm's trees, built into the default cache before a node starts, so that the node
 /// loads them in milliseconds instead of building them while the test's clock runs.
 fn demo_trees() -> (RobotModel, Vec<ist_monitor::ist::LinkTree>) {
-    let model = RobotModel::load(Path::new(ist_monitor::cli::DEMO_URDF), &[]).unwrap();
+    let model = RobotModel::load(Path::new(common::DEMO_URDF), &[]).unwrap();
     let trees = build_robot(
         &model,
         &BuildOptions::default(),

@@ -8,7 +8,7 @@ use ist_monitor::geometry::{distance_point_mesh, winding_number};
 use ist_monitor::ist::{build_link, BuildOptions, LinkTree};
 use ist_monitor::packing::{InnerSphere, PackingParams};
 use ist_monitor::query::{
-    root_from_sensor, Engine, Mode, Outcome, QueryLink, QueryOptions, QueryResult,
+    root_from_sensor_via_map, Engine, Mode, Outcome, QueryLink, QueryOptions, QueryResult,
 };
 use ist_monitor::robot::mesh::{tessellate_box, tessellate_capsule, ClosedMesh};
 use ist_monitor::robot::{CollisionElement, LinkGeometry};
@@ -268,12 +268,12 @@ proptest! {
         let mut engine = scene.engine();
         let map_from_root = rng.pose(0.0);
         let map_from_sensor = rng.pose(1.0);
-        let points = cloud(&mut rng, 300, &root_from_sensor(&map_from_root, &map_from_sensor));
+        let points = cloud(&mut rng, 300, &root_from_sensor_via_map(&map_from_root, &map_from_sensor));
         let shift = Translation3::new(offset, -0.7 * offset, 0.3 * offset);
         for mode in [Mode::Fast, Mode::Exact] {
             let options = QueryOptions { mode, ..all_points() };
-            let near = run(&mut engine, &points, &root_from_sensor(&map_from_root, &map_from_sensor), &scene.link_poses, &options);
-            let far_sensor = root_from_sensor(&(shift * map_from_root), &(shift * map_from_sensor));
+            let near = run(&mut engine, &points, &root_from_sensor_via_map(&map_from_root, &map_from_sensor), &scene.link_poses, &options);
+            let far_sensor = root_from_sensor_via_map(&(shift * map_from_root), &(shift * map_from_sensor));
             let far = run(&mut engine, &points, &far_sensor, &scene.link_poses, &options);
             prop_assert!((distance(&near) - distance(&far)).abs() < 1e-4,
                 "{mode:?}: {} at the origin, {} at {offset} m", distance(&near), distance(&far));

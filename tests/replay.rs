@@ -7,11 +7,10 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::ist_monitor;
-use ist_monitor::bag::replay::{replay, ReplayFrame, GROUND_TRUTH_TOPIC};
+use common::{ist_monitor, DEMO_BAG, DEMO_CONFIG, DEMO_URDF};
 use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
-use ist_monitor::cli::{DEMO_BAG, DEMO_CONFIG};
 use ist_monitor::config::Config;
+use ist_monitor::monitor::replay::{replay, ReplayFrame, GROUND_TRUTH_TOPIC};
 use ist_monitor::monitor::{Level, Monitor};
 use ist_monitor::msg::{self, Float64};
 use ist_monitor::robot::RobotModel;
@@ -23,7 +22,7 @@ fn bundled(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, ist_monitor::bag::replay::Summary) {
+fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, ist_monitor::monitor::replay::Summary) {
     let config = Config::load(
         Path::new(DEMO_CONFIG),
         &[("mode".to_string(), mode.to_string())],
@@ -208,7 +207,7 @@ fn faulty_inputs_are_reported_never_safe() {
 /// has the bundled demo bag's clouds, byte for byte, and its truths.
 #[test]
 fn generator_reproduces_the_bundled_bag() {
-    let model = RobotModel::load(Path::new(ist_monitor::cli::DEMO_URDF), &[]).unwrap();
+    let model = RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
     let params = ScenarioParams {

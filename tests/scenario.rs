@@ -4,11 +4,14 @@
 mod common;
 
 use common::ist_monitor;
-use ist_monitor::bench::{kinect_poses, kinect_root_from_sensor};
+#[path = "../src/bin/ist_monitor/bench/scenes.rs"]
+mod scenes;
+
 use ist_monitor::cloud;
 use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
 use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, Outcome, QueryOptions};
 use ist_monitor::robot::RobotModel;
+use scenes::{kinect_poses, kinect_root_from_sensor};
 
 /// Exact mode within 1 mm of the reference distances, on the reference links and points; the
 /// certified per-link intervals hold the reference per-link minima. Exact mode does not depend

@@ -1,4 +1,5 @@
-//! Bags: rosbag2 MCAP in and out, and the replay of a bag through the monitor.
+//! Bags: rosbag2 MCAP in and out, over the messages of `crate::msg` (replay through the
+//! monitor is `crate::monitor::replay`).
 //!
 //! - `reader`: a `.mcap` file, or a rosbag2 folder (`metadata.yaml` names its files; without
 //!   one, its `.mcap` files in name order); chunks compressed with zstd or lz4 or not at all;
@@ -6,17 +7,18 @@
 //! - `writer`: MCAP with the `ros2msg` schemas of `crate::msg`, CDR messages and the rosbag2
 //!   profile, readable by Foxglove, rosbags and `ros2 bag`; optionally the rosbag2 folder's
 //!   `metadata.yaml`.
-//! - `replay`: the monitor (`crate::monitor`) fed from a bag, per-frame lines and a summary, the
-//!   node's outputs written to an MCAP.
 
 pub mod reader;
-pub mod replay;
 pub mod writer;
 
 pub use reader::{read_messages, BagMessage};
 pub use writer::BagWriter;
 
 use std::path::PathBuf;
+
+/// Where bags of the scenario generator carry the exact minimum distance of every frame
+/// (`std_msgs/Float64`, at the cloud's log time).
+pub const GROUND_TRUTH_TOPIC: &str = "/ground_truth/min_distance";
 
 #[derive(Debug, thiserror::Error)]
 pub enum BagError {

@@ -53,7 +53,15 @@ pub enum CloudError {
         index: usize,
     },
     #[error("PointCloud2: {0}")]
-    Message(String),
+    Decode(#[from] crate::msg::MsgError),
+    #[error("PointCloud2 in frame '{frame}': {message}")]
+    Layout { frame: String, message: String },
+    #[error("{path}: topic {topic}: {source}")]
+    InBag {
+        path: PathBuf,
+        topic: String,
+        source: Box<CloudError>,
+    },
     #[error("{path}: unknown cloud format (expected .pcd, .ply, .mcap or a rosbag2 folder)")]
     UnknownFormat { path: PathBuf },
 }
@@ -92,8 +100,11 @@ pub fn point_cloud_from_bag(path: &Path, index: usize) -> Result<Cloud, CloudErr
         count: clouds.len(),
         index,
     })?;
-    pointcloud2::cloud_from_cdr(&m.data)
-        .map_err(|e| CloudError::Message(format!("{}: topic {}: {e}", path.display(), m.topic)))
+    pointcloud2::cloud_from_cdr(&m.data).map_err(|e| CloudError::InBag {
+        path: path.to_owned(),
+        topic: m.topic.to_string(),
+        source: Box::new(e),
+    })
 }
 
 /// Reads a scalar of PCD/PLY/PointField type `kind` at `bytes[..]` as f32.

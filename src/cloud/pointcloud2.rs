@@ -21,7 +21,7 @@ use super::{Cloud, CloudError, Scalar};
 
 /// Decodes a CDR payload (with its encapsulation header) into the message, borrowing its data.
 pub fn decode(payload: &[u8]) -> Result<PointCloud2<'_>, CloudError> {
-    msg::decode(payload).map_err(|e| CloudError::Message(e.to_string()))
+    Ok(msg::decode(payload)?)
 }
 
 /// Decodes a CDR payload straight into a cloud.
@@ -45,7 +45,10 @@ fn scalar(datatype: u8) -> Option<Scalar> {
 
 impl PointCloud2<'_> {
     fn error(&self, message: String) -> CloudError {
-        CloudError::Message(format!("frame '{}': {message}", self.header.frame_id))
+        CloudError::Layout {
+            frame: self.header.frame_id.clone(),
+            message,
+        }
     }
 
     /// Checks the layout; returns the offset and type of x, y and z.
@@ -142,4 +145,130 @@ impl PointCloud2<'_> {
             stamp: Some((self.header.stamp.sec, self.header.stamp.nanosec)),
         }
     }
+}
+
+/// The colour [`encode`] gives a point (red, green, blue).
+pub type Colour = fn([f32; 3]) -> [u8; 3];
+
+/// The layout of a PointCloud2 that [`encode`] writes: `x y z` of one datatype at offsets 0,
+/// s and 2s (s = 4 for FLOAT32, 8 for FLOAT64), then padding up to `point_step`, with an
+/// optional packed `rgb` FLOAT32 field; `row_padding` bytes after each row.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Layout {
+    pub width: u32,
+    pub height: u32,
+    /// `PointField::FLOAT32` or `PointField::FLOAT64`.
+    pub datatype: u8,
+    pub big_endian: bool,
+    pub point_step: u32,
+    pub row_padding: u32,
+    /// An `rgb` field at this offset, its colour made from the point (FLOAT32, the packed
+    /// `0x00RRGGBB` bits that RGB-D drivers publish).
+    pub rgb: Option<(u32, Colour)>,
+    /// The value of padding bytes.
+    pub pad: u8,
+}
+
+impl Layout {
+    /// An unorganized cloud of `n` points, FLOAT32 little endian, 16-byte points.
+    pub fn unorganized(n: u32) -> Self {
+        Self {
+            width: n,
+            height: 1,
+            datatype: PointField::FLOAT32,
+            big_endian: false,
+            point_step: 16,
+            row_padding: 0,
+            rgb: None,
+            pad: 0,
+        }
+    }
+}
+
+/// Encodes `points` (row by row, `width × height` of them) as a PointCloud2 of `layout`.
+/// Refused with an error: a count that does not match, an unknown datatype, fields that do not
+/// fit in `point_step`.
+pub fn encode(
+    header: msg::Header,
+    points: &[[f32; 3]],
+    layout: &Layout,
+) -> Result<PointCloud2<'static>, CloudError> {
+    let bad = |message: String| CloudError::Layout {
+        frame: header.frame_id.clone(),
+        message: format!("cannot encode: {message}"),
+    };
+    let size: u32 = match layout.datatype {
+        PointField::FLOAT32 => 4,
+        PointField::FLOAT64 => 8,
+        other => return Err(bad(format!("datatype {other} (FLOAT32 or FLOAT64 only)"))),
+    };
+    let n = layout.width as u64 * layout.height as u64;
+    if n != points.len() as u64 {
+        return Err(bad(format!(
+            "{} points for {}×{}",
+            points.len(),
+            layout.width,
+            layout.height
+        )));
+    }
+    let end = layout.rgb.map_or(3 * size, |(o, _)| (o + 4).max(3 * size));
+    if layout.point_step < end || layout.rgb.is_some_and(|(o, _)| o < 3 * size) {
+        return Err(bad(format!(
+            "fields need {end} bytes without overlap; point_step is {}",
+            layout.point_step
+        )));
+    }
+    let step = layout.point_step as usize;
+    let row_step = step * layout.width as usize + layout.row_padding as usize;
+    let mut data = vec![layout.pad; row_step * layout.height as usize];
+    let put = |at: &mut [u8], v: f64| match (layout.datatype, layout.big_endian) {
+        (PointField::FLOAT64, true) => at[..8].copy_from_slice(&v.to_be_bytes()),
+        (PointField::FLOAT64, false) => at[..8].copy_from_slice(&v.to_le_bytes()),
+        (_, true) => at[..4].copy_from_slice(&(v as f32).to_be_bytes()),
+        (_, false) => at[..4].copy_from_slice(&(v as f32).to_le_bytes()),
+    };
+    for (i, p) in points.iter().enumerate() {
+        let (row, col) = (i / layout.width as usize, i % layout.width as usize);
+        let point = &mut data[row * row_step + col * step..][..step];
+        for (k, &v) in p.iter().enumerate() {
+            put(&mut point[k * size as usize..], v as f64);
+        }
+        if let Some((offset, color)) = layout.rgb {
+            let [r, g, b] = color(*p);
+            let bits = (r as u32) << 16 | (g as u32) << 8 | b as u32;
+            let v = f32::from_bits(bits);
+            let at = &mut point[offset as usize..offset as usize + 4];
+            at.copy_from_slice(&if layout.big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            });
+        }
+    }
+    let field = |name: &str, offset: u32, datatype: u8| PointField {
+        name: name.into(),
+        offset,
+        datatype,
+        count: 1,
+    };
+    let mut fields = vec![
+        field("x", 0, layout.datatype),
+        field("y", size, layout.datatype),
+        field("z", 2 * size, layout.datatype),
+    ];
+    if let Some((offset, _)) = layout.rgb {
+        fields.push(field("rgb", offset, PointField::FLOAT32));
+    }
+    Ok(PointCloud2 {
+        header,
+        height: layout.height,
+        width: layout.width,
+        fields,
+        is_bigendian: layout.big_endian,
+        point_step: layout.point_step,
+        row_step: row_step as u32,
+        // ROS's meaning: no NaN or infinite coordinate.
+        is_dense: points.iter().flatten().all(|v| v.is_finite()),
+        data: std::borrow::Cow::Owned(data),
+    })
 }

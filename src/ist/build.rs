@@ -13,8 +13,7 @@
 //! spheres per link) neural gas gives the smaller sum: 4.2 % below the median split on the Panda
 //! and 1.4 % on the UR5e (1.0 % on the Panda at 16k spheres); the median split wins only at
 //! small budgets (2.6 % at 4096, 5.7 % at 1000). Neural gas is therefore the default; the
-//! median split stays selectable (`--tree median-split`) so the comparison can be rerun, and by
-//! query cost once the query exists.
+//! median split stays selectable (`--tree median-split`) so the comparison can be rerun.
 //!
 //! Layout: `nodes[0]` is the root; the children of a node are contiguous, either nodes
 //! (`children_are_spheres == 0`) or spheres of the link's sphere array, which the build reorders

@@ -66,6 +66,11 @@ impl TreeCache {
         Self { dir }
     }
 
+    /// The cache in `dir`, or in [`TreeCache::default_dir`] when none is given.
+    pub fn at(dir: Option<&Path>) -> Self {
+        Self::new(dir.map_or_else(Self::default_dir, Path::to_path_buf))
+    }
+
     /// `$IST_MONITOR_CACHE`, else `$XDG_CACHE_HOME/ist_monitor`, else `~/.cache/ist_monitor`.
     pub fn default_dir() -> PathBuf {
         if let Some(dir) = std::env::var_os("IST_MONITOR_CACHE") {

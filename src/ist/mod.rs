@@ -24,8 +24,8 @@ use cache::TreeCache;
 
 /// A node of an inner sphere tree: a sphere bounding its children, which are
 /// `child_count` consecutive entries from `first_child` of the node array, or of the sphere
-/// array when `children_are_spheres` is 1. WGSL mirror (32 bytes):
-/// `struct IstNode { sphere: vec4<f32>, first_child: u32, child_count: u32, children_are_spheres: u32, pad: u32 }`.
+/// array when `children_are_spheres` is 1. WGSL mirror (32 bytes): `Node` in
+/// `shaders/traverse.wgsl`, checked member by member against `query::layout::MIRRORS`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
 pub struct IstNode {

@@ -9,21 +9,24 @@
 //! → the query (`query::Engine`) → outputs. A decode error, a missing or stale transform or
 //! joint, and a failed query are faults of that frame: reported with their reason and an ERROR
 //! level, never as a distance. The next message is processed as usual.
+//!
+//! `replay` feeds a bag through this pipeline in log-time order, as the node (`crate::node`)
+//! feeds it from DDS.
 
 pub mod outputs;
+pub mod replay;
 
 pub use outputs::{Level, LevelTracker, Outputs};
 
 use std::time::Instant;
 
-use anyhow::{Context, Result};
 use nalgebra::Isometry3;
 
 use crate::cloud::{pointcloud2, CloudError};
 use crate::config::Config;
 use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::msg::{self, JointState, MsgError, PointCloud2, TfMessage};
-use crate::query::{Engine, QueryError, QueryResult};
+use crate::query::{Backend, Engine, QueryError, QueryResult};
 use crate::robot::RobotModel;
 use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
 
@@ -96,20 +99,39 @@ pub struct Monitor {
     level: LevelTracker,
 }
 
+/// A monitor that cannot start: each names the parameter, file, link or frame at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum MonitorError {
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    #[error("loading robot {urdf}: {source}")]
+    Robot {
+        urdf: std::path::PathBuf,
+        source: crate::robot::RobotError,
+    },
+    #[error("inner sphere trees: {0}")]
+    Trees(#[from] crate::ist::IstError),
+    #[error("query: {0}")]
+    Query(#[from] QueryError),
+    #[error("parameter static_transforms: {parent} → {child}: {source}")]
+    StaticTransform {
+        parent: String,
+        child: String,
+        source: TfError,
+    },
+    #[error("parameter fixed_joint_state.names: {0}")]
+    FixedJoint(JointError),
+}
+
 impl Monitor {
     /// Loads the robot, builds (or loads from the cache) its trees and applies the config's
     /// static transforms and fixed joints; `built` is called with each link's name as its tree
     /// is ready. Errors here are start-up errors.
-    pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self> {
+    pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self, MonitorError> {
         let urdf = config.robot_urdf()?;
         let model = RobotModel::load(&urdf, &config.package_paths)
-            .with_context(|| format!("loading robot {}", urdf.display()))?;
-        let cache = TreeCache::new(
-            config
-                .cache_dir
-                .clone()
-                .unwrap_or_else(TreeCache::default_dir),
-        );
+            .map_err(|source| MonitorError::Robot { urdf, source })?;
+        let cache = TreeCache::at(config.cache_dir.as_deref());
         let trees: Vec<LinkTree> = ist::build_robot(&model, &config.build, Some(&cache), built)?
             .into_iter()
             .map(|(t, _)| t)
@@ -118,9 +140,18 @@ impl Monitor {
     }
 
     /// As [`Monitor::new`], with the model and trees given.
-    pub fn with_trees(config: Config, model: RobotModel, trees: &[LinkTree]) -> Result<Self> {
-        config.query.validate().context("query parameters")?;
-        let engine = Engine::new(&model, trees, &config.selection)?;
+    pub fn with_trees(
+        config: Config,
+        model: RobotModel,
+        trees: &[LinkTree],
+    ) -> Result<Self, MonitorError> {
+        config.query.validate()?;
+        let mut engine = Engine::new(&model, trees, &config.selection)?;
+        // The GPU of `auto` or `gpu` is probed (device, shader) at start-up, so that no frame's
+        // processing time carries it.
+        if config.query.backend != Backend::Cpu {
+            engine.gpu();
+        }
         let (tf, joints) = Self::inputs(&config, &model)?;
         let level = LevelTracker::new(&config);
         Ok(Self {
@@ -135,27 +166,29 @@ impl Monitor {
 
     /// Empty input buffers, holding only what the config states (static transforms, fixed
     /// joints).
-    fn inputs(config: &Config, model: &RobotModel) -> Result<(TfBuffer, JointStateBuffer)> {
+    fn inputs(
+        config: &Config,
+        model: &RobotModel,
+    ) -> Result<(TfBuffer, JointStateBuffer), MonitorError> {
         let mut tf = TfBuffer::new(10.0);
         for t in &config.static_transforms {
-            tf.insert(t, true).with_context(|| {
-                format!(
-                    "static transform {} → {}",
-                    t.header.frame_id, t.child_frame_id
-                )
-            })?;
+            tf.insert(t, true)
+                .map_err(|source| MonitorError::StaticTransform {
+                    parent: t.header.frame_id.clone(),
+                    child: t.child_frame_id.clone(),
+                    source,
+                })?;
         }
         let mut joints = JointStateBuffer::new(model.kinematics.variables());
         joints
             .set_fixed(&config.fixed_joint_state)
-            .map_err(anyhow::Error::msg)
-            .context("parameter fixed_joint_state.names")?;
+            .map_err(MonitorError::FixedJoint)?;
         Ok((tf, joints))
     }
 
     /// Forgets every transform, joint state and level received, as at start-up (a replay of
     /// another bag starts from here).
-    pub fn reset(&mut self) -> Result<()> {
+    pub fn reset(&mut self) -> Result<(), MonitorError> {
         (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
         self.level = LevelTracker::new(&self.config);
         Ok(())

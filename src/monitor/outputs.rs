@@ -16,9 +16,10 @@
 use crate::config::Config;
 use crate::msg::{
     Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
-    KeyValue, Marker, MarkerArray, Point, Pose, Time, Vector3,
+    KeyValue, Marker, MarkerArray, Owned, Point, Pose, RosMessage, Time, Vector3,
 };
 use crate::query::{Outcome, QueryResult};
+use serde::de::DeserializeSeed;
 
 use super::Fault;
 
@@ -105,6 +106,66 @@ pub struct Outputs {
     pub safety_stop: Bool,
 }
 
+/// The node's output topics: the one table that the node publishes, `replay --out` writes and
+/// `record` records (the doc table at the top of this module).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum OutputTopic {
+    MinDistance,
+    LinkDistances,
+    ClosestPoints,
+    Diagnostics,
+    SafetyStop,
+}
+
+impl OutputTopic {
+    /// The topic's name: `~/…` is private to the node, anything else is absolute.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputTopic::MinDistance => "~/min_distance",
+            OutputTopic::LinkDistances => "~/link_distances",
+            OutputTopic::ClosestPoints => "~/closest_points",
+            OutputTopic::Diagnostics => "/diagnostics",
+            OutputTopic::SafetyStop => "~/safety_stop",
+        }
+    }
+
+    /// The fully qualified topic of the node at `node_path` (`/ns/name`).
+    pub fn topic(self, node_path: &str) -> String {
+        match self.name().strip_prefix("~/") {
+            Some(name) => format!("{}/{name}", node_path.trim_end_matches('/')),
+            None => self.name().to_owned(),
+        }
+    }
+}
+
+/// What the output table is walked with: each topic with its message type and, for a frame,
+/// its message (`None` when nothing is published on it, as `~/min_distance` on a fault).
+pub trait OutputVisitor {
+    type Error;
+    fn visit<T>(&mut self, topic: OutputTopic, message: Option<&T>) -> Result<(), Self::Error>
+    where
+        T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
+        Owned<T>: for<'de> DeserializeSeed<'de, Value = T>;
+}
+
+/// The table: every output topic, in publication order, with its type and the frame's message.
+fn each_output<V: OutputVisitor>(o: Option<&Outputs>, v: &mut V) -> Result<(), V::Error> {
+    v.visit::<Float64>(
+        OutputTopic::MinDistance,
+        o.and_then(|o| o.min_distance.as_ref()),
+    )?;
+    v.visit::<JointState>(OutputTopic::LinkDistances, o.map(|o| &o.link_distances))?;
+    v.visit::<MarkerArray<'static>>(OutputTopic::ClosestPoints, o.map(|o| &o.closest_points))?;
+    v.visit::<DiagnosticArray>(OutputTopic::Diagnostics, o.map(|o| &o.diagnostics))?;
+    v.visit::<Bool>(OutputTopic::SafetyStop, o.map(|o| &o.safety_stop))
+}
+
+/// Walks every output topic with its type and no message (to create publishers or
+/// subscriptions for all of them).
+pub fn visit_output_topics<V: OutputVisitor>(v: &mut V) -> Result<(), V::Error> {
+    each_output(None, v)
+}
+
 /// The conservative distance of a result: `None` when there were no valid points.
 pub fn conservative_distance(r: &QueryResult) -> Option<f64> {
     match (&r.outcome, &r.nearest) {
@@ -123,6 +184,11 @@ fn point(p: [f64; 3]) -> Point {
 }
 
 impl Outputs {
+    /// Walks every output topic with this frame's message.
+    pub fn visit<V: OutputVisitor>(&self, v: &mut V) -> Result<(), V::Error> {
+        each_output(Some(self), v)
+    }
+
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         config: &Config,

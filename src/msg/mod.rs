@@ -164,6 +164,69 @@ pub fn definition(ty: &str) -> Option<String> {
     Some(out)
 }
 
+/// A seed that deserializes a received message into its owned (`'static`) form, for every
+/// message the node and its tools receive: messages that borrow their byte data from the
+/// sample (`PointCloud2`, `MarkerArray`) are copied out of it once.
+#[derive(Clone, Copy)]
+pub struct Owned<T>(std::marker::PhantomData<T>);
+
+impl<T> Default for Owned<T> {
+    fn default() -> Self {
+        Self(std::marker::PhantomData)
+    }
+}
+
+macro_rules! owned_as_is {
+    ($($ty:ty),*) => {$(
+        impl<'de> serde::de::DeserializeSeed<'de> for Owned<$ty> {
+            type Value = $ty;
+            fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<$ty, D::Error> {
+                <$ty>::deserialize(d)
+            }
+        }
+    )*};
+}
+owned_as_is!(Float64, Bool, JointState, DiagnosticArray, TfMessage);
+
+/// `data` copied out of the sample.
+fn owned_bytes(data: std::borrow::Cow<'_, [u8]>) -> std::borrow::Cow<'static, [u8]> {
+    std::borrow::Cow::Owned(data.into_owned())
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for Owned<PointCloud2<'static>> {
+    type Value = PointCloud2<'static>;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        let m = PointCloud2::deserialize(d)?;
+        Ok(PointCloud2 {
+            data: owned_bytes(m.data),
+            ..m
+        })
+    }
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for Owned<MarkerArray<'static>> {
+    type Value = MarkerArray<'static>;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        let m = MarkerArray::deserialize(d)?;
+        let markers = m
+            .markers
+            .into_iter()
+            .map(|k| Marker {
+                texture: CompressedImage {
+                    data: owned_bytes(k.texture.data),
+                    ..k.texture
+                },
+                mesh_file: MeshFile {
+                    data: owned_bytes(k.mesh_file.data),
+                    ..k.mesh_file
+                },
+                ..k
+            })
+            .collect();
+        Ok(MarkerArray { markers })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,23 +15,21 @@
 pub mod play;
 pub mod record;
 
+use std::any::Any;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context as _, Result};
 use futures::StreamExt;
 use ros2_client::{
     Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
 };
 use serde::de::{DeserializeOwned, DeserializeSeed};
-use serde::Deserialize;
 
 use crate::config::Config;
+use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::{Frame, Monitor};
-use crate::msg::{
-    Bool, DiagnosticArray, Float64, JointState, MarkerArray, PointCloud2, RosMessage, TfMessage,
-};
+use crate::msg::{JointState, Owned, PointCloud2, RosMessage, TfMessage};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -62,25 +60,67 @@ pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
 /// reassembles.
 pub const SOCKET_BUFFER: usize = 64 << 20;
 
+/// Why the node or a tool cannot run; each names the entity (topic, node, argument, bag).
+#[derive(Debug, thiserror::Error)]
+pub enum NodeError {
+    #[error("ROS_DOMAIN_ID '{0}' is not a domain id")]
+    DomainId(String),
+    #[error("DDS participant: {0}")]
+    Participant(String),
+    /// A DDS entity that could not be made: `what` is topic, publisher, subscription, node or
+    /// spinner; `message` is the DDS library's own.
+    #[error("{what} {name}: {message}")]
+    Entity {
+        what: &'static str,
+        name: String,
+        message: String,
+    },
+    #[error("--ros-args: {0}")]
+    RosArgs(String),
+    #[error(transparent)]
+    Bag(#[from] crate::bag::BagError),
+    #[error(transparent)]
+    Message(#[from] crate::msg::MsgError),
+    #[error("{0}: nothing to play")]
+    NothingToPlay(std::path::PathBuf),
+    #[error("starting the executor thread: {0}")]
+    Thread(#[from] std::io::Error),
+}
+
+type Result<T, E = NodeError> = std::result::Result<T, E>;
+
+/// Locks `m`; a lock poisoned by a panicking thread still holds consistent data here (slots
+/// and flags are replaced whole), so the node goes on rather than panicking in turn.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn entity(what: &'static str, name: &str, e: impl std::fmt::Debug) -> NodeError {
+    NodeError::Entity {
+        what,
+        name: name.to_owned(),
+        message: format!("{e:?}"),
+    }
+}
+
 /// A DDS context on `ROS_DOMAIN_ID` (0 when unset), with [`SOCKET_BUFFER`] socket buffers.
 pub fn context() -> Result<Context> {
-    let domain = std::env::var("ROS_DOMAIN_ID")
-        .ok()
-        .map(|d| d.parse::<u16>())
-        .transpose()
-        .context("ROS_DOMAIN_ID")?
-        .unwrap_or(0);
+    let domain = match std::env::var("ROS_DOMAIN_ID") {
+        Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d))?,
+        Err(_) => 0,
+    };
     let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
         .socket_receive_buffer_size(SOCKET_BUFFER)
         .socket_send_buffer_size(SOCKET_BUFFER)
         .build()
-        .map_err(|e| anyhow!("DDS: {e:?}"))?;
-    Context::from_domain_participant(participant).map_err(|e| anyhow!("DDS: {e:?}"))
+        .map_err(|e| NodeError::Participant(format!("{e:?}")))?;
+    Context::from_domain_participant(participant)
+        .map_err(|e| NodeError::Participant(format!("{e:?}")))
 }
 
 /// A ROS 2 name from a fully qualified topic name.
 pub fn topic_name(full: &str) -> Result<Name> {
-    Name::parse(full).map_err(|e| anyhow!("topic {full}: {e:?}"))
+    Name::parse(full).map_err(|e| entity("topic", full, e))
 }
 
 /// The DDS topic of `T` named `topic`.
@@ -90,7 +130,7 @@ fn topic<T: RosMessage>(
     qos: &QosProfile,
 ) -> Result<ros2_client::dds::rustdds::Topic> {
     node.create_topic(&topic_name(topic)?, type_name::<T>(), qos)
-        .map_err(|e| anyhow!("topic {topic}: {e:?}"))
+        .map_err(|e| entity("topic", topic, e))
 }
 
 /// Creates a publisher of `T` on `topic`.
@@ -101,7 +141,7 @@ pub fn publisher<T: RosMessage>(
 ) -> Result<Publisher<T>> {
     let t = topic::<T>(node, name, &qos)?;
     node.create_publisher(&t, Some(qos))
-        .map_err(|e| anyhow!("publisher {name}: {e:?}"))
+        .map_err(|e| entity("publisher", name, e))
 }
 
 /// The node of a command-line tool, `/<prefix>_<pid>`; see [`spinning_node`].
@@ -120,14 +160,14 @@ pub fn spinning_node(
     let mut node = ctx
         .new_node(
             NodeName::new(namespace, name)
-                .map_err(|e| anyhow!("node name {namespace} {name}: {e:?}"))?,
+                .map_err(|e| entity("node name", &format!("{namespace} {name}"), e))?,
             NodeOptions::new().enable_rosout(false),
         )
-        .map_err(|e| anyhow!("node {name}: {e:?}"))?;
+        .map_err(|e| entity("node", name, e))?;
     executor
         .spawn(
             node.spinner()
-                .map_err(|e| anyhow!("spinner: {e:?}"))?
+                .map_err(|e| entity("spinner of node", name, e))?
                 .spin(),
         )
         .detach();
@@ -142,7 +182,7 @@ pub fn subscription<T: RosMessage + 'static>(
 ) -> Result<Subscription<T>> {
     let t = topic::<T>(node, name, &qos)?;
     node.create_subscription(&t, Some(qos))
-        .map_err(|e| anyhow!("subscription {name}: {e:?}"))
+        .map_err(|e| entity("subscription", name, e))
 }
 
 /// Forwards each message of `sub`, as `wrap` makes it, to `tx` (the processing thread); a
@@ -179,27 +219,6 @@ fn forward<T, U>(
         .detach();
 }
 
-/// Deserializes a message that borrows (a PointCloud2, a MarkerArray) into its owned form.
-#[derive(Clone, Copy)]
-pub struct Owned<T>(std::marker::PhantomData<T>);
-
-impl<T> Default for Owned<T> {
-    fn default() -> Self {
-        Self(std::marker::PhantomData)
-    }
-}
-
-impl<'de> DeserializeSeed<'de> for Owned<PointCloud2<'static>> {
-    type Value = PointCloud2<'static>;
-    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
-        let m = PointCloud2::deserialize(d)?;
-        Ok(PointCloud2 {
-            data: std::borrow::Cow::Owned(m.data.into_owned()),
-            ..m
-        })
-    }
-}
-
 /// The node's command-line remappings (`--ros-args -r __node:=… -r __ns:=… -p name:=value`).
 #[derive(Debug, Default, Clone)]
 pub struct RosArgs {
@@ -216,26 +235,34 @@ pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
         match a.as_str() {
             "--ros-args" => {}
             "-r" | "--remap" => {
-                let r = it.next().ok_or_else(|| anyhow!("{a} needs FROM:=TO"))?;
-                let (from, to) = r
-                    .split_once(":=")
-                    .ok_or_else(|| anyhow!("remapping '{r}' is not FROM:=TO"))?;
+                let r = it
+                    .next()
+                    .ok_or_else(|| NodeError::RosArgs(format!("{a} needs FROM:=TO")))?;
+                let (from, to) = r.split_once(":=").ok_or_else(|| {
+                    NodeError::RosArgs(format!("remapping '{r}' is not FROM:=TO"))
+                })?;
                 match from {
                     "__node" | "__name" => out.node = Some(to.to_owned()),
                     "__ns" => out.namespace = Some(to.to_owned()),
                     other => {
-                        return Err(anyhow!(
+                        return Err(NodeError::RosArgs(format!(
                             "remapping of {other} is not supported (only __node and __ns)"
-                        ))
+                        )))
                     }
                 }
             }
             "-p" | "--param" => {
-                let p = it.next().ok_or_else(|| anyhow!("{a} needs NAME:=VALUE"))?;
+                let p = it
+                    .next()
+                    .ok_or_else(|| NodeError::RosArgs(format!("{a} needs NAME:=VALUE")))?;
                 out.params
-                    .push(crate::config::parse_override(p).map_err(anyhow::Error::msg)?);
+                    .push(crate::config::parse_override(p).map_err(NodeError::RosArgs)?);
             }
-            other => return Err(anyhow!("unsupported ROS argument '{other}'")),
+            other => {
+                return Err(NodeError::RosArgs(format!(
+                    "unsupported ROS argument '{other}'"
+                )))
+            }
         }
     }
     Ok(out)
@@ -256,19 +283,66 @@ struct Shared {
     input_errors: AtomicU64,
 }
 
-/// The node's publishers.
-struct Outputs {
-    min_distance: Publisher<Float64>,
-    link_distances: Publisher<JointState>,
-    closest_points: Publisher<MarkerArray<'static>>,
-    diagnostics: Publisher<DiagnosticArray>,
-    safety_stop: Publisher<Bool>,
-}
+/// The node's publishers, one per row of the output table (`OutputTopic`), each a
+/// `Publisher<T>` of that row's message type.
+struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
 
-impl Outputs {
+impl Publishers {
+    /// A publisher for every output topic of the node at `node_path`.
+    fn new(node: &mut Node, node_path: &str, qos: QosProfile) -> Result<Self> {
+        struct Create<'a> {
+            node: &'a mut Node,
+            node_path: &'a str,
+            qos: QosProfile,
+            made: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
+        }
+        impl OutputVisitor for Create<'_> {
+            type Error = NodeError;
+            fn visit<T>(&mut self, topic: OutputTopic, _: Option<&T>) -> Result<()>
+            where
+                T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
+                Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
+            {
+                let p = publisher::<T>(self.node, &topic.topic(self.node_path), self.qos.clone())?;
+                self.made.push((topic, Box::new(p)));
+                Ok(())
+            }
+        }
+        let mut create = Create {
+            node,
+            node_path,
+            qos,
+            made: Vec::new(),
+        };
+        visit_output_topics(&mut create)?;
+        Ok(Self(create.made))
+    }
+
     /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
     /// join the diagnostics.
     fn publish(&self, frame: Frame, dropped: u64, input_errors: u64) {
+        struct Publish<'a>(&'a Publishers);
+        impl OutputVisitor for Publish<'_> {
+            type Error = String;
+            fn visit<T>(&mut self, topic: OutputTopic, message: Option<&T>) -> Result<(), String>
+            where
+                T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
+                Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
+            {
+                let Some(m) = message else {
+                    return Ok(());
+                };
+                let publisher = (self.0)
+                    .0
+                    .iter()
+                    .find(|(t, _)| *t == topic)
+                    .and_then(|(_, p)| p.downcast_ref::<Publisher<T>>())
+                    .ok_or_else(|| format!("{}: no publisher", topic.name()))?;
+                publisher
+                    .publish(m.clone())
+                    .map_err(|e| format!("{}: {e:?}", topic.name()))
+            }
+        }
         let mut o = frame.outputs;
         for status in &mut o.diagnostics.status {
             status.values.extend([
@@ -282,24 +356,7 @@ impl Outputs {
                 },
             ]);
         }
-        let result = (|| -> Result<(), String> {
-            if let Some(d) = o.min_distance {
-                self.min_distance.publish(d).map_err(|e| format!("{e:?}"))?;
-            }
-            self.link_distances
-                .publish(o.link_distances)
-                .map_err(|e| format!("{e:?}"))?;
-            self.closest_points
-                .publish(o.closest_points)
-                .map_err(|e| format!("{e:?}"))?;
-            self.diagnostics
-                .publish(o.diagnostics)
-                .map_err(|e| format!("{e:?}"))?;
-            self.safety_stop
-                .publish(o.safety_stop)
-                .map_err(|e| format!("{e:?}"))
-        })();
-        if let Err(e) = result {
+        if let Err(e) = o.visit(&mut Publish(self)) {
             log::warn!("publishing: {e}");
         }
     }
@@ -351,13 +408,13 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
                             }
                             last_seq = Some(seq);
                             let now = Instant::now();
-                            let mut slot = shared.slots[k].lock().expect("slot");
+                            let mut slot = lock(&shared.slots[k]);
                             if slot.cloud.replace((cloud, now)).is_some() {
                                 shared.dropped.fetch_add(1, Ordering::Relaxed);
                             }
                             slot.last_received = Some(now);
                             drop(slot);
-                            *shared.wake_lock.lock().expect("wake") = true;
+                            *lock(&shared.wake_lock) = true;
                             shared.wake.notify_one();
                         }
                         Err(e) => {
@@ -393,29 +450,7 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });
-    let outputs = Outputs {
-        min_distance: publisher(
-            &mut node,
-            &config.private_topic("min_distance"),
-            out_qos.clone(),
-        )?,
-        link_distances: publisher(
-            &mut node,
-            &config.private_topic("link_distances"),
-            out_qos.clone(),
-        )?,
-        closest_points: publisher(
-            &mut node,
-            &config.private_topic("closest_points"),
-            out_qos.clone(),
-        )?,
-        diagnostics: publisher(&mut node, "/diagnostics", out_qos.clone())?,
-        safety_stop: publisher(
-            &mut node,
-            &config.private_topic("safety_stop"),
-            out_qos.clone(),
-        )?,
-    };
+    let outputs = Publishers::new(&mut node, &config.node_path(), out_qos)?;
     let ex = executor.clone();
     // The executor outlives the node: dropping the node tells its spinner to stop.
     let stop_ex = Arc::new(AtomicBool::new(false));
@@ -445,12 +480,12 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
     let mut last_fault_report = vec![None::<Instant>; sources.len()];
     while !stop.load(Ordering::Relaxed) {
         {
-            let mut woken = shared.wake_lock.lock().expect("wake");
+            let mut woken = lock(&shared.wake_lock);
             if !*woken {
                 woken = shared
                     .wake
                     .wait_timeout(woken, Duration::from_millis(20))
-                    .expect("wake")
+                    .unwrap_or_else(|poisoned| poisoned.into_inner())
                     .0;
             }
             *woken = false;
@@ -471,7 +506,7 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         let now = Instant::now();
         for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
             let (cloud, last) = {
-                let mut slot = shared.slots[k].lock().expect("slot");
+                let mut slot = lock(&shared.slots[k]);
                 (slot.cloud.take(), slot.last_received)
             };
             if let Some((cloud, received)) = cloud {
@@ -507,6 +542,7 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::msg::DiagnosticArray;
 
     #[test]
     fn ros_args_remap_and_set_parameters() {

@@ -10,12 +10,13 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use anyhow::{anyhow, Result};
 use futures::StreamExt;
 use ros2_client::Publisher;
 use serde::Serialize;
 
-use super::{publisher, subscription, tool_node, History, QosProfile, RELIABLE_QOS, TF_STATIC_QOS};
+use super::{
+    publisher, subscription, tool_node, History, NodeError, QosProfile, RELIABLE_QOS, TF_STATIC_QOS,
+};
 use crate::bag::read_messages;
 use crate::msg::{self, JointState, PointCloud2, RosMessage, TfMessage, Time};
 
@@ -60,12 +61,12 @@ fn shift(t: &mut Time, offset_ns: i64) {
 }
 
 /// Plays `bag`; returns what was published and, with `measure`, what came back.
-pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
+pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError> {
     let known = [PointCloud2::TYPE, JointState::TYPE, TfMessage::TYPE];
     let messages = read_messages(bag, &|_, schema| known.contains(&schema))?;
     let first = messages
         .first()
-        .ok_or_else(|| anyhow!("{}: nothing to play", bag.display()))?;
+        .ok_or_else(|| NodeError::NothingToPlay(bag.to_owned()))?;
     let (t0, t1) = (
         first.log_time_ns,
         messages.last().map_or(0, |m| m.log_time_ns),
@@ -105,16 +106,9 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
                 let mut stream = std::pin::pin!(sub.async_stream());
                 while let Some(Ok((m, _))) = stream.next().await {
                     let now = Instant::now();
-                    let at = sent
-                        .lock()
-                        .expect("sent")
-                        .get(&m.header.stamp.as_nanos())
-                        .copied();
+                    let at = super::lock(&sent).get(&m.header.stamp.as_nanos()).copied();
                     if let Some(at) = at {
-                        latencies
-                            .lock()
-                            .expect("latencies")
-                            .push(now.duration_since(at).as_secs_f64() * 1e3);
+                        super::lock(&latencies).push(now.duration_since(at).as_secs_f64() * 1e3);
                     }
                 }
             })
@@ -149,9 +143,7 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
                         data: std::borrow::Cow::Owned(c.data.into_owned()),
                         ..c
                     };
-                    sent.lock()
-                        .expect("sent")
-                        .insert(c.header.stamp.as_nanos(), Instant::now());
+                    super::lock(&sent).insert(c.header.stamp.as_nanos(), Instant::now());
                     summary.clouds_published += 1;
                     p.publish(c).map_err(|e| format!("{e:?}"))
                 }
@@ -186,11 +178,11 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary> {
     std::thread::sleep(Duration::from_millis(50));
     done.store(true, std::sync::atomic::Ordering::Relaxed);
     let _ = spin.join();
-    let mut l = latencies.lock().expect("latencies").clone();
+    let mut l = super::lock(&latencies).clone();
     l.sort_by(f64::total_cmp);
     summary.outputs_received = l.len();
     summary.output_rate_hz = l.len() as f64 / played.max(1e-9);
-    let q = |f: f64| (!l.is_empty()).then(|| l[((l.len() - 1) as f64 * f).round() as usize]);
+    let q = |f: f64| crate::stats::percentile(&l, f);
     summary.latency_p50_ms = q(0.5);
     summary.latency_p99_ms = q(0.99);
     summary.latency_max_ms = l.last().copied();

@@ -1,88 +1,90 @@
-//! `ist_monitor record`: the node's outputs (`~/min_distance`, `~/link_distances`,
-//! `~/safety_stop`, `/diagnostics`) received from DDS and written to an MCAP, each at its
+//! `ist_monitor record`: the node's outputs, every topic of the output table
+//! (`monitor::outputs::OutputTopic`: `~/min_distance`, `~/link_distances`, `~/closest_points`,
+//! `/diagnostics`, `~/safety_stop`), received from DDS and written to an MCAP, each at its
 //! receive time, for tests and for looking at a live node afterwards.
 
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use anyhow::Result;
 use futures::StreamExt;
-use serde::de::DeserializeOwned;
+use serde::de::DeserializeSeed;
 
-use super::{subscription, tool_node, RELIABLE_QOS};
+use super::{subscription, tool_node, NodeError, RELIABLE_QOS};
 use crate::bag::{writer::Compression, BagWriter};
-use crate::msg::{Bool, DiagnosticArray, Float64, JointState, RosMessage};
+use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
+use crate::msg::{Owned, RosMessage};
 
-/// Records the outputs of the node `node` (`/ns/name`) for `duration_s` into `out`.
-pub fn record(node_path: &str, out: &Path, duration_s: f64) -> Result<usize> {
-    let executor = smol::Executor::new();
-    let (_ctx, mut node) = tool_node("ist_monitor_record", &executor)?;
-    let writer = Arc::new(Mutex::new(Some(BagWriter::create(out, Compression::Zstd)?)));
-    let count = Arc::new(Mutex::new(0usize));
-    let base = node_path.trim_end_matches('/');
-    fn subscribe<T: RosMessage + DeserializeOwned + Send + Sync + 'static>(
-        node: &mut ros2_client::Node,
-        executor: &smol::Executor<'static>,
-        topic: String,
-        writer: Arc<Mutex<Option<BagWriter>>>,
-        count: Arc<Mutex<usize>>,
-    ) -> Result<()> {
-        let sub = subscription::<T>(node, &topic, RELIABLE_QOS)?;
-        executor
+/// The bag being written and how many messages went into it.
+type Sink = Arc<Mutex<(Option<BagWriter>, usize)>>;
+
+/// Subscribes to every output topic, each message written to the sink.
+struct Subscribe<'a> {
+    node: &'a mut ros2_client::Node,
+    executor: &'a smol::Executor<'static>,
+    node_path: &'a str,
+    sink: Sink,
+}
+
+impl OutputVisitor for Subscribe<'_> {
+    type Error = NodeError;
+    fn visit<T>(&mut self, topic: OutputTopic, _: Option<&T>) -> Result<(), NodeError>
+    where
+        T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
+        Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
+    {
+        let name = topic.topic(self.node_path);
+        let sub = subscription::<T>(self.node, &name, RELIABLE_QOS)?;
+        let sink = self.sink.clone();
+        self.executor
             .spawn(async move {
-                let mut stream = std::pin::pin!(sub.async_stream());
+                let mut stream = std::pin::pin!(sub.async_stream_seed(Owned::<T>::default()));
                 while let Some(Ok((m, _))) = stream.next().await {
                     let now = SystemTime::now()
                         .duration_since(UNIX_EPOCH)
                         .map_or(0, |d| d.as_nanos() as u64);
-                    if let Some(w) = writer.lock().expect("writer").as_mut() {
-                        if let Err(e) = w.write(&topic, now, &m) {
-                            log::warn!("{e}");
+                    let mut sink = sink.lock().unwrap_or_else(|p| p.into_inner());
+                    let (writer, count) = &mut *sink;
+                    if let Some(w) = writer.as_mut() {
+                        match w.write(&name, now, &m) {
+                            Ok(()) => *count += 1,
+                            Err(e) => log::warn!("{e}"),
                         }
-                        *count.lock().expect("count") += 1;
                     }
                 }
             })
             .detach();
         Ok(())
     }
-    let ex: &'static smol::Executor<'static> = Box::leak(Box::new(executor));
-    subscribe::<Float64>(
-        &mut node,
-        ex,
-        format!("{base}/min_distance"),
-        writer.clone(),
-        count.clone(),
-    )?;
-    subscribe::<JointState>(
-        &mut node,
-        ex,
-        format!("{base}/link_distances"),
-        writer.clone(),
-        count.clone(),
-    )?;
-    subscribe::<Bool>(
-        &mut node,
-        ex,
-        format!("{base}/safety_stop"),
-        writer.clone(),
-        count.clone(),
-    )?;
-    subscribe::<DiagnosticArray>(
-        &mut node,
-        ex,
-        "/diagnostics".into(),
-        writer.clone(),
-        count.clone(),
-    )?;
-    smol::block_on(ex.run(smol::Timer::after(Duration::from_secs_f64(duration_s))));
+}
+
+/// Records the outputs of the node `node_path` (`/ns/name`) for `duration_s` into `out`;
+/// returns how many messages were written.
+pub fn record(node_path: &str, out: &Path, duration_s: f64) -> Result<usize, NodeError> {
+    // The executor runs the subscriptions' tasks, which borrow it for as long as they live:
+    // it lives in a static for the rest of the process (one recording per process).
+    static EXECUTOR: std::sync::OnceLock<smol::Executor<'static>> = std::sync::OnceLock::new();
+    let executor = EXECUTOR.get_or_init(smol::Executor::new);
+    let (_ctx, mut node) = tool_node("ist_monitor_record", executor)?;
+    let sink: Sink = Arc::new(Mutex::new((
+        Some(BagWriter::create(out, Compression::Zstd)?),
+        0,
+    )));
+    visit_output_topics(&mut Subscribe {
+        node: &mut node,
+        executor,
+        node_path: node_path.trim_end_matches('/'),
+        sink: sink.clone(),
+    })?;
+    smol::block_on(executor.run(smol::Timer::after(Duration::from_secs_f64(duration_s))));
     drop(node);
-    smol::block_on(ex.run(smol::Timer::after(Duration::from_millis(50))));
-    let w = writer.lock().expect("writer").take();
-    if let Some(w) = w {
+    smol::block_on(executor.run(smol::Timer::after(Duration::from_millis(50))));
+    let (writer, count) = {
+        let mut sink = sink.lock().unwrap_or_else(|p| p.into_inner());
+        (sink.0.take(), sink.1)
+    };
+    if let Some(w) = writer {
         w.finish()?;
     }
-    let n = *count.lock().expect("count");
-    Ok(n)
+    Ok(count)
 }

@@ -40,7 +40,9 @@ use crate::geometry::{cross, norm, sub, widen};
 use crate::robot::ClosedMesh;
 use grid::{distance, midpoint, SphereGrid};
 
-/// One inner sphere in its link's frame (metres). WGSL mirror: `vec4<f32>` (xyz, radius).
+/// One inner sphere in its link's frame (metres). WGSL mirror: `Sphere { center: vec3<f32>,
+/// radius: f32 }` in `shaders/traverse.wgsl`, checked member by member against
+/// `query::layout::MIRRORS`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable, Serialize, Deserialize)]
 pub struct InnerSphere {

@@ -18,8 +18,9 @@ use std::sync::Mutex;
 
 use rayon::prelude::*;
 
-use super::traverse::{Candidate, PosedLink};
-use super::{load_distance, pack, unpack, QueryLink, StageCounts, EMPTY};
+use super::bounds::{load_distance, pack_minimum, unpack_minimum, EMPTY};
+use super::layout::{Candidate, PosedLink};
+use super::{QueryLink, StageCounts};
 use crate::packing::Solid;
 
 /// The exact minimum: distance, link, point and the closest mesh point (link frame).
@@ -81,9 +82,12 @@ pub(crate) fn refine(
         refined.fetch_add(1, Relaxed);
         if let Some((e, _)) = link_distance(&links[l].solids, q, bound, c.lower == 0.0) {
             if e == 0.0 {
-                inside.lock().unwrap().push(c.point);
+                inside
+                    .lock()
+                    .unwrap_or_else(|poisoned| poisoned.into_inner())
+                    .push(c.point);
             }
-            best.fetch_min(pack(e, k as u32), Relaxed);
+            best.fetch_min(pack_minimum(e, k as u32), Relaxed);
         }
     };
     // The first candidate alone, so that the parallel rest starts with a bound.
@@ -93,7 +97,9 @@ pub(crate) fn refine(
         .enumerate()
         .for_each(|(k, c)| evaluate(k + 1, c));
     counts.exact_refined = refined.into_inner();
-    let mut inside = inside.into_inner().unwrap();
+    let mut inside = inside
+        .into_inner()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     inside.sort_unstable();
     inside.dedup();
     counts.inside = inside.len() as u64;
@@ -101,7 +107,7 @@ pub(crate) fn refine(
     if v == EMPTY {
         return None;
     }
-    let (distance, k) = unpack(v);
+    let (distance, k) = unpack_minimum(v);
     let c = candidates[k as usize];
     let l = c.link as usize;
     let q = posed[l].in_link(points[c.point as usize]);

@@ -1,4 +1,5 @@
-//! Query stage: the minimum distance between the posed robot and a point cloud, on the CPU.
+//! Query stage: the minimum distance between the posed robot and a point cloud, on the CPU
+//! (rayon) or the GPU (wgpu), over one data layout.
 //!
 //! Inputs: the inner sphere trees of the links (`ist`), the link poses `root_from_link` from
 //! forward kinematics (f64), a cloud in its sensor frame (f32) and the sensor pose
@@ -12,10 +13,20 @@
 //!   are refined with exact point–triangle distance (parry3d's BVH) in ascending lower bound and
 //!   the refinement stops at the first candidate whose lower bound exceeds the best exact value.
 //!
-//! The traversal (`traverse`) is the seed's "atomicMin" query: every point descends the link
-//! trees in parallel (rayon), and a node is pruned when its lower bound `|p − c| − r` exceeds the
-//! shared minimum, one `AtomicU64` per link holding the non-negative f32 distance bits above the
-//! point index, so one `fetch_min` keeps the minimum and the point that attains it.
+//! The traversal is the seed's "atomicMin" query: every point descends the link trees in
+//! parallel, and a node is pruned when its lower bound `|p − c| − r` exceeds the shared
+//! minimum, kept in atomics that every thread (or GPU invocation) reads and lowers.
+//!
+//! The module, by concern, in the order a query runs:
+//! - `layout`: the `#[repr(C)]` Pod structs (posed links, robot box, dispatch parameters,
+//!   counters, candidates) that the CPU walks and the GPU uploads as they are, and the named
+//!   constants and codes that the WGSL shader receives generated from them;
+//! - `pose` (step 1, both backends): links and robot box composed in f64, rounded once;
+//! - `bounds`: the shared minima, global bounds and exact candidates of one query;
+//! - `cpu` and `descent` (steps 2 and 3 on the CPU): seeds, blocks, frontiers, the descent;
+//! - `gpu` (steps 2 and 3 on the GPU): the wgpu host of `shaders/traverse.wgsl`;
+//! - `exact` and `result` (steps 4 and 5, both backends): exact refinement and the result;
+//! - `peers`: reference methods for the tests and the benchmarks.
 //!
 //! Frames and precision: all poses are composed in f64 and the robot is brought into the sensor
 //! frame, where the points are small numbers; only then are the per-link transforms rounded to
@@ -39,14 +50,17 @@
 //!
 //! Every stage's count is reported in [`StageCounts`].
 
+mod bounds;
+mod cpu;
+mod descent;
 pub mod exact;
 pub mod gpu;
+pub mod layout;
 pub mod peers;
-mod traverse;
+mod pose;
+mod result;
 
-pub use traverse::valid as is_valid_point;
-
-use std::sync::atomic::{AtomicU32, AtomicU64};
+pub use descent::valid as is_valid_point;
 
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
@@ -72,6 +86,17 @@ pub enum Mode {
     Certified,
     /// Exact distance to the collision meshes.
     Exact,
+}
+
+impl Mode {
+    /// The mode's code in the shared layout (`layout::MODE_*`, the shader's `params.mode`).
+    pub fn code(self) -> u32 {
+        match self {
+            Mode::Fast => layout::MODE_FAST,
+            Mode::Certified => layout::MODE_CERTIFIED,
+            Mode::Exact => layout::MODE_EXACT,
+        }
+    }
 }
 
 /// Options of one query.
@@ -121,10 +146,12 @@ impl QueryOptions {
     }
 }
 
+/// The defaults of the node parameters of the same names (`config::PARAMETERS`; a test there
+/// checks that the two agree).
 impl Default for QueryOptions {
     fn default() -> Self {
         Self {
-            mode: Mode::Fast,
+            mode: Mode::Certified,
             max_distance_m: 2.0,
             self_filter_padding_m: Some(0.01),
             per_link: true,
@@ -256,7 +283,7 @@ pub struct LinkSelection {
 pub struct Engine {
     links: Vec<QueryLink>,
     pose_count: usize,
-    scratch: traverse::Scratch,
+    bounds: bounds::Bounds,
     gpu: GpuSlot,
 }
 
@@ -313,7 +340,7 @@ impl Engine {
         if links.len() > MAX_LINKS {
             return Err(QueryError::TooManyLinks(links.len()));
         }
-        let max = (traverse::STACK - traverse::FRONTIER) / (crate::ist::build::BRANCHING - 1);
+        let max = (layout::STACK - layout::FRONTIER) / (crate::ist::build::BRANCHING - 1);
         for link in &links {
             if link.nodes.is_empty()
                 || link
@@ -323,7 +350,7 @@ impl Engine {
             {
                 return Err(QueryError::BadTree(link.name.clone()));
             }
-            let depth = traverse::tree_depth(&link.nodes);
+            let depth = descent::tree_depth(&link.nodes);
             if depth > max {
                 return Err(QueryError::TreeTooDeep {
                     link: link.name.clone(),
@@ -332,11 +359,11 @@ impl Engine {
                 });
             }
         }
-        let scratch = traverse::Scratch::new(links.len());
+        let bounds = bounds::Bounds::new(&links);
         Ok(Self {
             links,
             pose_count,
-            scratch,
+            bounds,
             gpu: GpuSlot::Untried,
         })
     }
@@ -369,7 +396,7 @@ impl Engine {
         if points.len() > u32::MAX as usize {
             return Err(QueryError::TooManyPoints(points.len()));
         }
-        let input = traverse::Input {
+        let input = Input {
             points,
             root_from_sensor,
             link_poses,
@@ -385,17 +412,11 @@ impl Engine {
             if let GpuSlot::Ready(gpu) = &mut self.gpu {
                 let usable = options.backend == Backend::Gpu || !gpu.is_software();
                 if usable {
-                    let robot_box = traverse::prepare(
-                        &self.links,
-                        &mut self.scratch,
-                        root_from_sensor,
-                        link_poses,
-                    );
-                    match gpu.query(&self.links, &mut self.scratch, &robot_box, input) {
-                        Ok(Some(mut r)) => {
-                            r.backend = Backend::Gpu;
-                            return Ok(r);
-                        }
+                    let robot_box =
+                        self.bounds
+                            .prepare(&self.links, root_from_sensor, link_poses, options);
+                    match gpu.query(&self.links, &mut self.bounds, &robot_box, input) {
+                        Ok(Some(r)) => return Ok(r),
                         Ok(None) => log::debug!(
                             "GPU result incomplete (candidate list full, or an arg-min lost): CPU"
                         ),
@@ -404,7 +425,7 @@ impl Engine {
                 }
             }
         }
-        Ok(traverse::run(&self.links, &mut self.scratch, input))
+        Ok(cpu::run(&self.links, &mut self.bounds, input))
     }
 
     /// The GPU backend, created on first use; `None` (said once) when there is no usable GPU.
@@ -421,7 +442,7 @@ impl Engine {
                     GpuSlot::Ready(Box::new(g))
                 }
                 Err(e) => {
-                    eprintln!("no usable GPU ({e}): queries run on the CPU");
+                    log::warn!("no usable GPU ({e}): queries run on the CPU");
                     GpuSlot::Unavailable
                 }
             };
@@ -435,7 +456,7 @@ impl Engine {
 
 /// `root_from_sensor` from two poses in a common (map) frame, composed in f64 so that large map
 /// coordinates cancel before anything is rounded.
-pub fn root_from_sensor(
+pub fn root_from_sensor_via_map(
     map_from_root: &Isometry3<f64>,
     map_from_sensor: &Isometry3<f64>,
 ) -> Isometry3<f64> {
@@ -536,31 +557,11 @@ pub struct QueryResult {
     pub counts: StageCounts,
 }
 
-/// f32 distance and point index packed so that `fetch_min` keeps both: non-negative f32 bits
-/// order like the floats.
-#[inline]
-pub(crate) fn pack(distance: f32, point: u32) -> u64 {
-    ((distance.max(0.0).to_bits() as u64) << 32) | point as u64
-}
-
-#[inline]
-pub(crate) fn unpack(v: u64) -> (f32, u32) {
-    (f32::from_bits((v >> 32) as u32), v as u32)
-}
-
-pub(crate) const EMPTY: u64 = u64::MAX;
-
-#[inline]
-pub(crate) fn load_distance(a: &AtomicU64) -> f32 {
-    let v = a.load(std::sync::atomic::Ordering::Relaxed);
-    if v == EMPTY {
-        f32::INFINITY
-    } else {
-        unpack(v).0
-    }
-}
-
-#[inline]
-pub(crate) fn load_f32(a: &AtomicU32) -> f32 {
-    f32::from_bits(a.load(std::sync::atomic::Ordering::Relaxed))
+/// What one query asks: the cloud, where its sensor is, how the robot is posed, the options.
+#[derive(Clone, Copy)]
+struct Input<'a> {
+    points: &'a [[f32; 3]],
+    root_from_sensor: &'a Isometry3<f64>,
+    link_poses: &'a [Isometry3<f64>],
+    options: &'a QueryOptions,
 }

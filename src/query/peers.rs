@@ -13,9 +13,11 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
+use super::bounds::{load_distance, pack_minimum, unpack_minimum, EMPTY};
+use super::descent::valid;
 use super::exact::link_distance;
-use super::traverse::{valid, PosedLink};
-use super::{load_distance, pack, unpack, Engine, QueryLink, EMPTY};
+use super::layout::PosedLink;
+use super::{pose, Engine, QueryLink};
 use crate::packing::grid::distance;
 
 /// Global minimum of a peer: distance, link index, point index.
@@ -33,7 +35,7 @@ fn minimum(per_link: &[AtomicU64]) -> Option<PeerMinimum> {
         .filter_map(|(l, a)| {
             let v = a.load(Relaxed);
             (v != EMPTY).then(|| {
-                let (distance, point) = unpack(v);
+                let (distance, point) = unpack_minimum(v);
                 PeerMinimum {
                     distance,
                     link: l,
@@ -49,12 +51,10 @@ fn posed(
     root_from_sensor: &Isometry3<f64>,
     link_poses: &[Isometry3<f64>],
 ) -> Vec<PosedLink> {
-    let sensor_from_root = root_from_sensor.inverse();
-    engine
-        .links()
-        .iter()
-        .map(|l| PosedLink::new(l, &sensor_from_root, link_poses))
-        .collect()
+    // The engine's own posing, so that the peers see the robot the engine sees.
+    let mut posed = vec![PosedLink::default(); engine.links().len()];
+    pose::pose_links(engine.links(), &mut posed, root_from_sensor, link_poses);
+    posed
 }
 
 /// Bounding sphere of a link's collision vertices in the link frame (centre of the box).
@@ -100,10 +100,10 @@ fn scan(
             let bound = load_distance(&shared);
             if let Some(d) = distance(l, link, posed[l].in_link(p), bound) {
                 if d < load_distance(&best[l]) {
-                    best[l].fetch_min(pack(d, i as u32), Relaxed);
+                    best[l].fetch_min(pack_minimum(d, i as u32), Relaxed);
                 }
                 if d < bound {
-                    shared.fetch_min(pack(d, i as u32), Relaxed);
+                    shared.fetch_min(pack_minimum(d, i as u32), Relaxed);
                 }
             }
         }

@@ -1,6 +1,6 @@
 //! Robot model stage: URDF → collision geometry of every link (closed meshes in the link frame,
 //! metres) and the kinematic tree that poses the links (f64). Its output feeds the sphere
-//! packing (`packing`) and, later, the posing of the inner sphere trees.
+//! packing (`packing`), and the link poses that the query (`query`) and the monitor use.
 
 pub mod kinematics;
 pub mod mesh;

@@ -36,6 +36,8 @@ pub enum JointError {
     Lengths { names: usize, positions: usize },
     #[error("JointState: joint {0} has a position that is not finite")]
     NonFinite(String),
+    #[error("joint {0} is not a joint of the robot")]
+    NotInRobot(String),
 }
 
 #[derive(Debug, Clone)]
@@ -57,13 +59,13 @@ impl JointStateBuffer {
     }
 
     /// Values that hold for all time (from the config); names must be joints of the robot.
-    pub fn set_fixed(&mut self, named: &[(String, f64)]) -> Result<(), String> {
+    pub fn set_fixed(&mut self, named: &[(String, f64)]) -> Result<(), JointError> {
         for (name, value) in named {
             let i = self
                 .variables
                 .iter()
                 .position(|v| v == name)
-                .ok_or_else(|| format!("joint {name} is not a joint of the robot"))?;
+                .ok_or_else(|| JointError::NotInRobot(name.clone()))?;
             self.fixed[i] = Some(*value);
         }
         Ok(())

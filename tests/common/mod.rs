@@ -4,6 +4,11 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// The demo robot, bag and parameters file of this checkout.
+pub const DEMO_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/demo_arm.urdf");
+pub const DEMO_BAG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/bags/demo");
+pub const DEMO_CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo_arm.yaml");
+
 /// The `ist_monitor` binary built for these tests.
 pub fn ist_monitor() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ist_monitor"))

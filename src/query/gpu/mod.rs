@@ -2,111 +2,36 @@
 //! invocation per cloud point, with the shared bounds in storage atomics.
 //!
 //! - **Once per robot**: the device is created and every link's `IstNode` and `InnerSphere`
-//!   arrays are uploaded as they are, concatenated (the CPU walks the same arrays).
-//! - **Per query**: the links are posed on the CPU exactly as for the CPU backend
-//!   (`traverse::prepare`: f64, rounded once), and only the posed links (`GpuLink`, 64 B each),
-//!   three small uniforms and the points are written. Three dispatches follow in one submission:
-//!   seed (every 61st point), main (every point), arg-min (ties resolved to the smallest index).
-//!   A few words come back: the minima, the counts and the exact-mode candidates.
-//! - **Then** the CPU's own `traverse::finish` refines the exact candidates and assembles the
-//!   result, so both backends report through one code path.
+//!   arrays are uploaded as they are, concatenated in link order (the CPU walks the same
+//!   arrays; each posed link carries its offsets into them).
+//! - **Per query**: the links are posed by the code the CPU uses (`Bounds::prepare`: f64,
+//!   rounded once) and the posed links (`layout::PosedLink`, 80 B each) are written as they
+//!   are, with three `layout::QueryParams` uniforms and the points. Three dispatches follow in
+//!   one submission: seed (every `SEED_STRIDE`-th point), main (every point), arg-min (ties
+//!   resolved to the smallest index). A few words come back: `layout::Counters`, the minima and
+//!   the exact-mode candidates (`layout::Candidate`).
+//! - **Then** the shared `result::finish` refines the exact candidates and assembles the result,
+//!   so both backends report through one code path.
 //!
-//! The host structs here are `#[repr(C)]` Pod mirrors of the WGSL structs of the same role
-//! (`GpuLink` = `Link`, `GpuParams` = `Params`, `GpuState` = `State`, `GpuCandidate` =
-//! `Candidate`); their sizes are asserted below and checked against the shader by a naga test.
+//! The shader source is `layout::shader_source()`: the constants generated from the layout,
+//! then the file. What the shader does and does not do like the CPU is in its header.
 //!
-//! Agreement with the CPU: the same posed links, trees, thresholds and order of operations; only
+//! Agreement with the CPU: the same posed links, trees, thresholds and recording rules; only
 //! the rounding of `length` may differ (a few ulps, far below 1 µm at robot scale).
 
 use std::borrow::Cow;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use wgpu::util::DeviceExt;
 
-use super::traverse::{self, Candidate, Input, RobotBox, Scratch};
-use super::{pack, Mode, QueryLink, QueryResult, StageCounts, EMPTY};
+use super::bounds::{pack_minimum, Bounds, EMPTY};
+use super::layout::{
+    self, Candidate, Counters, PassKind, QueryParams, RobotBox, GPU_CANDIDATES, GPU_STACK,
+    SEED_STRIDE, WORKGROUP,
+};
+use super::{descent, result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
 use crate::ist::IstNode;
 use crate::packing::InnerSphere;
-
-/// The traversal shader, embedded.
-pub const SHADER: &str = include_str!("../../../shaders/traverse.wgsl");
-const WORKGROUP: u32 = 256;
-/// Seed stride, as the CPU's `SEED_STRIDE`.
-const SEED_STRIDE: u32 = 61;
-/// Depth-first stack of the shader (`STACK` there).
-pub const GPU_STACK: usize = 64;
-/// Exact-mode candidates kept; more sends the query to the CPU.
-const CANDIDATES: u32 = 1 << 16;
-
-/// WGSL `Link`: `link_from_sensor` rows (w: translation), the surface gap, the link's offsets
-/// in the concatenated node and sphere arrays.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub struct GpuLink {
-    pub rows: [[f32; 4]; 3],
-    pub gap: f32,
-    pub node_base: u32,
-    pub sphere_base: u32,
-    pub pad: u32,
-}
-const _: () = assert!(std::mem::size_of::<GpuLink>() == 64);
-
-/// WGSL `Params`.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub struct GpuParams {
-    pub box_rows: [[f32; 4]; 3],
-    /// xyz: the robot box's low corner; w: max_distance.
-    pub box_lo: [f32; 4],
-    /// xyz: the high corner; w: self-filter padding (negative: off).
-    pub box_hi: [f32; 4],
-    pub n_points: u32,
-    pub n_links: u32,
-    pub mode: u32,
-    pub per_link: u32,
-    pub stride: u32,
-    pub offset: u32,
-    pub n_work: u32,
-    pub pass_kind: u32,
-    pub capacity: u32,
-    pub pad: [u32; 3],
-}
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 128);
-
-/// WGSL `State`.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub struct GpuState {
-    pub global: u32,
-    pub global_lower: u32,
-    pub candidate_count: u32,
-    pub pad: u32,
-    /// invalid, outside_roi, self_filtered, pruned, evaluated, inside.
-    pub counts: [u32; 6],
-    pub pad1: [u32; 2],
-}
-const _: () = assert!(std::mem::size_of::<GpuState>() == 48);
-
-/// WGSL `Candidate`.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub struct GpuCandidate {
-    pub lower_bits: u32,
-    pub link: u32,
-    pub point: u32,
-    pub pad: u32,
-}
-const _: () = assert!(std::mem::size_of::<GpuCandidate>() == 16);
-
-/// The host sizes of the mirrored structs, by WGSL name (for the naga test).
-pub const MIRRORS: &[(&str, usize)] = &[
-    ("Node", std::mem::size_of::<IstNode>()),
-    ("Sphere", std::mem::size_of::<InnerSphere>()),
-    ("Link", std::mem::size_of::<GpuLink>()),
-    ("Params", std::mem::size_of::<GpuParams>()),
-    ("State", std::mem::size_of::<GpuState>()),
-    ("Candidate", std::mem::size_of::<GpuCandidate>()),
-];
 
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
@@ -125,7 +50,7 @@ pub enum GpuError {
 }
 
 /// The buffers that grow with the cloud.
-struct Sized {
+struct PointBuffers {
     points: wgpu::Buffer,
     capacity_points: usize,
     bind_groups: [wgpu::BindGroup; 3],
@@ -146,8 +71,7 @@ pub struct GpuEngine {
     minima: wgpu::Buffer,
     candidates: wgpu::Buffer,
     readback: wgpu::Buffer,
-    bases: Vec<(u32, u32)>,
-    sized: Option<Sized>,
+    point_buffers: Option<PointBuffers>,
     max_binding: u64,
     /// Timestamps around the three dispatches, where the adapter has them.
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
@@ -170,8 +94,7 @@ impl GpuEngine {
     /// uploads the trees of `links`.
     pub fn new(links: &[QueryLink]) -> Result<Self, GpuError> {
         for link in links {
-            if traverse::tree_depth(&link.nodes) * (crate::ist::build::BRANCHING - 1) + 1
-                > GPU_STACK
+            if descent::tree_depth(&link.nodes) * (crate::ist::build::BRANCHING - 1) + 1 > GPU_STACK
             {
                 return Err(GpuError::TooDeep {
                     link: link.name.clone(),
@@ -202,7 +125,7 @@ impl GpuEngine {
         device.on_uncaptured_error(Box::new(|e| log::error!("GPU: {e}")));
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("traverse.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(SHADER)),
+            source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::shader_source())),
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("traverse"),
@@ -212,30 +135,32 @@ impl GpuEngine {
             compilation_options: Default::default(),
             cache: None,
         });
-        let mut nodes: Vec<IstNode> = Vec::new();
-        let mut spheres: Vec<InnerSphere> = Vec::new();
-        let mut bases = Vec::new();
-        for link in links {
-            bases.push((nodes.len() as u32, spheres.len() as u32));
-            nodes.extend_from_slice(&link.nodes);
-            spheres.extend_from_slice(&link.spheres);
-        }
+        // In link order: the offsets `Bounds::new` gives the posed links.
+        let nodes: Vec<IstNode> = links.iter().flat_map(|l| l.nodes.iter().copied()).collect();
+        let spheres: Vec<InnerSphere> = links
+            .iter()
+            .flat_map(|l| l.spheres.iter().copied())
+            .collect();
         let max_binding = u64::from(limits.max_storage_buffer_binding_size);
-        let bytes = (nodes.len() * 32).max(spheres.len() * 16) as u64;
+        let bytes = std::mem::size_of_val(nodes.as_slice())
+            .max(std::mem::size_of_val(spheres.as_slice())) as u64;
         if bytes > max_binding {
             return Err(GpuError::TooLarge(bytes));
         }
         let uniform = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                size: std::mem::size_of::<GpuParams>() as u64,
+                size: std::mem::size_of::<QueryParams>() as u64,
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
         let n = links.len();
-        let readback_size =
-            (std::mem::size_of::<GpuState>() + 8 * n + 16 + 16 * CANDIDATES as usize) as u64;
+        let readback_size = (std::mem::size_of::<Counters>()
+            + 8 * n
+            + 16
+            + std::mem::size_of::<Candidate>() * GPU_CANDIDATES as usize)
+            as u64;
         let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
             (
                 device.create_query_set(&wgpu::QuerySetDescriptor {
@@ -256,11 +181,19 @@ impl GpuEngine {
             last_kernel_s: None,
             nodes: storage(&device, "nodes", bytemuck::cast_slice(&nodes)),
             spheres: storage(&device, "spheres", bytemuck::cast_slice(&spheres)),
-            links: storage(&device, "links", &vec![0u8; 64 * n]),
+            links: storage(
+                &device,
+                "links",
+                &vec![0u8; std::mem::size_of::<layout::PosedLink>() * n],
+            ),
             params: [uniform("seed"), uniform("main"), uniform("argmin")],
-            state: storage(&device, "state", &[0u8; std::mem::size_of::<GpuState>()]),
+            state: storage(&device, "state", &[0u8; std::mem::size_of::<Counters>()]),
             minima: storage(&device, "minima", &vec![0u8; 8 * n]),
-            candidates: storage(&device, "candidates", &vec![0u8; 16 * CANDIDATES as usize]),
+            candidates: storage(
+                &device,
+                "candidates",
+                &vec![0u8; std::mem::size_of::<Candidate>() * GPU_CANDIDATES as usize],
+            ),
             readback: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("readback"),
                 size: readback_size,
@@ -271,8 +204,7 @@ impl GpuEngine {
             device,
             queue,
             pipeline,
-            bases,
-            sized: None,
+            point_buffers: None,
             max_binding,
         })
     }
@@ -284,7 +216,11 @@ impl GpuEngine {
     }
 
     fn ensure_points(&mut self, n: usize) -> Result<(), GpuError> {
-        if self.sized.as_ref().is_some_and(|s| s.capacity_points >= n) {
+        if self
+            .point_buffers
+            .as_ref()
+            .is_some_and(|s| s.capacity_points >= n)
+        {
             return Ok(());
         }
         let capacity = n.next_power_of_two().max(1024);
@@ -329,7 +265,7 @@ impl GpuEngine {
             group(&self.params[1]),
             group(&self.params[2]),
         ];
-        self.sized = Some(Sized {
+        self.point_buffers = Some(PointBuffers {
             points,
             capacity_points: capacity,
             bind_groups,
@@ -337,13 +273,13 @@ impl GpuEngine {
         Ok(())
     }
 
-    /// The query on the GPU; `scratch` must hold the posed links (`traverse::prepare`).
+    /// The query on the GPU; `bounds` must hold the posed links (`Bounds::prepare`).
     /// Returns `Ok(None)` when the exact candidates overflowed, or an arg-min was not found again
     /// (the caller runs the CPU).
     pub(super) fn query(
         &mut self,
         links: &[QueryLink],
-        scratch: &mut Scratch,
+        bounds: &mut Bounds,
         robot_box: &RobotBox,
         input: Input,
     ) -> Result<Option<QueryResult>, GpuError> {
@@ -357,75 +293,46 @@ impl GpuEngine {
         }
         self.ensure_points(n)?;
         let l = links.len();
-        let gpu_links: Vec<GpuLink> = scratch
-            .posed
-            .iter()
-            .zip(&self.bases)
-            .map(|(p, &(node_base, sphere_base))| GpuLink {
-                rows: std::array::from_fn(|r| [p.rot[r][0], p.rot[r][1], p.rot[r][2], p.trans[r]]),
-                gap: p.gap,
-                node_base,
-                sphere_base,
-                pad: 0,
-            })
-            .collect();
-        let base = GpuParams {
-            box_rows: std::array::from_fn(|r| {
-                let m = &robot_box.rot;
-                [m[r][0], m[r][1], m[r][2], robot_box.trans[r]]
-            }),
-            box_lo: [
-                robot_box.lo[0],
-                robot_box.lo[1],
-                robot_box.lo[2],
-                options.max_distance_m,
-            ],
-            box_hi: [
-                robot_box.hi[0],
-                robot_box.hi[1],
-                robot_box.hi[2],
-                options.self_filter_padding_m.unwrap_or(-1.0),
-            ],
+        let base = QueryParams {
+            robot_box: *robot_box,
             n_points: n as u32,
             n_links: l as u32,
-            mode: match options.mode {
-                Mode::Fast => 0,
-                Mode::Certified => 1,
-                Mode::Exact => 2,
-            },
+            mode: options.mode.code(),
             per_link: options.per_link as u32,
             stride: 1,
             offset: 0,
             n_work: n as u32,
-            pass_kind: 1,
-            capacity: CANDIDATES,
-            pad: [0; 3],
+            pass_kind: PassKind::Main as u32,
+            capacity: GPU_CANDIDATES,
+            ..QueryParams::zeroed()
         };
-        let seed = GpuParams {
+        let seed = QueryParams {
             stride: SEED_STRIDE,
             n_work: (n as u32).div_ceil(SEED_STRIDE),
-            pass_kind: 0,
+            pass_kind: PassKind::Seed as u32,
             ..base
         };
-        let argmin = GpuParams {
-            pass_kind: 2,
+        let argmin = QueryParams {
+            pass_kind: PassKind::ArgMin as u32,
             ..base
         };
         let q = &self.queue;
-        q.write_buffer(&self.links, 0, bytemuck::cast_slice(&gpu_links));
+        q.write_buffer(&self.links, 0, bytemuck::cast_slice(&bounds.posed));
         for (buffer, params) in self.params.iter().zip([seed, base, argmin]) {
             q.write_buffer(buffer, 0, bytemuck::bytes_of(&params));
         }
-        let state = GpuState {
+        let state = Counters {
             global: f32::INFINITY.to_bits(),
             global_lower: f32::INFINITY.to_bits(),
-            ..GpuState::zeroed()
+            ..Counters::zeroed()
         };
         q.write_buffer(&self.state, 0, bytemuck::bytes_of(&state));
         let mut minima = vec![f32::INFINITY.to_bits(); l];
         minima.extend(std::iter::repeat_n(u32::MAX, l));
         q.write_buffer(&self.minima, 0, bytemuck::cast_slice(&minima));
-        let sized = self.sized.as_ref().expect("ensure_points made the buffers");
+        let Some(sized) = self.point_buffers.as_ref() else {
+            return Err(GpuError::Device("no point buffers".into()));
+        };
         if n > 0 {
             q.write_buffer(&sized.points, 0, bytemuck::cast_slice(points));
         }
@@ -452,7 +359,7 @@ impl GpuEngine {
             pass.set_bind_group(0, &sized.bind_groups[k], &[]);
             pass.dispatch_workgroups(params.n_work.div_ceil(WORKGROUP).max(1), 1, 1);
         }
-        let state_size = std::mem::size_of::<GpuState>() as u64;
+        let state_size = std::mem::size_of::<Counters>() as u64;
         let minima_size = 8 * l as u64;
         encoder.copy_buffer_to_buffer(&self.state, 0, &self.readback, 0, state_size);
         encoder.copy_buffer_to_buffer(&self.minima, 0, &self.readback, state_size, minima_size);
@@ -467,7 +374,7 @@ impl GpuEngine {
                 0,
                 &self.readback,
                 stamps_at + 16,
-                16 * CANDIDATES as u64,
+                (std::mem::size_of::<Candidate>() * GPU_CANDIDATES as usize) as u64,
             );
         }
         q.submit([encoder.finish()]);
@@ -483,7 +390,7 @@ impl GpuEngine {
             .map_err(|e| GpuError::Readback(e.to_string()))?;
         let (state, minima, candidates) = {
             let bytes = slice.get_mapped_range();
-            let state: GpuState = bytemuck::pod_read_unaligned(&bytes[..state_size as usize]);
+            let state: Counters = bytemuck::pod_read_unaligned(&bytes[..state_size as usize]);
             let minima: Vec<u32> = bytemuck::pod_collect_to_vec(
                 &bytes[state_size as usize..(state_size + minima_size) as usize],
             );
@@ -494,17 +401,18 @@ impl GpuEngine {
                     * f64::from(self.queue.get_timestamp_period())
                     * 1e-9
             });
-            let count = (state.candidate_count.min(CANDIDATES)) as usize;
+            let count = (state.candidate_count.min(GPU_CANDIDATES)) as usize;
             let start = (stamps_at + 16) as usize;
-            let candidates: Vec<GpuCandidate> = if options.mode == Mode::Exact {
-                bytemuck::pod_collect_to_vec(&bytes[start..start + 16 * count])
+            let candidates: Vec<Candidate> = if options.mode == Mode::Exact {
+                let end = start + std::mem::size_of::<Candidate>() * count;
+                bytemuck::pod_collect_to_vec(&bytes[start..end])
             } else {
                 Vec::new()
             };
             (state, minima, candidates)
         };
         self.readback.unmap();
-        if state.candidate_count > CANDIDATES {
+        if state.candidate_count > GPU_CANDIDATES {
             return Ok(None);
         }
         // A minimum whose point the arg-min pass did not find again bit for bit (a compiler
@@ -513,27 +421,22 @@ impl GpuEngine {
             return Ok(None);
         }
         // Into the CPU's layout, and on through the CPU's refinement and assembly.
-        for (k, best) in scratch.best.iter().enumerate() {
+        for (k, best) in bounds.best.iter().enumerate() {
             let (d, p) = (minima[k], minima[l + k]);
             let v = if d == f32::INFINITY.to_bits() || p == u32::MAX {
                 EMPTY
             } else {
-                pack(f32::from_bits(d), p)
+                pack_minimum(f32::from_bits(d), p)
             };
             best.store(v, std::sync::atomic::Ordering::Relaxed);
         }
-        scratch
+        bounds
             .global
             .store(state.global, std::sync::atomic::Ordering::Relaxed);
-        scratch
+        bounds
             .global_lower
             .store(state.global_lower, std::sync::atomic::Ordering::Relaxed);
-        let list = scratch.candidates.get_mut().expect("no other holder");
-        list.extend(candidates.iter().map(|c| Candidate {
-            lower: f32::from_bits(c.lower_bits),
-            link: c.link,
-            point: c.point,
-        }));
+        bounds.candidates_mut().extend_from_slice(&candidates);
         let c = state.counts.map(u64::from);
         let counts = StageCounts {
             total: n as u64,
@@ -545,6 +448,12 @@ impl GpuEngine {
             inside: c[5],
             exact_refined: 0,
         };
-        Ok(Some(traverse::finish(links, scratch, input, counts)))
+        Ok(Some(result::finish(
+            links,
+            bounds,
+            input,
+            counts,
+            Backend::Gpu,
+        )))
     }
 }

@@ -10,18 +10,18 @@
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::monitor::{Level, Monitor};
-use crate::msg::{self, Float64};
+use crate::msg::{self, Float64, Owned, RosMessage};
 use crate::query::Outcome;
+use crate::stats::percentile;
 
-use super::writer::Compression;
-use super::{read_messages, BagWriter};
+use super::outputs::{OutputTopic, OutputVisitor};
+use super::{Level, Monitor};
+use crate::bag::{read_messages, writer::Compression, BagError, BagWriter};
 
 /// Where generated bags record the exact minimum distance of each cloud (`std_msgs/Float64`).
-pub const GROUND_TRUTH_TOPIC: &str = "/ground_truth/min_distance";
+pub use crate::bag::GROUND_TRUTH_TOPIC;
 
 /// One cloud of the replay.
 #[derive(Debug, Clone, Serialize)]
@@ -60,11 +60,34 @@ pub struct Summary {
     pub max_error_vs_truth_m: Option<f64>,
 }
 
-fn percentile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
+/// A replay that cannot run: the monitor's reset, or the bag in or out (each names its file).
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error(transparent)]
+    Monitor(#[from] super::MonitorError),
+    #[error(transparent)]
+    Bag(#[from] BagError),
+}
+
+/// Writes a frame's outputs into a bag, each on its topic of the output table.
+struct BagSink<'a> {
+    writer: &'a mut BagWriter,
+    node_path: &'a str,
+    at: u64,
+}
+
+impl OutputVisitor for BagSink<'_> {
+    type Error = BagError;
+    fn visit<T>(&mut self, topic: OutputTopic, message: Option<&T>) -> Result<(), BagError>
+    where
+        T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
+        Owned<T>: for<'de> serde::de::DeserializeSeed<'de, Value = T>,
+    {
+        match message {
+            Some(m) => self.writer.write(&topic.topic(self.node_path), self.at, m),
+            None => Ok(()),
+        }
     }
-    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
 
 /// Replays `bag` through `monitor` (reset first), calling `on_frame` for each cloud; writes the outputs to
@@ -74,7 +97,7 @@ pub fn replay(
     bag: &Path,
     out: Option<(&Path, Compression)>,
     on_frame: &mut dyn FnMut(&ReplayFrame),
-) -> Result<Summary> {
+) -> Result<Summary, ReplayError> {
     monitor.reset()?;
     let joint_topic = monitor.config.joint_states_topic.clone();
     let source_topics: Vec<String> = monitor
@@ -90,8 +113,7 @@ pub fn replay(
             || t == GROUND_TRUTH_TOPIC
             || source_topics.iter().any(|s| s == t)
     };
-    let messages =
-        read_messages(bag, &keep).with_context(|| format!("reading bag {}", bag.display()))?;
+    let messages = read_messages(bag, &keep)?;
     let truth: HashMap<u64, f64> = messages
         .iter()
         .filter(|m| &*m.topic == GROUND_TRUTH_TOPIC)
@@ -104,13 +126,7 @@ pub fn replay(
     let mut writer = out
         .map(|(path, compression)| BagWriter::create(path, compression))
         .transpose()?;
-    let topic = |name: &str| monitor.config.private_topic(name);
-    let (t_min, t_links, t_markers, t_stop) = (
-        topic("min_distance"),
-        topic("link_distances"),
-        topic("closest_points"),
-        topic("safety_stop"),
-    );
+    let node_path = monitor.config.node_path();
     let mut summary = Summary::default();
     let mut times = Vec::new();
     for m in &messages {
@@ -170,20 +186,18 @@ pub fn replay(
         on_frame(&row);
         if let Some(w) = writer.as_mut() {
             let at = m.log_time_ns + (frame.processing_s * 1e9) as u64;
-            if let Some(d) = &o.min_distance {
-                w.write(&t_min, at, d)?;
-            }
-            w.write(&t_links, at, &o.link_distances)?;
-            w.write(&t_markers, at, &o.closest_points)?;
-            w.write("/diagnostics", at, &o.diagnostics)?;
-            w.write(&t_stop, at, &o.safety_stop)?;
+            o.visit(&mut BagSink {
+                writer: w,
+                node_path: &node_path,
+                at,
+            })?;
         }
     }
     if let Some(w) = writer {
         w.finish()?;
     }
     times.sort_by(f64::total_cmp);
-    summary.processing_p50_ms = percentile(&times, 0.5);
-    summary.processing_p99_ms = percentile(&times, 0.99);
+    summary.processing_p50_ms = percentile(&times, 0.5).unwrap_or(0.0);
+    summary.processing_p99_ms = percentile(&times, 0.99).unwrap_or(0.0);
     Ok(summary)
 }

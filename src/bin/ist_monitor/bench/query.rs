@@ -1,0 +1,360 @@
+//! `ist_monitor bench query`: error against run time of the query modes over sphere budgets,
+//! on the real scenes of `scenes.rs`, with the peers measured in the same run.
+//!
+//! For every budget the trees are built (or loaded from the cache) and every mode is timed
+//! (median of `runs` queries per pose, pooled over poses) with per-link minima on and off. The
+//! peers take every point as an obstacle, so the engine runs here without its self-filter (and
+//! with the default region of interest, 2 m, which holds every point of these scenes). The
+//! error is taken against the exact distance of peer (a) (parry3d, every point and link, no
+//! pruning): `upper − exact` for fast, `exact − lower` for certified (how conservative the
+//! certified bound is), `|exact mode − exact|` for exact. The table goes to stdout, the rows to
+//! JSON (`--json`) and the plot to a PNG (`--plot`; nothing is written unless asked).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use nalgebra::Isometry3;
+use serde::Serialize;
+
+use ist_monitor::cloud::Cloud;
+use ist_monitor::ist::BuildOptions;
+use ist_monitor::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptions};
+use ist_monitor::stats::Spread;
+
+use super::scenes::{load_scenario, ScenarioName};
+use crate::cli::cached_trees;
+
+#[derive(clap::Args)]
+pub struct BenchQueryArgs {
+    /// The shared data folder (default: ../shared beside the demo folder, or $IST_MONITOR_SHARED).
+    #[arg(long)]
+    shared: Option<PathBuf>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ScenarioName::Kinect, ScenarioName::Grabber])]
+    scenarios: Vec<ScenarioName>,
+    /// Sphere budgets per link.
+    #[arg(long, value_delimiter = ',', default_values_t = [64u32, 256, 1024, 4096, 8192, 16384])]
+    budgets: Vec<u32>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Mode::Fast, Mode::Certified, Mode::Exact])]
+    modes: Vec<Mode>,
+    /// Timed queries per pose and setting (the median is reported).
+    #[arg(long, default_value_t = 20)]
+    runs: usize,
+    /// Timed runs of the slow peers (a) and (c) per pose.
+    #[arg(long, default_value_t = 3)]
+    peer_runs: usize,
+    /// Peer (c), brute force over all spheres, only up to this budget (its cost grows with it).
+    #[arg(long, default_value_t = 1024)]
+    brute_force_max_budget: u32,
+    /// Skip the peers (quick profiling of the engine alone; errors then need no reference).
+    #[arg(long)]
+    no_peers: bool,
+    /// Tree cache folder (default as for `build`).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Write a PNG plot per scenario to PREFIX_<scenario>.png (the README's figures:
+    /// --plot docs/error_vs_time).
+    #[arg(long, value_name = "PREFIX")]
+    plot: Option<PathBuf>,
+    /// A TrueType font for the plot's text (default: DejaVu Sans or another sans-serif font
+    /// found in the system's font folders).
+    #[arg(long)]
+    font: Option<PathBuf>,
+    /// Write every row as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Where the engine's queries run (the peers always run on the CPU).
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    backend: Backend,
+}
+
+/// One line of the table.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub scenario: ScenarioName,
+    /// "fast", "certified", "exact", or a peer.
+    pub method: String,
+    pub per_link: bool,
+    pub budget: Option<u32>,
+    pub median_ms: f64,
+    pub p10_ms: f64,
+    pub p90_ms: f64,
+    /// Against the exact reference, over poses (None without peers).
+    pub max_error_mm: Option<f64>,
+    pub mean_error_mm: Option<f64>,
+    pub runs: usize,
+}
+
+fn time<T>(runs: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, T) {
+    let mut out = f();
+    let mut samples = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let t = Instant::now();
+        out = std::hint::black_box(f());
+        samples.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    (samples, out)
+}
+
+fn row(
+    scenario: ScenarioName,
+    method: &str,
+    per_link: bool,
+    budget: Option<u32>,
+    samples: Vec<f64>,
+    errors: &[f64],
+) -> Row {
+    let runs = samples.len();
+    let Spread {
+        median: m,
+        p10: lo,
+        p90: hi,
+    } = Spread::of(samples);
+    Row {
+        scenario,
+        method: method.into(),
+        per_link,
+        budget,
+        median_ms: m,
+        p10_ms: lo,
+        p90_ms: hi,
+        max_error_mm: (!errors.is_empty()).then(|| errors.iter().fold(0.0, |a: f64, &b| a.max(b))),
+        mean_error_mm: (!errors.is_empty())
+            .then(|| errors.iter().sum::<f64>() / errors.len() as f64),
+        runs,
+    }
+}
+
+pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
+    if args.runs == 0 || args.peer_runs == 0 {
+        bail!("--runs and --peer-runs must be at least 1");
+    }
+    println!(
+        "bench query: {} threads, {} runs per pose and setting, {} per slow peer",
+        rayon::current_num_threads(),
+        args.runs,
+        args.peer_runs
+    );
+    let shared = crate::demo::shared(&args.shared)?;
+    let cache_dir = args.cache_dir.as_deref();
+    let mut rows = Vec::new();
+    for &name in &args.scenarios {
+        let scenario = load_scenario(&shared, name)?;
+        let k = &scenario.model.kinematics;
+        let poses: Vec<(String, Vec<_>)> = scenario
+            .poses
+            .iter()
+            .map(|(n, j)| Ok((n.clone(), k.link_poses(&k.values_from_names(j, Some(0.0))?))))
+            .collect::<Result<_>>()?;
+        let valid: usize = scenario.clouds[0]
+            .1
+            .points
+            .iter()
+            .filter(|p| ist_monitor::query::is_valid_point(**p))
+            .count();
+        println!(
+            "\n== {name:?}: {} ({} links), {} cloud(s) of {} points ({valid} valid in the first), {} poses",
+            scenario.model.name,
+            scenario.model.links.len(),
+            scenario.clouds.len(),
+            scenario.clouds[0].1.points.len(),
+            poses.len()
+        );
+        let cases: Vec<(&str, &Cloud, &str, &[Isometry3<f64>])> = scenario
+            .clouds
+            .iter()
+            .flat_map(|(cn, c)| {
+                poses
+                    .iter()
+                    .map(move |(pn, p)| (cn.as_str(), c, pn.as_str(), p.as_slice()))
+            })
+            .collect();
+        let mut scenario_rows = Vec::new();
+        // The floor and the exact peers do not depend on the budget: measured with the
+        // default trees (peer (b) uses only the meshes).
+        let default_trees = cached_trees(&scenario.model, &BuildOptions::default(), cache_dir)?;
+        let engine = Engine::new(&scenario.model, &default_trees, &LinkSelection::default())?;
+        let mut floor = Vec::new();
+        for (_, cloud, _, _) in &cases {
+            floor.extend(time(args.runs, || peers::touch_every_point(&cloud.points)).0);
+        }
+        scenario_rows.push(row(
+            name,
+            "floor (touch every point)",
+            false,
+            None,
+            floor,
+            &[],
+        ));
+        let mut reference = Vec::new();
+        if !args.no_peers {
+            let (mut ta, mut tb) = (Vec::new(), Vec::new());
+            for (cn, cloud, pn, lp) in &cases {
+                let (s, a) = time(args.peer_runs, || {
+                    peers::exact_every_point(&engine, &cloud.points, &scenario.root_from_sensor, lp)
+                });
+                ta.extend(s);
+                let (s, b) = time(args.runs, || {
+                    peers::exact_shared_bound(
+                        &engine,
+                        &cloud.points,
+                        &scenario.root_from_sensor,
+                        lp,
+                    )
+                });
+                tb.extend(s);
+                let a = a.context("no valid point")?;
+                let b = b.context("no valid point")?;
+                println!(
+                    "  {cn} {pn}: exact {:.4} m on {} (point {}); peer (b) {:.4} m",
+                    a.distance,
+                    engine.links()[a.link].name,
+                    a.point,
+                    b.distance
+                );
+                if (a.distance - b.distance).abs() > 1e-5 {
+                    bail!(
+                        "peer (b) {} differs from peer (a) {}",
+                        b.distance,
+                        a.distance
+                    );
+                }
+                reference.push(a.distance as f64);
+            }
+            scenario_rows.push(row(
+                name,
+                "(a) parry exact, every point",
+                false,
+                None,
+                ta,
+                &[],
+            ));
+            scenario_rows.push(row(
+                name,
+                "(b) parry exact, shared bound",
+                false,
+                None,
+                tb,
+                &[],
+            ));
+        }
+        for &budget in &args.budgets {
+            let mut options = BuildOptions::default();
+            options.packing.max_spheres = budget;
+            let trees = cached_trees(&scenario.model, &options, cache_dir)?;
+            let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
+            for &mode in &args.modes {
+                for per_link in [false, true] {
+                    let options = QueryOptions {
+                        mode,
+                        per_link,
+                        self_filter_padding_m: None,
+                        backend: args.backend,
+                        ..QueryOptions::default()
+                    };
+                    let mut samples = Vec::new();
+                    let mut errors = Vec::new();
+                    for (c, (_, cloud, _, lp)) in cases.iter().enumerate() {
+                        let (s, r) = time(args.runs, || {
+                            engine.query(&cloud.points, &scenario.root_from_sensor, lp, &options)
+                        });
+                        samples.extend(s);
+                        let r = r?;
+                        let n = r.nearest.context("no nearest point")?;
+                        if let Some(&exact) = reference.get(c) {
+                            let e = match mode {
+                                Mode::Fast => n.distance_m - exact,
+                                Mode::Certified => exact - n.lower_m.unwrap_or(0.0),
+                                Mode::Exact => (n.distance_m - exact).abs(),
+                            };
+                            errors.push(1e3 * e);
+                        }
+                    }
+                    scenario_rows.push(row(
+                        name,
+                        &format!("{mode:?}").to_lowercase(),
+                        per_link,
+                        Some(budget),
+                        samples,
+                        &errors,
+                    ));
+                }
+            }
+            if !args.no_peers && budget <= args.brute_force_max_budget {
+                let mut samples = Vec::new();
+                let mut errors = Vec::new();
+                for (c, (_, cloud, _, lp)) in cases.iter().enumerate() {
+                    let (s, r) = time(args.peer_runs, || {
+                        peers::brute_force_spheres(
+                            &engine,
+                            &cloud.points,
+                            &scenario.root_from_sensor,
+                            lp,
+                        )
+                    });
+                    samples.extend(s);
+                    let r = r.context("no valid point")?;
+                    errors.push(1e3 * (r.distance as f64 - reference[c]));
+                }
+                scenario_rows.push(row(
+                    name,
+                    "(c) brute force, all spheres",
+                    false,
+                    Some(budget),
+                    samples,
+                    &errors,
+                ));
+            }
+        }
+        print_table(&scenario_rows);
+        if let Some(prefix) = &args.plot {
+            let path = PathBuf::from(format!(
+                "{}_{}.png",
+                prefix.display(),
+                format!("{name:?}").to_lowercase()
+            ));
+            super::plot::error_against_time(&path, args.font.as_deref(), name, &scenario_rows)
+                .with_context(|| format!("plot {}", path.display()))?;
+            println!("plot: {}", path.display());
+        }
+        rows.extend(scenario_rows);
+    }
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&rows)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+fn print_table(rows: &[Row]) {
+    let floor = rows
+        .iter()
+        .find(|r| r.method.starts_with("floor"))
+        .map(|r| r.median_ms);
+    println!(
+        "{:<32} {:>8} {:>6} {:>10} {:>17} {:>8} {:>13} {:>13}",
+        "method",
+        "per-link",
+        "budget",
+        "median ms",
+        "[p10, p90] ms",
+        "× floor",
+        "max err mm",
+        "mean err mm"
+    );
+    for r in rows {
+        let f = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
+        println!(
+            "{:<32} {:>8} {:>6} {:>10.3} {:>17} {:>8.1} {:>13} {:>13}",
+            r.method,
+            if r.per_link { "yes" } else { "no" },
+            r.budget
+                .map(|b| b.to_string())
+                .unwrap_or_else(|| "-".into()),
+            r.median_ms,
+            format!("[{:.3}, {:.3}]", r.p10_ms, r.p90_ms),
+            floor.map_or(f64::NAN, |f| r.median_ms / f),
+            f(r.max_error_mm),
+            f(r.mean_error_mm)
+        );
+    }
+}

@@ -1,0 +1,223 @@
+//! Options shared by several subcommands, and their parsers. Options that are also node
+//! parameters take their default from the library's parameter table
+//! ([`ist_monitor::config::PARAMETERS`]) and go through the same validation as a params file.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+
+use ist_monitor::config::{self, Config};
+use ist_monitor::ist::{BuildOptions, TreeBuilder};
+use ist_monitor::packing::PackingParams;
+use ist_monitor::query::{Backend, Mode};
+use ist_monitor::robot::{PackagePath, RobotModel};
+
+use crate::demo;
+
+/// The declared default of a node parameter (clap shows it in `--help`).
+pub fn param(name: &str) -> &'static str {
+    config::default_of(name).unwrap_or("")
+}
+
+#[derive(Args)]
+pub struct RobotArgs {
+    /// URDF file (default: the demo robot, urdf/demo_arm.urdf).
+    #[arg(long)]
+    pub urdf: Option<PathBuf>,
+    /// Where package://NAME is found; repeatable.
+    #[arg(long = "package-path", value_name = "NAME=DIR")]
+    pub package_paths: Vec<PackagePath>,
+}
+
+impl RobotArgs {
+    pub fn load(&self) -> Result<RobotModel> {
+        let urdf = demo::or_demo(&self.urdf, demo::URDF)?;
+        RobotModel::load(&urdf, &self.package_paths)
+            .with_context(|| format!("loading robot {}", urdf.display()))
+    }
+}
+
+#[derive(Args)]
+pub struct PackingArgs {
+    /// Sphere budget per link (parameter max_spheres).
+    #[arg(long, default_value = param("max_spheres"))]
+    pub max_spheres: u32,
+    /// Smallest sphere radius, m.
+    #[arg(long, default_value_t = PackingParams::default().min_radius_m)]
+    min_radius: f32,
+    /// Stop packing a link at this volume coverage (0..1].
+    #[arg(long, default_value_t = PackingParams::default().target_coverage)]
+    target_coverage: f64,
+    /// Prototypes of the first grid per collision element.
+    #[arg(long, default_value_t = PackingParams::default().prototypes)]
+    prototypes: u32,
+    /// The gap pass fills pockets under the surface until every sample is this close to the spheres, m.
+    #[arg(long, default_value_t = PackingParams::default().target_gap_m)]
+    target_gap: f32,
+    /// Hierarchy build.
+    #[arg(long, value_enum, default_value_t = BuildOptions::default().tree)]
+    tree: TreeBuilder,
+}
+
+impl PackingArgs {
+    pub fn options(&self) -> Result<BuildOptions> {
+        if self.max_spheres == 0 {
+            bail!("--max-spheres must be at least 1");
+        }
+        if !(self.min_radius > 0.0 && self.min_radius.is_finite()) {
+            bail!("--min-radius must be a positive number of metres");
+        }
+        if !(self.target_coverage > 0.0 && self.target_coverage <= 1.0) {
+            bail!("--target-coverage must lie in (0, 1]");
+        }
+        if self.prototypes == 0 {
+            bail!("--prototypes must be at least 1");
+        }
+        if !(self.target_gap > 0.0 && self.target_gap.is_finite()) {
+            bail!("--target-gap must be a positive number of metres");
+        }
+        Ok(BuildOptions {
+            packing: PackingParams {
+                max_spheres: self.max_spheres,
+                min_radius_m: self.min_radius,
+                target_coverage: self.target_coverage,
+                prototypes: self.prototypes,
+                target_gap_m: self.target_gap,
+                ..PackingParams::default()
+            },
+            tree: self.tree,
+            ..BuildOptions::default()
+        })
+    }
+}
+
+/// The query's options: each is a node parameter of the same name, with the table's default;
+/// they are validated into the library's options by [`Config`], as a params file would be.
+#[derive(Args)]
+pub struct QueryParams {
+    /// fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or
+    /// exact (distance to the collision meshes).
+    #[arg(long, value_enum, default_value = param("mode"))]
+    pub mode: Mode,
+    /// Drop points farther than this from the robot's bounding box, m (.inf keeps all).
+    #[arg(long, default_value = param("max_distance"))]
+    pub max_distance: String,
+    /// Self-filter padding, m: points this close to the robot are the robot itself.
+    #[arg(long, default_value = param("self_filter_padding"))]
+    pub self_filter_padding: String,
+    /// Take every point as an obstacle, even on the robot (self_filter: false).
+    #[arg(long)]
+    pub no_self_filter: bool,
+    /// Only the global minimum (per_link: false; one shared bound, faster).
+    #[arg(long)]
+    pub no_per_link: bool,
+    /// Only these links (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    pub links: Vec<String>,
+    /// Leave these links out (comma separated).
+    #[arg(long, value_delimiter = ',')]
+    pub exclude_links: Vec<String>,
+    /// cpu, gpu, or auto (the GPU from --gpu-min-points points on, on a hardware GPU).
+    #[arg(long, value_enum, default_value = param("backend"))]
+    pub backend: Backend,
+    /// Crossover of --backend auto, in points.
+    #[arg(long, default_value = param("gpu_min_points"))]
+    pub gpu_min_points: usize,
+}
+
+impl QueryParams {
+    /// The options as `-p NAME:=VALUE` overrides of the node's parameters.
+    pub fn overrides(&self) -> Vec<(String, String)> {
+        let list = |v: &[String]| format!("[{}]", v.join(", "));
+        [
+            ("mode", enum_name(&self.mode)),
+            ("max_distance", self.max_distance.clone()),
+            ("self_filter_padding", self.self_filter_padding.clone()),
+            ("self_filter", (!self.no_self_filter).to_string()),
+            ("per_link", (!self.no_per_link).to_string()),
+            ("links", list(&self.links)),
+            ("exclude_links", list(&self.exclude_links)),
+            ("backend", enum_name(&self.backend)),
+            ("gpu_min_points", self.gpu_min_points.to_string()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_owned(), v))
+        .collect()
+    }
+
+    /// The validated options (query, link selection) through the parameter table.
+    pub fn config(&self) -> Result<Config> {
+        Ok(Config::from_overrides(&self.overrides())?)
+    }
+}
+
+/// The command-line (and parameter) name of an enum value.
+pub fn enum_name<T: clap::ValueEnum>(v: &T) -> String {
+    v.to_possible_value()
+        .map(|p| p.get_name().to_owned())
+        .unwrap_or_default()
+}
+
+/// Parses a count of at least 1.
+pub fn parse_count(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        Ok(_) => Err("must be at least 1".into()),
+        Err(e) => Err(format!("'{s}': {e}")),
+    }
+}
+
+/// Parses "x y z qx qy qz qw" (the quaternion is normalized; it must not be zero).
+pub fn parse_pose(s: &str) -> Result<nalgebra::Isometry3<f64>, String> {
+    let v: Vec<f64> = s
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|w| !w.is_empty())
+        .map(|w| w.parse::<f64>().map_err(|e| format!("'{w}': {e}")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != 7 || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "expected 7 finite numbers \"x y z qx qy qz qw\", got '{s}'"
+        ));
+    }
+    let q = nalgebra::Quaternion::new(v[6], v[3], v[4], v[5]);
+    if q.norm() < 1e-9 {
+        return Err("the quaternion is zero".into());
+    }
+    Ok(nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(v[0], v[1], v[2]),
+        nalgebra::UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+/// Parses "NAME=VALUE" with a finite value (radians or metres).
+pub fn parse_joint(s: &str) -> Result<(String, f64), String> {
+    let (name, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected NAME=VALUE, got '{s}'"))?;
+    let value: f64 = value
+        .parse()
+        .map_err(|e| format!("joint {name}: '{value}' is not a number: {e}"))?;
+    if !value.is_finite() {
+        return Err(format!("joint {name}: value must be finite"));
+    }
+    Ok((name.to_owned(), value))
+}
+
+/// Parses a positive, finite number of seconds (or a positive rate).
+pub fn parse_positive(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("'{s}': {e}"))?;
+    if !(v > 0.0 && v.is_finite()) {
+        return Err(format!("'{s}' must be a positive, finite number"));
+    }
+    Ok(v)
+}
+
+/// Parses a finite number of seconds ≥ 0.
+pub fn parse_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("'{s}': {e}"))?;
+    if !(v >= 0.0 && v.is_finite()) {
+        return Err(format!("'{s}' must be a finite number of seconds ≥ 0"));
+    }
+    Ok(v)
+}

@@ -1,0 +1,198 @@
+//! `build` (pack, build, cache and report the trees of a robot) and `poses` (forward
+//! kinematics), and the tree build with a progress bar that every command shares.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use serde::Serialize;
+
+use ist_monitor::ist::cache::TreeCache;
+use ist_monitor::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin};
+use ist_monitor::robot::RobotModel;
+
+use super::args::{parse_joint, PackingArgs, RobotArgs};
+
+#[derive(Args)]
+pub struct BuildArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    #[command(flatten)]
+    packing: PackingArgs,
+    /// Cache folder (default: $IST_MONITOR_CACHE, $XDG_CACHE_HOME/ist_monitor or ~/.cache/ist_monitor).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Build everything anew and store nothing.
+    #[arg(long)]
+    no_cache: bool,
+    /// Print the table as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Write {"<link>": [[x, y, z, r], ...]} (link frames, metres) to this file.
+    #[arg(long, value_name = "FILE")]
+    export_spheres: Option<PathBuf>,
+    /// Check every sphere and node against the meshes (exact, in f64).
+    #[arg(long)]
+    validate: bool,
+}
+
+#[derive(Args)]
+pub struct PosesArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// Joint values, NAME=VALUE,... (radians or metres); joints not named are 0.
+    #[arg(long, value_delimiter = ',', value_parser = parse_joint)]
+    joints: Vec<(String, f64)>,
+}
+
+/// The trees of every link, built or loaded from `cache`, with a progress bar on a terminal.
+pub fn build_trees(
+    model: &RobotModel,
+    options: &BuildOptions,
+    cache: Option<&TreeCache>,
+) -> Result<Vec<(LinkTree, Origin)>> {
+    let bar = indicatif::ProgressBar::new(model.links.len() as u64).with_message("links");
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {msg} {pos}/{len} [{elapsed}] {wide_bar}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let trees = ist::build_robot(model, options, cache, &|_| bar.inc(1))?;
+    bar.finish_and_clear();
+    Ok(trees)
+}
+
+/// [`build_trees`] through the cache in `dir` (or the default cache folder), trees only.
+pub fn cached_trees(
+    model: &RobotModel,
+    options: &BuildOptions,
+    dir: Option<&Path>,
+) -> Result<Vec<LinkTree>> {
+    let cache = TreeCache::at(dir);
+    Ok(build_trees(model, options, Some(&cache))?
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect())
+}
+
+#[derive(Serialize)]
+struct LinkRow<'a> {
+    name: &'a str,
+    spheres: usize,
+    coverage: f64,
+    gap_m: f64,
+    gap_sampled_m: f64,
+    build_s: f64,
+    tree_volume_m3: f64,
+    origin: Origin,
+}
+
+pub fn build(args: BuildArgs) -> Result<()> {
+    let options = args.packing.options()?;
+    let model = args.robot.load()?;
+    if !model.skipped_links.is_empty() && !args.json {
+        eprintln!(
+            "links without collision geometry (skipped): {}",
+            model.skipped_links.join(", ")
+        );
+    }
+    let cache = (!args.no_cache).then(|| TreeCache::at(args.cache_dir.as_deref()));
+    let start = Instant::now();
+    let trees = build_trees(&model, &options, cache.as_ref())?;
+    let total_s = start.elapsed().as_secs_f64();
+    if args.validate {
+        for ((tree, _), geometry) in trees.iter().zip(&model.links) {
+            validate_link(tree, geometry, 1e-6)?;
+        }
+    }
+    let rows: Vec<LinkRow> = trees
+        .iter()
+        .map(|(t, origin)| LinkRow {
+            name: &t.link,
+            spheres: t.quality.spheres,
+            coverage: t.quality.coverage,
+            gap_m: t.quality.gap_m,
+            gap_sampled_m: t.quality.gap_sampled_m,
+            build_s: t.quality.build_s,
+            tree_volume_m3: t.quality.tree_volume_m3,
+            origin: *origin,
+        })
+        .collect();
+    if let Some(path) = &args.export_spheres {
+        export_spheres(path, &trees)?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({ "links": rows }))?
+        );
+        return Ok(());
+    }
+    println!(
+        "robot {} ({}), {} links",
+        model.name,
+        model.urdf_path.display(),
+        rows.len()
+    );
+    println!(
+        "{:<24} {:>8} {:>9} {:>8} {:>9} {:>7}",
+        "link", "spheres", "coverage", "h [mm]", "build [s]", "from"
+    );
+    for r in &rows {
+        println!(
+            "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9.2} {:>7}",
+            r.name,
+            r.spheres,
+            100.0 * r.coverage,
+            1e3 * r.gap_m,
+            r.build_s,
+            match r.origin {
+                Origin::Built => "built",
+                Origin::Cache => "cache",
+            }
+        );
+    }
+    println!(
+        "total {total_s:.2} s{}",
+        if args.validate { ", validated" } else { "" }
+    );
+    Ok(())
+}
+
+fn export_spheres(path: &Path, trees: &[(LinkTree, Origin)]) -> Result<()> {
+    let map: serde_json::Map<String, serde_json::Value> = trees
+        .iter()
+        .map(|(t, _)| {
+            let spheres: Vec<[f32; 4]> = t
+                .spheres
+                .iter()
+                .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+                .collect();
+            (t.link.clone(), serde_json::json!(spheres))
+        })
+        .collect();
+    std::fs::write(path, serde_json::to_string(&map)?)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+pub fn poses(args: PosesArgs) -> Result<()> {
+    let model = args.robot.load()?;
+    let k = &model.kinematics;
+    let q = k.values_from_names(&args.joints, Some(0.0))?;
+    let poses = k.link_poses(&q);
+    println!(
+        "{:<24} {:>9} {:>9} {:>9}   (root frame {}, m)",
+        "link",
+        "x",
+        "y",
+        "z",
+        k.root_link()
+    );
+    for (name, pose) in k.link_names().iter().zip(&poses) {
+        let t = pose.translation.vector;
+        println!("{name:<24} {:>9.4} {:>9.4} {:>9.4}", t.x, t.y, t.z);
+    }
+    Ok(())
+}

@@ -1,0 +1,75 @@
+//! Command line: `build` (trees, quality table, cache, export), `poses` (forward kinematics),
+//! `query` (one cloud against the posed robot), `replay` (a bag through the monitor), `generate`
+//! (scenario bags), `node` (the live ROS 2 node), `play` and `record` (DDS bag tools), `params`
+//! (the parameter table), and `bench packing`, `bench query` and `bench gpu` (in `crate::bench`).
+//!
+//! Every option is defined once, in the module of its subcommand or in `args` when several
+//! share it; the options that are also node parameters take the parameter table's default and
+//! its validation.
+
+mod args;
+mod build;
+mod query;
+mod replay;
+mod ros;
+
+pub use args::{parse_count, RobotArgs};
+pub use build::cached_trees;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "ist_monitor",
+    version,
+    about = "Robot-to-point-cloud distance with inner sphere trees"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Pack every link with inner spheres, build the trees and print their quality.
+    Build(build::BuildArgs),
+    /// Print the pose of every link in the root frame for given joint values.
+    Poses(build::PosesArgs),
+    /// Minimum distance between the posed robot and one point cloud.
+    Query(query::QueryArgs),
+    /// Replay a rosbag2 MCAP bag through the monitor: one line per cloud and a summary.
+    Replay(replay::ReplayArgs),
+    /// Run the live ROS 2 node.
+    Node(ros::NodeArgs),
+    /// Publish a bag's clouds, joint states and transforms on DDS at their recorded pace.
+    Play(ros::PlayArgs),
+    /// Record the node's outputs from DDS into an MCAP.
+    Record(ros::RecordArgs),
+    /// Print the node's parameters (name, default, unit, meaning) as a Markdown table.
+    Params,
+    /// Make a bag: a simulated depth camera watching the robot and an obstacle, with the exact
+    /// minimum distance of every frame.
+    Generate(replay::GenerateArgs),
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(crate::bench::Bench),
+}
+
+pub fn run() -> Result<()> {
+    match Cli::parse().command {
+        Command::Build(args) => build::build(args),
+        Command::Poses(args) => build::poses(args),
+        Command::Query(args) => query::query(args),
+        Command::Replay(args) => replay::replay(args),
+        Command::Generate(args) => replay::generate(args),
+        Command::Node(args) => ros::node(args),
+        Command::Play(args) => ros::play(args),
+        Command::Record(args) => ros::record(args),
+        Command::Params => {
+            print!("{}", ist_monitor::config::markdown_table());
+            Ok(())
+        }
+        Command::Bench(bench) => crate::bench::run(bench),
+    }
+}

@@ -1,0 +1,223 @@
+//! `replay` (a bag through the monitor, one line per cloud) and `generate` (scenario bags with
+//! the exact distance of every frame).
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+
+use ist_monitor::bag::writer::Compression;
+use ist_monitor::config::{parse_override, Config};
+use ist_monitor::monitor::replay;
+use ist_monitor::monitor::Monitor;
+use ist_monitor::query::Backend;
+use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
+
+use super::args::RobotArgs;
+use crate::demo;
+
+#[derive(Args)]
+pub struct ReplayArgs {
+    /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag, bags/demo).
+    bag: Option<PathBuf>,
+    /// ROS 2 parameters file (default: config/demo_arm.yaml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Override a parameter, NAME:=VALUE (value in YAML); repeatable.
+    #[arg(short = 'p', long = "param", value_name = "NAME:=VALUE", value_parser = parse_override)]
+    params: Vec<(String, String)>,
+    /// Write the node's outputs to this MCAP (`.mcap` file, or a rosbag2 folder otherwise).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Chunk compression of --out.
+    #[arg(long, value_enum, default_value_t = Compression::Zstd)]
+    out_compression: Compression,
+    /// Where the queries run: cpu, gpu or auto (the same as -p backend:=...).
+    #[arg(long, value_enum)]
+    backend: Option<Backend>,
+    /// Print the frames and the summary as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+pub struct GenerateArgs {
+    #[command(flatten)]
+    robot: RobotArgs,
+    /// Output: a rosbag2 folder (or a .mcap file); it must not exist yet.
+    #[arg(long)]
+    out: PathBuf,
+    /// The obstacle: a person walking up to the arm, or a shelf the arm reaches over.
+    #[arg(long, value_enum, default_value_t = SceneKind::Person)]
+    scene: SceneKind,
+    /// Clouds to record (10 Hz).
+    #[arg(long, default_value_t = ScenarioParams::default().frames)]
+    frames: usize,
+    /// Depth image width, pixels.
+    #[arg(long, default_value_t = ScenarioParams::default().width)]
+    width: u32,
+    /// Depth image height, pixels.
+    #[arg(long, default_value_t = ScenarioParams::default().height)]
+    height: u32,
+    /// Range noise σ, m (clipped at 2.5 σ).
+    #[arg(long, default_value_t = ScenarioParams::default().noise_m)]
+    noise: f64,
+    /// Fraction of pixels dropped (NaN holes).
+    #[arg(long, default_value_t = ScenarioParams::default().holes)]
+    holes: f64,
+    /// Seed of the noise and the holes (the same seed gives the same bag, byte for byte).
+    #[arg(long, default_value_t = ScenarioParams::default().seed)]
+    seed: u64,
+    /// Chunk compression of the bag.
+    #[arg(long, value_enum, default_value_t = Compression::Zstd)]
+    compression: Compression,
+    /// Bytes per point: 16 (x y z) or 32 (x y z, rgb), as RGB-D drivers publish.
+    #[arg(long, default_value_t = 16)]
+    point_step: u32,
+}
+
+/// The monitor of a config, with a progress line while its trees are built or loaded.
+pub fn monitor_from_config(config: Config) -> Result<Monitor> {
+    let bar = indicatif::ProgressBar::new_spinner();
+    let monitor = Monitor::new(config, &|link| {
+        bar.set_message(format!("inner sphere trees: {link}"));
+        bar.tick();
+    });
+    bar.finish_and_clear();
+    Ok(monitor?)
+}
+
+/// The config file given, or the demo arm's.
+pub fn load_config(path: &Option<PathBuf>, params: &[(String, String)]) -> Result<Config> {
+    let path = demo::or_demo(path, demo::CONFIG)?;
+    Config::load(&path, params).with_context(|| format!("config {}", path.display()))
+}
+
+pub fn replay(args: ReplayArgs) -> Result<()> {
+    let mut params = args.params.clone();
+    if let Some(backend) = args.backend {
+        params.push(("backend".into(), super::args::enum_name(&backend)));
+    }
+    let config = load_config(&args.config, &params)?;
+    let bag = demo::or_demo(&args.bag, demo::BAG)?;
+    let mut monitor = monitor_from_config(config)?;
+    let out = args.out.as_deref().map(|p| (p, args.out_compression));
+    let mut frames = Vec::new();
+    let json = args.json;
+    if !json {
+        println!(
+            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8}",
+            "frame",
+            "stamp [s]",
+            "level",
+            "min [m]",
+            "lower [m]",
+            "upper [m]",
+            "link",
+            "truth [m]",
+            "ms"
+        );
+    }
+    let summary = replay::replay(&mut monitor, &bag, out, &mut |f| {
+        if json {
+            frames.push(f.clone());
+            return;
+        }
+        let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
+        println!(
+            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8.3}{}",
+            f.index,
+            f.stamp_ns as f64 * 1e-9,
+            format!("{:?}", f.level).to_uppercase(),
+            m(f.min_distance_m),
+            m(f.lower_m),
+            m(f.distance_m),
+            f.link.as_deref().unwrap_or(match f.outcome {
+                "nearest" => "-",
+                other => other,
+            }),
+            m(f.truth_m),
+            f.processing_ms,
+            f.fault
+                .as_ref()
+                .map(|e| format!("  {e}"))
+                .unwrap_or_default()
+        );
+    })?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(
+                &serde_json::json!({"frames": frames, "summary": summary})
+            )?
+        );
+        return Ok(());
+    }
+    let faults: usize = summary.faults.values().sum();
+    println!(
+        "{} frames, {} faults{}, {} dropped, {} input errors; processing p50 {:.3} ms, p99 {:.3} ms{}",
+        summary.frames,
+        faults,
+        if faults > 0 {
+            format!(" ({:?})", summary.faults)
+        } else {
+            String::new()
+        },
+        summary.dropped,
+        summary.input_errors,
+        summary.processing_p50_ms,
+        summary.processing_p99_ms,
+        summary
+            .max_error_vs_truth_m
+            .map(|e| format!("; max |min_distance − truth| {:.2} mm", e * 1e3))
+            .unwrap_or_default()
+    );
+    if let Some(out) = &args.out {
+        println!("outputs written to {}", out.display());
+    }
+    Ok(())
+}
+
+pub fn generate(args: GenerateArgs) -> Result<()> {
+    if args.out.exists() {
+        bail!("{} exists already", args.out.display());
+    }
+    if args.point_step != 16 && args.point_step != 32 {
+        bail!("--point-step must be 16 or 32");
+    }
+    if args.frames == 0 || args.width == 0 || args.height == 0 {
+        bail!("--frames, --width and --height must be at least 1");
+    }
+    if !(args.noise >= 0.0 && args.noise.is_finite() && (0.0..=1.0).contains(&args.holes)) {
+        bail!("--noise must be ≥ 0 and --holes in [0, 1]");
+    }
+    let model = args.robot.load()?;
+    let params = ScenarioParams {
+        scene: args.scene,
+        frames: args.frames,
+        width: args.width,
+        height: args.height,
+        noise_m: args.noise,
+        holes: args.holes,
+        seed: args.seed,
+        compression: args.compression,
+        point_step: args.point_step,
+        ..ScenarioParams::default()
+    };
+    let g = scenario::generate(&model, &params, &args.out)?;
+    println!(
+        "{:>5} {:>10} {:>10} {:>10}",
+        "frame", "truth [m]", "obstacle", "robot"
+    );
+    for i in 0..g.frames {
+        println!(
+            "{:>5} {:>10} {:>10} {:>10}",
+            i,
+            g.truth_m[i].map_or_else(|| "-".into(), |t| format!("{t:.4}")),
+            g.obstacle_points[i],
+            g.robot_points[i]
+        );
+    }
+    println!("wrote {}", args.out.display());
+    Ok(())
+}

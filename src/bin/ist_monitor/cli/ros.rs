@@ -1,0 +1,116 @@
+//! The ROS 2 commands: `node` (the live monitor), `play` (a bag onto DDS, optionally measuring
+//! the node) and `record` (the node's outputs into an MCAP).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+
+use ist_monitor::node;
+
+use super::args::{parse_positive, parse_seconds};
+use super::replay::{load_config, monitor_from_config};
+use crate::demo;
+
+#[derive(Args)]
+pub struct NodeArgs {
+    /// ROS 2 parameters file (default: config/demo_arm.yaml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// `--ros-args -r __node:=NAME -r __ns:=/NS -p NAME:=VALUE ...`
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
+    ros_args: Vec<String>,
+}
+
+#[derive(Args)]
+pub struct PlayArgs {
+    /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag).
+    bag: Option<PathBuf>,
+    /// Playback rate (1 = recorded pace).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    rate: f64,
+    /// How many times to play the bag (stamps are shifted to now at each start).
+    #[arg(long, default_value_t = 1)]
+    loops: usize,
+    /// Seconds to wait for discovery before the first message.
+    #[arg(long, default_value_t = 1.5, value_parser = parse_seconds)]
+    wait: f64,
+    /// Measure the node: match its outputs on this JointState topic (e.g.
+    /// /ist_monitor/link_distances) to the clouds, and report rate and latency.
+    #[arg(long)]
+    measure: Option<String>,
+    /// Seconds to wait for outputs after the last message.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_seconds)]
+    linger: f64,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+pub struct RecordArgs {
+    /// Output MCAP (.mcap file, or a rosbag2 folder).
+    #[arg(long)]
+    out: PathBuf,
+    /// The node whose outputs to record.
+    #[arg(long, default_value = "/ist_monitor")]
+    node: String,
+    /// Seconds to record.
+    #[arg(long, default_value_t = 10.0, value_parser = parse_positive)]
+    duration: f64,
+}
+
+pub fn node(args: NodeArgs) -> Result<()> {
+    let ros = node::parse_ros_args(&args.ros_args)?;
+    let mut config = load_config(&args.config, &ros.params)?;
+    if let Some(name) = ros.node {
+        config.node_name = name;
+    }
+    if let Some(ns) = ros.namespace {
+        config.namespace = ns;
+    }
+    // Signals first: a stop during the tree build ends the node cleanly once it is built.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())?;
+    }
+    let monitor = monitor_from_config(config)?;
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Ok(());
+    }
+    Ok(node::run(monitor, stop)?)
+}
+
+pub fn play(args: PlayArgs) -> Result<()> {
+    let bag = demo::or_demo(&args.bag, demo::BAG)?;
+    let options = node::play::PlayOptions {
+        rate: args.rate,
+        loops: args.loops,
+        wait_s: args.wait,
+        measure: args.measure.clone(),
+        linger_s: args.linger,
+    };
+    let s = node::play::play(&bag, &options)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&s)?);
+    } else {
+        let ms = |v: Option<f64>| v.map_or("-".into(), |v| format!("{v:.2}"));
+        println!(
+            "{} clouds and {} messages published; {} outputs received ({:.1} Hz); latency p50 {} ms, p99 {} ms, max {} ms",
+            s.clouds_published,
+            s.messages_published,
+            s.outputs_received,
+            s.output_rate_hz,
+            ms(s.latency_p50_ms),
+            ms(s.latency_p99_ms),
+            ms(s.latency_max_ms),
+        );
+    }
+    Ok(())
+}
+
+pub fn record(args: RecordArgs) -> Result<()> {
+    let n = node::record::record(&args.node, &args.out, args.duration)?;
+    println!("{n} messages recorded to {}", args.out.display());
+    Ok(())
+}

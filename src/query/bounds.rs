@@ -1,0 +1,108 @@
+//! The shared bounds of one query, the state that either backend fills and the result assembly
+//! (`result.rs`) reads: the posed links, each link's minimum with the point that attains it,
+//! the global minimum and certified lower bound, and the exact-mode candidates.
+//!
+//! Each link's minimum is one `AtomicU64` holding the non-negative f32 distance bits above the
+//! point index, so one `fetch_min` keeps both the minimum and the smallest point index that
+//! attains it (non-negative f32 bits order like the floats). The GPU, which has no 64-bit
+//! atomics, finds the index in its arg-min pass and its minima are packed here on readback.
+
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+use std::sync::Mutex;
+
+use nalgebra::Isometry3;
+
+use super::layout::{Candidate, PosedLink, RobotBox};
+use super::{pose, QueryLink, QueryOptions};
+
+/// An empty per-link minimum.
+pub(crate) const EMPTY: u64 = u64::MAX;
+
+/// f32 distance and point index packed so that `fetch_min` keeps both.
+#[inline]
+pub(crate) fn pack_minimum(distance: f32, point: u32) -> u64 {
+    ((distance.max(0.0).to_bits() as u64) << 32) | point as u64
+}
+
+#[inline]
+pub(crate) fn unpack_minimum(v: u64) -> (f32, u32) {
+    (f32::from_bits((v >> 32) as u32), v as u32)
+}
+
+/// The distance of a packed minimum (+∞ when empty).
+#[inline]
+pub(crate) fn load_distance(a: &AtomicU64) -> f32 {
+    let v = a.load(Relaxed);
+    if v == EMPTY {
+        f32::INFINITY
+    } else {
+        unpack_minimum(v).0
+    }
+}
+
+#[inline]
+pub(crate) fn load_f32(a: &AtomicU32) -> f32 {
+    f32::from_bits(a.load(Relaxed))
+}
+
+/// Memory reused from query to query by both backends.
+pub(crate) struct Bounds {
+    /// The links posed for this query (`node_base`, `sphere_base`: their offsets in the
+    /// concatenated node and sphere arrays the GPU holds).
+    pub posed: Vec<PosedLink>,
+    /// Per link: the minimum and its point, packed.
+    pub best: Vec<AtomicU64>,
+    pub global: AtomicU32,
+    pub global_lower: AtomicU32,
+    pub candidates: Mutex<Vec<Candidate>>,
+}
+
+impl Bounds {
+    pub fn new(links: &[QueryLink]) -> Self {
+        let mut posed = Vec::with_capacity(links.len());
+        let (mut nodes, mut spheres) = (0u32, 0u32);
+        for link in links {
+            posed.push(PosedLink {
+                node_base: nodes,
+                sphere_base: spheres,
+                ..PosedLink::default()
+            });
+            nodes += link.nodes.len() as u32;
+            spheres += link.spheres.len() as u32;
+        }
+        Self {
+            posed,
+            best: links.iter().map(|_| AtomicU64::new(EMPTY)).collect(),
+            global: AtomicU32::new(f32::INFINITY.to_bits()),
+            global_lower: AtomicU32::new(f32::INFINITY.to_bits()),
+            candidates: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Step 1 of a query, for either backend: poses the links (f64, rounded once), resets the
+    /// minima and returns the robot's box.
+    pub fn prepare(
+        &mut self,
+        links: &[QueryLink],
+        root_from_sensor: &Isometry3<f64>,
+        link_poses: &[Isometry3<f64>],
+        options: &QueryOptions,
+    ) -> RobotBox {
+        pose::pose_links(links, &mut self.posed, root_from_sensor, link_poses);
+        for b in &self.best {
+            b.store(EMPTY, Relaxed);
+        }
+        self.global.store(f32::INFINITY.to_bits(), Relaxed);
+        self.global_lower.store(f32::INFINITY.to_bits(), Relaxed);
+        self.candidates_mut().clear();
+        pose::robot_box(links, root_from_sensor, link_poses, options)
+    }
+
+    /// The candidate list, with the query's exclusive access (a poisoned lock, from a panic in
+    /// another query, still holds a usable vector).
+    pub fn candidates_mut(&mut self) -> &mut Vec<Candidate> {
+        self.candidates
+            .get_mut()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}

@@ -1,0 +1,543 @@
+//! The CPU backend's traversal, steps 2 and 3 of [`super::Engine::query`] (step 1, posing, is
+//! `pose.rs`; steps 4 and 5, exact refinement and the result, are `exact.rs` and `result.rs`,
+//! shared with the GPU).
+//!
+//! 2. **Seeds** (parallel over links): a sample of the cloud (every `SEED_STRIDE`-th point)
+//!    gives each link the point nearest to its root sphere; the block around it is descended for
+//!    that link, so that the shared bounds are tight before the main pass.
+//! 3. **Main pass** (parallel over blocks of `BLOCK` consecutive points, rayon; the one sweep
+//!    over the whole cloud). Each block gets its valid count and the bounding sphere of its valid
+//!    points (eight lanes at a time, SIMD). Consecutive points of a scan or depth image lie close
+//!    together, so these spheres are small. A block is dropped whole when its sphere lies outside
+//!    the region of interest or farther from the robot's box than every link's bound; otherwise
+//!    each link's tree is cut at the block: the **frontier**, the nodes no larger than the block
+//!    whose lower bound over the block does not exceed the link's bound (a block × tree descent;
+//!    most links end with an empty frontier and cost the block nothing more). Each point of the
+//!    block is then tested against the frontier nodes (self-filter first), and descends from
+//!    them, depth first, nearest child first, four children tested at once, pruning nodes whose
+//!    lower bound `|p − c| − r` exceeds the bound. Minima go into the shared atomics with
+//!    `fetch_min`, so every thread prunes with the best bound found by any.
+//!
+//! The pruning rule ([`Pass::threshold`]) and the recording rule ([`Pass::record`]) are the
+//! ones the GPU shader implements per point; the blocks, frontiers and SIMD are the CPU's own.
+//! Nothing is allocated per query once the scratch memory has grown (thread-local frontier
+//! buffers, the exact candidates' vector).
+
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
+use std::sync::Mutex;
+
+use rayon::prelude::*;
+use wide::{f32x8, CmpEq, CmpLt};
+
+use super::bounds::{load_distance, load_f32, pack_minimum, Bounds};
+use super::descent::{dist, dist2, lower_bounds, nearest_from, valid};
+use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
+use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
+
+/// Sample points (and their blocks) that seed each link.
+const SEEDS: usize = 3;
+
+#[derive(Clone, Copy, Default)]
+struct Block {
+    center: [f32; 3],
+    radius: f32,
+    valid: u32,
+    invalid: u32,
+}
+
+/// Appends to `out` the frontier of a block (centre `c` in the link frame, radius `r`) in a
+/// tree: a cut of the tree whose nodes' lower bound over the block, `|c − c_n| − r − r_n`, is at
+/// most `limit`; every sphere within `limit` of a point of the block lies under one of them.
+/// The cut is refined level by level, node by node, down to nodes no larger than the block or
+/// holding spheres, as long as it stays within `FRONTIER` nodes (the coarser cut is kept
+/// otherwise). Returns whether the frontier is not empty.
+fn frontier(link: &QueryLink, c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32>) -> bool {
+    let nodes = &link.nodes;
+    let start = out.len();
+    let root = &nodes[0];
+    if dist(c, root.center) - r - root.radius > limit {
+        return false;
+    }
+    out.push(0);
+    loop {
+        // One refinement round: every node larger than the block is replaced by its children
+        // that pass the test, unless the cut would outgrow FRONTIER.
+        let mut next = [0u32; FRONTIER];
+        let mut n = 0;
+        let mut refined = false;
+        for &i in &out[start..] {
+            let node = &nodes[i as usize];
+            if node.children_are_spheres != 0 || node.radius <= r {
+                if n == FRONTIER {
+                    return true;
+                }
+                next[n] = i;
+                n += 1;
+                continue;
+            }
+            refined = true;
+            let first = node.first_child as usize;
+            let count = node.child_count as usize;
+            let lbs = lower_bounds(&link.node_soa, c, first, count);
+            for (k, &lb) in lbs.iter().enumerate().take(count) {
+                if lb - r <= limit {
+                    if n == FRONTIER {
+                        return true;
+                    }
+                    next[n] = (first + k) as u32;
+                    n += 1;
+                }
+            }
+        }
+        out.truncate(start);
+        out.extend_from_slice(&next[..n]);
+        if !refined || n == 0 {
+            return n > 0;
+        }
+    }
+}
+
+struct Pass<'a> {
+    links: &'a [QueryLink],
+    posed: &'a [PosedLink],
+    best: &'a [AtomicU64],
+    global: &'a AtomicU32,
+    global_lower: &'a AtomicU32,
+    candidates: &'a Mutex<Vec<Candidate>>,
+    points: &'a [[f32; 3]],
+    mode: Mode,
+    per_link: bool,
+    /// Self-filter padding; −∞ when off.
+    padding: f32,
+    robot_box: RobotBox,
+    max_distance: f32,
+}
+
+impl Pass<'_> {
+    /// The largest inner-sphere distance of link `l` that can still change the result.
+    #[inline(always)]
+    fn threshold(&self, l: usize) -> f32 {
+        let g = load_f32(self.global);
+        let mut t = if self.per_link {
+            load_distance(&self.best[l])
+        } else {
+            g
+        };
+        match self.mode {
+            Mode::Certified if !self.per_link => {
+                t = t.max(load_f32(self.global_lower) + self.posed[l].gap)
+            }
+            Mode::Exact => t = t.max(g + self.posed[l].gap),
+            _ => {}
+        }
+        t
+    }
+
+    #[inline]
+    fn record(&self, l: usize, point: u32, d: f32) {
+        self.best[l].fetch_min(pack_minimum(d, point), Relaxed);
+        self.global.fetch_min(d.to_bits(), Relaxed);
+        let lower = (d - self.posed[l].gap).max(0.0);
+        match self.mode {
+            Mode::Certified => {
+                self.global_lower.fetch_min(lower.to_bits(), Relaxed);
+            }
+            Mode::Exact => {
+                if lower <= load_f32(self.global) {
+                    self.candidates
+                        .lock()
+                        .unwrap_or_else(|poisoned| poisoned.into_inner())
+                        .push(Candidate {
+                            lower,
+                            link: l as u32,
+                            point,
+                            pad: 0,
+                        });
+                }
+            }
+            Mode::Fast => {}
+        }
+    }
+
+    /// One valid point inside the region of interest; `mask` holds the links whose frontier
+    /// (`frontier[spans[l]]`) is not empty.
+    #[inline]
+    fn point(
+        &self,
+        i: u32,
+        p: [f32; 3],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+        counts: &mut StageCounts,
+    ) {
+        // One look at the frontier nodes per link: which links may hold the point within the
+        // padding (self-filter) and which within their bound (evaluation).
+        let mut near = 0u128;
+        let mut eval = 0u128;
+        for l in bits(mask) {
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(p);
+            let t = self.threshold(l);
+            // |q − c| − r ≤ b  ⇔  |q − c|² ≤ (b + r)²  for b + r ≥ 0: no square root.
+            for &n in starts(frontier, spans, l) {
+                let n = &link.nodes[n as usize];
+                let d2 = dist2(q, n.center);
+                let (pad, reach) = (self.padding + n.radius, t + n.radius);
+                if pad >= 0.0 && d2 <= pad * pad {
+                    near |= 1 << l;
+                }
+                if d2 <= reach * reach {
+                    eval |= 1 << l;
+                }
+            }
+        }
+        if near != 0 && self.is_self(p, near, frontier, spans) {
+            counts.self_filtered += 1;
+            return;
+        }
+        if eval == 0 {
+            counts.pruned += 1;
+            return;
+        }
+        let inside = self.evaluate(i, p, eval, frontier, spans);
+        counts.evaluated += 1;
+        counts.inside += inside as u64;
+    }
+
+    /// Whether `p` is within the self-filter padding of an inner sphere of a link in `mask`.
+    #[inline]
+    fn is_self(&self, p: [f32; 3], mask: u128, frontier: &[u32], spans: &[(u32, u32)]) -> bool {
+        if self.padding < 0.0 {
+            return false;
+        }
+        for l in bits(mask) {
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(p);
+            if nearest_from(link, q, starts(frontier, spans, l), self.padding).is_some() {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Descends the links of `mask` for an obstacle point and records its distances; returns
+    /// whether the point is inside an inner sphere.
+    #[inline]
+    fn evaluate(
+        &self,
+        i: u32,
+        p: [f32; 3],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+    ) -> bool {
+        let mut inside = false;
+        for l in bits(mask) {
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(p);
+            let s = starts(frontier, spans, l);
+            if let Some((d, _)) = nearest_from(link, q, s, self.threshold(l)) {
+                inside |= d == 0.0;
+                self.record(l, i, d);
+            }
+        }
+        inside
+    }
+
+    /// The frontiers of a block in every link (`limit`: the link's threshold, at least the
+    /// padding); returns the mask of links with a frontier.
+    fn frontiers(
+        &self,
+        center: [f32; 3],
+        radius: f32,
+        frontier: &mut Vec<u32>,
+        spans: &mut [(u32, u32)],
+    ) -> u128 {
+        frontier.clear();
+        let mut mask = 0u128;
+        for (l, pl) in self.posed.iter().enumerate() {
+            let limit = self.threshold(l).max(self.padding);
+            // Root sphere first, in the sensor frame (no transform, no square root).
+            let reach = limit + radius + pl.radius;
+            if dist2(center, pl.center) > reach * reach {
+                continue;
+            }
+            let start = frontier.len() as u32;
+            let c = pl.in_link(center);
+            if self::frontier(&self.links[l], c, radius, limit, frontier) {
+                spans[l] = (start, frontier.len() as u32 - start);
+                mask |= 1 << l;
+            }
+        }
+        mask
+    }
+
+    fn block(
+        &self,
+        b: usize,
+        block: &Block,
+        frontier: &mut Vec<u32>,
+        spans: &mut [(u32, u32)],
+    ) -> StageCounts {
+        let mut counts = StageCounts {
+            total: (block.valid + block.invalid) as u64,
+            invalid: block.invalid as u64,
+            ..Default::default()
+        };
+        if block.valid == 0 {
+            return counts;
+        }
+        let roi = self.robot_box.distance(block.center);
+        if roi - block.radius > self.max_distance {
+            counts.outside_roi = block.valid as u64;
+            return counts;
+        }
+        let partial_roi = roi + block.radius > self.max_distance;
+        // The robot's bounding box is also a cheap lower bound for every link at once.
+        let mut reach = self.padding;
+        for l in 0..self.links.len() {
+            reach = reach.max(self.threshold(l));
+        }
+        if roi - block.radius > reach && !partial_roi {
+            counts.pruned = block.valid as u64;
+            return counts;
+        }
+        let mask = self.frontiers(block.center, block.radius, frontier, spans);
+        if mask == 0 && !partial_roi {
+            counts.pruned = block.valid as u64;
+            return counts;
+        }
+        let start = b * BLOCK;
+        let end = (start + BLOCK).min(self.points.len());
+        for (i, &p) in self.points[start..end].iter().enumerate() {
+            if !valid(p) {
+                continue;
+            }
+            if partial_roi && self.robot_box.distance(p) > self.max_distance {
+                counts.outside_roi += 1;
+            } else if mask == 0 {
+                counts.pruned += 1;
+            } else {
+                self.point((start + i) as u32, p, mask, frontier, spans, &mut counts);
+            }
+        }
+        counts
+    }
+
+    /// Seeds link `l`'s bound from the valid points of block `b` (the self-filter applies, so
+    /// that the robot's own points never become a bound; nothing is counted).
+    fn seed(&self, l: usize, b: usize, block: &Block) {
+        with_scratch(self.links.len(), |frontier, spans| {
+            let mask = self.frontiers(block.center, block.radius, frontier, spans);
+            let start = b * BLOCK;
+            let end = (start + BLOCK).min(self.points.len());
+            for (i, &p) in self.points[start..end].iter().enumerate() {
+                if valid(p)
+                    && self.robot_box.distance(p) <= self.max_distance
+                    && !self.is_self(p, mask, frontier, spans)
+                {
+                    self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
+                }
+            }
+        });
+    }
+}
+
+/// The links of a mask, lowest first.
+#[inline(always)]
+fn bits(mut mask: u128) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let l = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            l
+        })
+    })
+}
+
+#[inline(always)]
+fn starts<'a>(frontier: &'a [u32], spans: &[(u32, u32)], l: usize) -> &'a [u32] {
+    let (s, n) = spans[l];
+    &frontier[s as usize..(s + n) as usize]
+}
+
+/// Frontier node indices and, per link, their span.
+type FrontierScratch = (Vec<u32>, Vec<(u32, u32)>);
+
+thread_local! {
+    /// Per-thread frontier memory (grows once, reused by every block of every query).
+    static SCRATCH: std::cell::RefCell<FrontierScratch> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
+fn with_scratch<R>(links: usize, f: impl FnOnce(&mut Vec<u32>, &mut [(u32, u32)]) -> R) -> R {
+    SCRATCH.with(|s| {
+        let mut s = s.borrow_mut();
+        let (frontier, spans) = &mut *s;
+        if spans.len() < links {
+            spans.resize(links, (0, 0));
+        }
+        f(frontier, spans)
+    })
+}
+
+/// Lane masks for a byte: entry `b` has lane `j` all ones where bit `j` of `b` is set.
+static LANE_MASKS: [[u32; 8]; 256] = {
+    let mut t = [[0u32; 8]; 256];
+    let mut b = 0;
+    while b < 256 {
+        let mut j = 0;
+        while j < 8 {
+            if (b >> j) & 1 == 1 {
+                t[b][j] = u32::MAX;
+            }
+            j += 1;
+        }
+        b += 1;
+    }
+    t
+};
+
+/// Every third bit (bit 3k stands for point k of a group of eight).
+const POINT_BITS: u32 = 0x0024_9249;
+
+/// The bounding sphere and valid count of a block, read as it lies in memory: eight points are
+/// 24 floats, three 8-lane vectors (SIMD through `wide`: SSE/AVX on x86, NEON on ARM). Per lane:
+/// finite? zero? As bit masks (bit 3k + axis for point k), a point is invalid when any of its
+/// three bits is non-finite or all three are zero; its lanes then take ±∞ in the box.
+#[inline]
+fn bound_block(chunk: &[[f32; 3]]) -> Block {
+    let flat: &[f32] = bytemuck::cast_slice(chunk);
+    let inf = f32x8::splat(f32::INFINITY);
+    let mut lo = [inf; 3];
+    let mut hi = [-inf; 3];
+    let mut invalid = 0u32;
+    let groups = chunk.len() / 8;
+    for g in 0..groups {
+        let v: [f32x8; 3] = std::array::from_fn(|k| {
+            let at = 24 * g + 8 * k;
+            f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
+        });
+        let mut nonfinite = 0u32;
+        let mut zero = 0u32;
+        for (k, v) in v.iter().enumerate() {
+            nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
+            zero |= (v.cmp_eq(f32x8::ZERO).move_mask() as u32 & 0xff) << (8 * k);
+        }
+        let bad = ((nonfinite | nonfinite >> 1 | nonfinite >> 2) | (zero & zero >> 1 & zero >> 2))
+            & POINT_BITS;
+        invalid += bad.count_ones();
+        let lanes = bad | bad << 1 | bad << 2;
+        for k in 0..3 {
+            let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
+            let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
+            lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
+            hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
+        }
+    }
+    // Lane j of vector k holds axis (8k + j) mod 3; the values are finite or ±∞, so plain
+    // comparisons do.
+    let mut l = [f32::INFINITY; 3];
+    let mut h = [f32::NEG_INFINITY; 3];
+    for k in 0..3 {
+        let (a, b) = (lo[k].to_array(), hi[k].to_array());
+        for j in 0..8 {
+            let axis = (8 * k + j) % 3;
+            l[axis] = if a[j] < l[axis] { a[j] } else { l[axis] };
+            h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
+        }
+    }
+    for &p in &chunk[8 * groups..] {
+        if valid(p) {
+            for k in 0..3 {
+                l[k] = l[k].min(p[k]);
+                h[k] = h[k].max(p[k]);
+            }
+        } else {
+            invalid += 1;
+        }
+    }
+    let n = chunk.len() as u32;
+    if invalid == n {
+        return Block {
+            invalid,
+            ..Block::default()
+        };
+    }
+    let center = [
+        0.5 * (l[0] + h[0]),
+        0.5 * (l[1] + h[1]),
+        0.5 * (l[2] + h[2]),
+    ];
+    // Rounded up so that every point lies inside despite f32 rounding.
+    let radius = 0.5 * dist(l, h) * (1.0 + 1e-6) + 1e-6;
+    Block {
+        center,
+        radius,
+        valid: n - invalid,
+        invalid,
+    }
+}
+
+/// A query on the CPU: pose, seeds, main pass, then the shared refinement and assembly.
+pub(super) fn run(links: &[QueryLink], bounds: &mut Bounds, input: Input) -> QueryResult {
+    let Input {
+        points,
+        root_from_sensor,
+        link_poses,
+        options,
+    } = input;
+    // 1. Pose, in f64, rounded once.
+    let robot_box = bounds.prepare(links, root_from_sensor, link_poses, options);
+    let pass = Pass {
+        links,
+        posed: &bounds.posed,
+        best: &bounds.best,
+        global: &bounds.global,
+        global_lower: &bounds.global_lower,
+        candidates: &bounds.candidates,
+        points,
+        mode: options.mode,
+        per_link: options.per_link,
+        padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
+        robot_box,
+        max_distance: options.max_distance_m,
+    };
+
+    // 2. Seeds: each link from the blocks around the SEEDS sample points nearest to its root
+    // sphere's centre.
+    (0..links.len()).into_par_iter().for_each(|l| {
+        let c = pass.posed[l].center;
+        let mut nearest = [(f32::INFINITY, usize::MAX); SEEDS];
+        for i in (0..points.len()).step_by(SEED_STRIDE as usize) {
+            let p = points[i];
+            let d = dist2(p, c);
+            if d < nearest[SEEDS - 1].0
+                && valid(p)
+                && !nearest.iter().any(|n| n.1 / BLOCK == i / BLOCK)
+            {
+                nearest[SEEDS - 1] = (d, i);
+                nearest.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            }
+        }
+        for &(_, i) in nearest.iter().filter(|n| n.1 != usize::MAX) {
+            let b = i / BLOCK;
+            let chunk = &points[b * BLOCK..((b + 1) * BLOCK).min(points.len())];
+            pass.seed(l, b, &bound_block(chunk));
+        }
+    });
+
+    // 3. Main pass, one sweep over the cloud: each block is bounded, then culled or descended.
+    let counts = points
+        .par_chunks(BLOCK)
+        .enumerate()
+        .with_min_len(16)
+        .map(|(b, chunk)| {
+            let block = bound_block(chunk);
+            with_scratch(links.len(), |f, s| pass.block(b, &block, f, s))
+        })
+        .reduce(StageCounts::default, |a, b| a + b);
+
+    result::finish(links, bounds, input, counts, Backend::Cpu)
+}

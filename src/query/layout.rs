@@ -1,0 +1,287 @@
+//! The query's data layout, shared by the CPU traversal and the GPU shader: `#[repr(C)]` Pod
+//! structs that the CPU walks and the GPU uploads as they are, and the named constants and codes
+//! that both sides use.
+//!
+//! | host (here, or `ist`/`packing`) | WGSL (`shaders/traverse.wgsl`) | role |
+//! |---|---|---|
+//! | [`IstNode`] | `Node` | a bounding sphere of the tree and its children |
+//! | [`InnerSphere`] | `Sphere` | an inner sphere (tree leaf) |
+//! | [`PosedLink`] | `Link` | a link posed for one query, in the sensor frame |
+//! | [`RobotBox`] | `RobotBox` | the robot's box in its root frame, for the region of interest |
+//! | [`QueryParams`] | `Params` | one dispatch's options (a uniform) |
+//! | [`Counters`] | `State` | the shared bounds and the stage counts of the GPU |
+//! | [`Candidate`] | `Candidate` | an exact-mode (point, link) pair |
+//!
+//! The WGSL side never writes a constant of its own: [`wgsl_constants`] generates the constants
+//! and codes below and [`shader_source`] puts them in front of the shader file. A CPU-only test
+//! (`tests/shaders.rs`) checks every mirrored struct member's name and offset with naga against
+//! [`MIRRORS`].
+
+use bytemuck::{Pod, Zeroable};
+use std::mem::{offset_of, size_of};
+
+use crate::ist::IstNode;
+use crate::packing::InnerSphere;
+
+/// Points per block of the CPU's block pass.
+pub const BLOCK: usize = 32;
+/// Stride of the sample that seeds the links' bounds (prime, so that it does not alias with
+/// the rows of an organized cloud); both backends seed from the same points.
+pub const SEED_STRIDE: u32 = 61;
+/// Most frontier nodes per block and link (CPU).
+pub const FRONTIER: usize = 32;
+/// The CPU's depth-first stack; trees deeper than `(STACK - FRONTIER) / (BRANCHING - 1)` are
+/// refused.
+pub const STACK: usize = 192;
+/// The GPU's depth-first stack (per invocation, in private memory); trees deeper than
+/// `(GPU_STACK - 1) / (BRANCHING - 1)` stay on the CPU.
+pub const GPU_STACK: usize = 64;
+/// Invocations per GPU workgroup.
+pub const WORKGROUP: u32 = 256;
+/// Exact-mode candidates the GPU keeps; more sends the query to the CPU.
+pub const GPU_CANDIDATES: u32 = 1 << 16;
+
+/// The mode as both backends read it ([`super::Mode`]'s code).
+pub const MODE_FAST: u32 = 0;
+pub const MODE_CERTIFIED: u32 = 1;
+pub const MODE_EXACT: u32 = 2;
+
+/// Which GPU pass a dispatch runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum PassKind {
+    /// Every `SEED_STRIDE`-th point, nothing counted: tightens the bounds.
+    Seed = 0,
+    /// Every point, with the stage counts.
+    Main = 1,
+    /// With the minima final: each link's smallest point index that attains it.
+    ArgMin = 2,
+}
+
+/// Where a point ended, as the index of its count in [`Counters::counts`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Stage {
+    Invalid = 0,
+    OutsideRoi = 1,
+    SelfFiltered = 2,
+    Pruned = 3,
+    Evaluated = 4,
+    /// Evaluated and inside an inner sphere (counted in addition to `Evaluated`).
+    Inside = 5,
+}
+/// Stage counts kept by the GPU (one per [`Stage`]).
+pub const STAGES: usize = 6;
+
+/// A link posed for one query, in the sensor frame (f32, rounded once from the f64 poses).
+/// WGSL `Link`.
+#[repr(C)]
+#[derive(Clone, Copy, Default, Pod, Zeroable, Debug)]
+pub struct PosedLink {
+    /// `link_from_sensor` as three rows: xyz the rotation, w the translation.
+    pub rows: [[f32; 4]; 3],
+    /// The root sphere of the link's tree, in the sensor frame.
+    pub center: [f32; 3],
+    pub radius: f32,
+    /// The link's certified surface gap h, m.
+    pub gap: f32,
+    /// Where the link's nodes and spheres start in the concatenated arrays (GPU).
+    pub node_base: u32,
+    pub sphere_base: u32,
+    pub pad: u32,
+}
+const _: () = assert!(size_of::<PosedLink>() == 80);
+
+impl PosedLink {
+    /// A sensor-frame point in the link frame.
+    #[inline(always)]
+    pub fn in_link(&self, p: [f32; 3]) -> [f32; 3] {
+        let r = &self.rows;
+        [
+            r[0][0] * p[0] + r[0][1] * p[1] + r[0][2] * p[2] + r[0][3],
+            r[1][0] * p[0] + r[1][1] * p[1] + r[1][2] * p[2] + r[1][3],
+            r[2][0] * p[0] + r[2][1] * p[1] + r[2][2] * p[2] + r[2][3],
+        ]
+    }
+}
+
+/// The robot's bounding box in its root frame (over the links' root spheres), where it is
+/// tight for an arm standing on its base, with `root_from_sensor` in f32, and the two limits
+/// that come with it. WGSL `RobotBox`.
+#[repr(C)]
+#[derive(Clone, Copy, Default, Pod, Zeroable, Debug)]
+pub struct RobotBox {
+    /// `root_from_sensor` rows: xyz the rotation, w the translation.
+    pub rows: [[f32; 4]; 3],
+    pub lo: [f32; 3],
+    /// Points farther than this from the box are outside the region of interest, m.
+    pub max_distance: f32,
+    pub hi: [f32; 3],
+    /// Self-filter padding, m; negative when the self-filter is off.
+    pub padding: f32,
+}
+const _: () = assert!(size_of::<RobotBox>() == 80);
+
+impl RobotBox {
+    /// Distance from a sensor-frame point to the box.
+    #[inline(always)]
+    pub fn distance(&self, p: [f32; 3]) -> f32 {
+        let mut s = 0.0;
+        for (k, r) in self.rows.iter().enumerate() {
+            let q = r[0] * p[0] + r[1] * p[1] + r[2] * p[2] + r[3];
+            let e = (self.lo[k] - q).max(q - self.hi[k]).max(0.0);
+            s += e * e;
+        }
+        s.sqrt()
+    }
+}
+
+/// One GPU dispatch's options. WGSL `Params` (a uniform).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct QueryParams {
+    pub robot_box: RobotBox,
+    pub n_points: u32,
+    pub n_links: u32,
+    /// `MODE_*`.
+    pub mode: u32,
+    pub per_link: u32,
+    /// Points processed: index = offset + k · stride for k < n_work.
+    pub stride: u32,
+    pub offset: u32,
+    pub n_work: u32,
+    /// [`PassKind`].
+    pub pass_kind: u32,
+    /// Room for exact-mode candidates.
+    pub capacity: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+const _: () = assert!(size_of::<QueryParams>() == 128);
+
+/// The GPU's shared bounds and counts. WGSL `State` (its first three members are atomics).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct Counters {
+    /// The smallest inner-sphere distance of any link (f32 bits).
+    pub global: u32,
+    /// The smallest certified lower bound (f32 bits; certified mode).
+    pub global_lower: u32,
+    pub candidate_count: u32,
+    pub pad: u32,
+    /// Points per [`Stage`].
+    pub counts: [u32; STAGES],
+    pub pad1: u32,
+    pub pad2: u32,
+}
+const _: () = assert!(size_of::<Counters>() == 48);
+
+/// An exact-mode candidate: a (point, link) pair whose lower bound may beat the best upper
+/// bound. WGSL `Candidate`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
+pub struct Candidate {
+    /// Its lower bound `max(0, d − h)`, m.
+    pub lower: f32,
+    pub link: u32,
+    pub point: u32,
+    pub pad: u32,
+}
+const _: () = assert!(size_of::<Candidate>() == 16);
+
+/// A host struct mirrored in WGSL: its WGSL name, size, and members with their offsets.
+pub struct Mirror {
+    pub wgsl: &'static str,
+    pub size: usize,
+    pub members: &'static [(&'static str, usize)],
+}
+
+macro_rules! mirror {
+    ($wgsl:literal, $ty:ty, [$($field:ident),* $(,)?]) => {
+        Mirror {
+            wgsl: $wgsl,
+            size: size_of::<$ty>(),
+            members: &[$((stringify!($field), offset_of!($ty, $field))),*],
+        }
+    };
+}
+
+/// Every mirrored struct, for the naga test of `tests/shaders.rs`.
+pub const MIRRORS: &[Mirror] = &[
+    mirror!(
+        "Node",
+        IstNode,
+        [
+            center,
+            radius,
+            first_child,
+            child_count,
+            children_are_spheres,
+            pad
+        ]
+    ),
+    mirror!("Sphere", InnerSphere, [center, radius]),
+    mirror!(
+        "Link",
+        PosedLink,
+        [rows, center, radius, gap, node_base, sphere_base, pad]
+    ),
+    mirror!("RobotBox", RobotBox, [rows, lo, max_distance, hi, padding]),
+    mirror!(
+        "Params",
+        QueryParams,
+        [
+            robot_box, n_points, n_links, mode, per_link, stride, offset, n_work, pass_kind,
+            capacity, pad0, pad1, pad2
+        ]
+    ),
+    mirror!(
+        "State",
+        Counters,
+        [
+            global,
+            global_lower,
+            candidate_count,
+            pad,
+            counts,
+            pad1,
+            pad2
+        ]
+    ),
+    mirror!("Candidate", Candidate, [lower, link, point, pad]),
+];
+
+/// The WGSL declarations of the constants and codes above, generated so that the shader never
+/// repeats a number of the host's.
+pub fn wgsl_constants() -> String {
+    let u = |name: &str, v: u32| format!("const {name}: u32 = {v}u;\n");
+    [
+        "// Generated by src/query/layout.rs (wgsl_constants): the host's constants and codes.\n"
+            .to_owned(),
+        u("GPU_STACK", GPU_STACK as u32),
+        u("WORKGROUP", WORKGROUP),
+        u("STAGES", STAGES as u32),
+        u("MODE_FAST", MODE_FAST),
+        u("MODE_CERTIFIED", MODE_CERTIFIED),
+        u("MODE_EXACT", MODE_EXACT),
+        u("PASS_SEED", PassKind::Seed as u32),
+        u("PASS_MAIN", PassKind::Main as u32),
+        u("PASS_ARGMIN", PassKind::ArgMin as u32),
+        u("STAGE_INVALID", Stage::Invalid as u32),
+        u("STAGE_OUTSIDE_ROI", Stage::OutsideRoi as u32),
+        u("STAGE_SELF_FILTERED", Stage::SelfFiltered as u32),
+        u("STAGE_PRUNED", Stage::Pruned as u32),
+        u("STAGE_EVALUATED", Stage::Evaluated as u32),
+        u("STAGE_INSIDE", Stage::Inside as u32),
+    ]
+    .concat()
+}
+
+/// The traversal shader file, embedded.
+pub const TRAVERSE_WGSL: &str = include_str!("../../shaders/traverse.wgsl");
+
+/// The shader as compiled: the generated constants, then `shaders/traverse.wgsl`.
+pub fn shader_source() -> String {
+    format!("{}\n{TRAVERSE_WGSL}", wgsl_constants())
+}

@@ -1,0 +1,196 @@
+//! Steps 4 and 5 of a query, one code path for both backends: once [`Bounds`] holds the minima,
+//! the exact candidates and the counts of the sweep (from the CPU traversal or read back from
+//! the GPU), the exact candidates are refined (`exact.rs`) and the result is assembled: the
+//! nearest point and link, the closest robot point (on the nearest inner sphere, or on the mesh
+//! in exact mode), the per-link minima with their certified lower bounds, and the outcome.
+
+use std::sync::atomic::Ordering::Relaxed;
+
+use nalgebra::{Isometry3, Point3};
+
+use super::bounds::{load_f32, unpack_minimum, Bounds, EMPTY};
+use super::descent::{dist, nearest_sphere};
+use super::{
+    exact, Backend, Input, LinkDistance, Mode, Nearest, Outcome, QueryLink, QueryOptions,
+    QueryResult, StageCounts,
+};
+
+/// Exact refinement, then the result, from what `bounds` holds after `backend`'s sweep.
+pub(super) fn finish(
+    links: &[QueryLink],
+    bounds: &mut Bounds,
+    input: Input,
+    mut counts: StageCounts,
+    backend: Backend,
+) -> QueryResult {
+    let Input {
+        points,
+        root_from_sensor,
+        link_poses,
+        options,
+    } = input;
+    // 4. Exact refinement.
+    let refined = if options.mode == Mode::Exact {
+        let upper = load_f32(&bounds.global);
+        let posed = &bounds.posed;
+        let candidates = bounds
+            .candidates
+            .get_mut()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        exact::refine(links, posed, candidates, points, upper, &mut counts)
+    } else {
+        None
+    };
+    assemble(
+        links,
+        bounds,
+        points,
+        root_from_sensor,
+        link_poses,
+        options,
+        counts,
+        refined,
+        backend,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    links: &[QueryLink],
+    bounds: &Bounds,
+    points: &[[f32; 3]],
+    root_from_sensor: &Isometry3<f64>,
+    link_poses: &[Isometry3<f64>],
+    options: &QueryOptions,
+    counts: StageCounts,
+    refined: Option<exact::Refined>,
+    backend: Backend,
+) -> QueryResult {
+    let certified = options.mode != Mode::Fast;
+    let within = |d: f32| d <= options.max_distance_m;
+    let per_link: Vec<(f32, u32)> = bounds
+        .best
+        .iter()
+        .map(|b| {
+            let v = b.load(Relaxed);
+            if v == EMPTY {
+                (f32::INFINITY, u32::MAX)
+            } else {
+                unpack_minimum(v)
+            }
+        })
+        .collect();
+    let mut nearest_link = None;
+    for (l, &(d, _)) in per_link.iter().enumerate() {
+        if within(d) && nearest_link.is_none_or(|n: usize| d < per_link[n].0) {
+            nearest_link = Some(l);
+        }
+    }
+    let global_lower = if options.per_link {
+        per_link
+            .iter()
+            .zip(links)
+            .filter(|((d, _), _)| d.is_finite())
+            .map(|((d, _), link)| (d - link.gap_m).max(0.0))
+            .fold(f32::INFINITY, f32::min)
+    } else {
+        load_f32(&bounds.global_lower)
+    };
+    let link_results = if options.per_link {
+        per_link
+            .iter()
+            .zip(links)
+            .enumerate()
+            .map(|(l, (&(d, p), link))| {
+                let ok = within(d);
+                LinkDistance {
+                    link: link.name.clone(),
+                    distance_m: ok.then_some(d as f64),
+                    lower_m: (ok && certified).then_some((d - link.gap_m).max(0.0) as f64),
+                    exact_m: refined
+                        .as_ref()
+                        .filter(|r| r.link == l)
+                        .map(|r| r.distance as f64),
+                    point_index: ok.then_some(p),
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let to_root = |p: [f32; 3]| {
+        let q = root_from_sensor * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        [q.x, q.y, q.z]
+    };
+    let nearest = match (&refined, nearest_link) {
+        (Some(r), _) if within(r.distance) => {
+            let link = &links[r.link];
+            let p = points[r.point as usize];
+            let q = link_poses[link.pose_index]
+                * Point3::new(
+                    r.robot_point[0] as f64,
+                    r.robot_point[1] as f64,
+                    r.robot_point[2] as f64,
+                );
+            Some(Nearest {
+                distance_m: r.distance as f64,
+                lower_m: Some(r.distance as f64),
+                link: link.name.clone(),
+                point_index: r.point,
+                point_sensor: p,
+                point_root: to_root(p),
+                robot_point_root: [q.x, q.y, q.z],
+            })
+        }
+        (None, Some(l)) => {
+            let (d, i) = per_link[l];
+            let link = &links[l];
+            let p = points[i as usize];
+            let q = bounds.posed[l].in_link(p);
+            // A tree has at least one sphere (checked when the engine is made), so an
+            // unbounded descent always finds one; the sphere point is the fallback anyway.
+            let s = nearest_sphere(link, q, f32::INFINITY)
+                .map_or(link.spheres[0], |(_, s)| link.spheres[s as usize]);
+            let v = [q[0] - s.center[0], q[1] - s.center[1], q[2] - s.center[2]];
+            let n = dist(q, s.center);
+            let on = if n <= s.radius {
+                q
+            } else {
+                let f = s.radius / n;
+                [
+                    s.center[0] + f * v[0],
+                    s.center[1] + f * v[1],
+                    s.center[2] + f * v[2],
+                ]
+            };
+            let r =
+                link_poses[link.pose_index] * Point3::new(on[0] as f64, on[1] as f64, on[2] as f64);
+            Some(Nearest {
+                distance_m: d as f64,
+                lower_m: certified.then_some(global_lower as f64),
+                link: link.name.clone(),
+                point_index: i,
+                point_sensor: p,
+                point_root: to_root(p),
+                robot_point_root: [r.x, r.y, r.z],
+            })
+        }
+        _ => None,
+    };
+    let outcome = if counts.total == counts.invalid {
+        Outcome::NoPoints
+    } else if nearest.is_some() {
+        Outcome::Nearest
+    } else {
+        Outcome::NothingWithinMaxDistance
+    };
+    QueryResult {
+        mode: options.mode,
+        backend,
+        outcome,
+        max_distance_m: options.max_distance_m,
+        nearest,
+        links: link_results,
+        counts,
+    }
+}
