@@ -21,7 +21,7 @@ fn query(c: &mut Criterion) {
         return;
     }
     let scenario = load_scenario(shared, ScenarioName::Kinect).expect("scenario");
-    let cache = TreeCache::new(TreeCache::default_dir());
+    let cache = TreeCache::at(None);
     let trees: Vec<_> = build_robot(
         &scenario.model,
         &BuildOptions::default(),

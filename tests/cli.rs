@@ -116,6 +116,57 @@ fn bad_options_are_refused_with_their_name() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--max-spheres"));
 }
 
+/// Nothing about the checkout is compiled into the binary: a copy of it outside the checkout,
+/// run from another folder, says where it looked for the demo files and how to name them, and
+/// finds them through `IST_MONITOR_DEMO_DIR`. A config without `robot_description` is refused,
+/// naming the parameter, instead of monitoring some robot.
+#[test]
+fn the_binary_finds_the_demo_at_run_time_only() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let exe = dir.path().join("ist_monitor");
+    std::fs::copy(env!("CARGO_BIN_EXE_ist_monitor"), &exe).expect("copy the binary");
+    let run = |args: &[&str], demo: Option<&str>| {
+        let mut c = std::process::Command::new(&exe);
+        c.args(args)
+            .current_dir(dir.path())
+            .env_remove("IST_MONITOR_DEMO_DIR");
+        if let Some(d) = demo {
+            c.env("IST_MONITOR_DEMO_DIR", d);
+        }
+        c.output().expect("runs")
+    };
+    let out = run(&["poses"], None);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("demo files") && e.contains("--urdf"), "{e}");
+    let out = run(&["poses"], Some(env!("CARGO_MANIFEST_DIR")));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("camera_link"));
+    // A parameters file without robot_description.
+    let config = dir.path().join("params.yaml");
+    std::fs::write(
+        &config,
+        "ist_monitor:\n  ros__parameters:\n    mode: exact\n",
+    )
+    .unwrap();
+    let out = run(
+        &[
+            "replay",
+            common::DEMO_BAG,
+            "--config",
+            config.to_str().unwrap(),
+        ],
+        None,
+    );
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("robot_description"), "{e}");
+}
+
 /// `ist_monitor query` on the demo robot with a PLY cloud: the nearest point, the counts, the
 /// "nothing within" and "no points" outcomes, and errors for a bad sensor pose or link name.
 #[test]

@@ -12,6 +12,7 @@ use std::path::Path;
 use common::ist_monitor;
 use ist_monitor::bag::read_messages;
 use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
+use ist_monitor::monitor::outputs::OutputTopic;
 use ist_monitor::msg::{self, DiagnosticArray, DiagnosticStatus, Float64};
 use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions};
 use ist_monitor::robot::RobotModel;
@@ -40,7 +41,7 @@ fn demo_trees() -> (RobotModel, Vec<ist_monitor::ist::LinkTree>) {
     let trees = build_robot(
         &model,
         &BuildOptions::default(),
-        Some(&TreeCache::new(TreeCache::default_dir())),
+        Some(&TreeCache::at(None)),
         &|_| {},
     )
     .unwrap()
@@ -119,8 +120,22 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
             "only {received} of 30 clouds answered: {run}"
         );
     }
-    // What the node published, in order.
+    // What the node published, in order: every topic of the output table, as the node, replay
+    // and record all take it from `OutputTopic`.
     let messages = read_messages(&record, &|_, _| true).unwrap();
+    for topic in [
+        OutputTopic::MinDistance,
+        OutputTopic::LinkDistances,
+        OutputTopic::ClosestPoints,
+        OutputTopic::Diagnostics,
+        OutputTopic::SafetyStop,
+    ] {
+        let name = topic.topic("/robot1/watch");
+        assert!(
+            messages.iter().any(|m| *m.topic == *name),
+            "nothing recorded on {name}"
+        );
+    }
     let diagnostics: Vec<(u64, DiagnosticStatus)> = messages
         .iter()
         .filter(|m| &*m.topic == "/diagnostics")

@@ -364,6 +364,35 @@ mod tests {
     use super::*;
 
     #[test]
+    fn output_topics_are_private_or_absolute() {
+        assert_eq!(
+            OutputTopic::MinDistance.topic("/robots/watch/"),
+            "/robots/watch/min_distance"
+        );
+        assert_eq!(
+            OutputTopic::Diagnostics.topic("/robots/watch"),
+            "/diagnostics"
+        );
+        // The table visits every topic once, in order, with no message when asked for types.
+        struct Names(Vec<(OutputTopic, bool)>);
+        impl OutputVisitor for Names {
+            type Error = ();
+            fn visit<T>(&mut self, topic: OutputTopic, m: Option<&T>) -> Result<(), ()>
+            where
+                T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
+                Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
+            {
+                self.0.push((topic, m.is_some()));
+                Ok(())
+            }
+        }
+        let mut names = Names(Vec::new());
+        visit_output_topics(&mut names).unwrap();
+        assert_eq!(names.0.len(), 5);
+        assert!(names.0.iter().all(|(_, m)| !m));
+    }
+
+    #[test]
     fn levels_have_hysteresis() {
         let config = Config {
             warn_distance_m: 0.3,

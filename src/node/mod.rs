@@ -364,6 +364,7 @@ impl Publishers {
 
 /// Runs the node until `stop` is set.
 pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
+    monitor.probe_gpu();
     let config: Config = monitor.config.clone();
     let executor = Arc::new(smol::Executor::new());
     let (_ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;

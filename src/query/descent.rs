@@ -137,7 +137,7 @@ pub fn nearest_from(
     (arg != u32::MAX).then_some((best.max(0.0), arg))
 }
 
-/// Depth of a tree (root = 1); the traversal's stack holds `1 + depth·(BRANCHING − 1)` entries.
+/// Depth of a tree (root = 1), for `layout::max_tree_depth`.
 pub fn tree_depth(nodes: &[IstNode]) -> usize {
     fn depth(nodes: &[IstNode], i: usize) -> usize {
         let n = &nodes[i];

@@ -30,12 +30,18 @@ pub const BLOCK: usize = 32;
 pub const SEED_STRIDE: u32 = 61;
 /// Most frontier nodes per block and link (CPU).
 pub const FRONTIER: usize = 32;
-/// The CPU's depth-first stack; trees deeper than `(STACK - FRONTIER) / (BRANCHING - 1)` are
-/// refused.
+/// The CPU's depth-first stack; it starts with up to `FRONTIER` entries (a block's frontier).
 pub const STACK: usize = 192;
-/// The GPU's depth-first stack (per invocation, in private memory); trees deeper than
-/// `(GPU_STACK - 1) / (BRANCHING - 1)` stay on the CPU.
+/// The GPU's depth-first stack (per invocation, in private memory); it starts with the root.
 pub const GPU_STACK: usize = 64;
+
+/// The deepest tree (root = 1) a depth-first stack of `capacity` entries takes when it starts
+/// with `starts` entries: each level pops one entry and pushes at most `BRANCHING`, so
+/// `starts + depth·(BRANCHING − 1) ≤ capacity` holds every descent (one level of margin). The
+/// one rule both backends check: `STACK` with `FRONTIER` starts, `GPU_STACK` with the root.
+pub const fn max_tree_depth(capacity: usize, starts: usize) -> usize {
+    (capacity - starts) / (crate::ist::build::BRANCHING - 1)
+}
 /// Invocations per GPU workgroup.
 pub const WORKGROUP: u32 = 256;
 /// Exact-mode candidates the GPU keeps; more sends the query to the CPU.

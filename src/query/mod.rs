@@ -340,7 +340,7 @@ impl Engine {
         if links.len() > MAX_LINKS {
             return Err(QueryError::TooManyLinks(links.len()));
         }
-        let max = (layout::STACK - layout::FRONTIER) / (crate::ist::build::BRANCHING - 1);
+        let max = layout::max_tree_depth(layout::STACK, layout::FRONTIER);
         for link in &links {
             if link.nodes.is_empty()
                 || link

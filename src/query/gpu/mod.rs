@@ -94,8 +94,7 @@ impl GpuEngine {
     /// uploads the trees of `links`.
     pub fn new(links: &[QueryLink]) -> Result<Self, GpuError> {
         for link in links {
-            if descent::tree_depth(&link.nodes) * (crate::ist::build::BRANCHING - 1) + 1 > GPU_STACK
-            {
+            if descent::tree_depth(&link.nodes) > layout::max_tree_depth(GPU_STACK, 1) {
                 return Err(GpuError::TooDeep {
                     link: link.name.clone(),
                 });
