@@ -92,6 +92,18 @@ impl PackingArgs {
     }
 }
 
+/// A robot and how its trees are built and cached (`build`, `query`).
+#[derive(Args)]
+pub struct TreeArgs {
+    #[command(flatten)]
+    pub robot: RobotArgs,
+    #[command(flatten)]
+    pub packing: PackingArgs,
+    /// Cache folder (default: $IST_MONITOR_CACHE, $XDG_CACHE_HOME/ist_monitor or ~/.cache/ist_monitor).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+}
+
 /// The query's options: each is a node parameter of the same name, with the table's default;
 /// they are validated into the library's options by [`Config`], as a params file would be.
 #[derive(Args)]

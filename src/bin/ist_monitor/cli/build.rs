@@ -12,17 +12,12 @@ use ist_monitor::ist::cache::TreeCache;
 use ist_monitor::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin};
 use ist_monitor::robot::RobotModel;
 
-use super::args::{parse_joint, PackingArgs, RobotArgs};
+use super::args::{parse_joint, RobotArgs, TreeArgs};
 
 #[derive(Args)]
 pub struct BuildArgs {
     #[command(flatten)]
-    robot: RobotArgs,
-    #[command(flatten)]
-    packing: PackingArgs,
-    /// Cache folder (default: $IST_MONITOR_CACHE, $XDG_CACHE_HOME/ist_monitor or ~/.cache/ist_monitor).
-    #[arg(long)]
-    cache_dir: Option<PathBuf>,
+    trees: TreeArgs,
     /// Build everything anew and store nothing.
     #[arg(long)]
     no_cache: bool,
@@ -90,15 +85,15 @@ struct LinkRow<'a> {
 }
 
 pub fn build(args: BuildArgs) -> Result<()> {
-    let options = args.packing.options()?;
-    let model = args.robot.load()?;
+    let options = args.trees.packing.options()?;
+    let model = args.trees.robot.load()?;
     if !model.skipped_links.is_empty() && !args.json {
         eprintln!(
             "links without collision geometry (skipped): {}",
             model.skipped_links.join(", ")
         );
     }
-    let cache = (!args.no_cache).then(|| TreeCache::at(args.cache_dir.as_deref()));
+    let cache = (!args.no_cache).then(|| TreeCache::at(args.trees.cache_dir.as_deref()));
     let start = Instant::now();
     let trees = build_trees(&model, &options, cache.as_ref())?;
     let total_s = start.elapsed().as_secs_f64();

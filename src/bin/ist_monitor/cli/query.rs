@@ -10,18 +10,13 @@ use clap::Args;
 use ist_monitor::cloud;
 use ist_monitor::query::{Backend, Engine, Mode, Outcome};
 
-use super::args::{parse_joint, parse_pose, PackingArgs, QueryParams, RobotArgs};
+use super::args::{parse_joint, parse_pose, QueryParams, TreeArgs};
 use super::build::cached_trees;
 
 #[derive(Args)]
 pub struct QueryArgs {
     #[command(flatten)]
-    robot: RobotArgs,
-    #[command(flatten)]
-    packing: PackingArgs,
-    /// Cache folder of the trees (default as for `build`).
-    #[arg(long)]
-    cache_dir: Option<PathBuf>,
+    trees: TreeArgs,
     /// Joint values, NAME=VALUE,... (radians or metres); joints not named are 0.
     #[arg(long, value_delimiter = ',', value_parser = parse_joint)]
     joints: Vec<(String, f64)>,
@@ -45,9 +40,9 @@ pub fn query(args: QueryArgs) -> Result<()> {
     // Checked before the trees are built, by the rules a params file goes through.
     let config = args.params.config()?;
     let options = config.query.clone();
-    let build = args.packing.options()?;
-    let model = args.robot.load()?;
-    let trees = cached_trees(&model, &build, args.cache_dir.as_deref())?;
+    let build = args.trees.packing.options()?;
+    let model = args.trees.robot.load()?;
+    let trees = cached_trees(&model, &build, args.trees.cache_dir.as_deref())?;
     let mut engine = Engine::new(&model, &trees, &config.selection)?;
     let q = model
         .kinematics
