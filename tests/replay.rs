@@ -9,6 +9,7 @@ use std::process::Command;
 
 use common::{ist_monitor, DEMO_BAG, DEMO_CONFIG, DEMO_URDF};
 use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
+use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
 use ist_monitor::monitor::replay::{replay, ReplayFrame, GROUND_TRUTH_TOPIC};
 use ist_monitor::monitor::{Level, Monitor};
@@ -201,6 +202,69 @@ fn faulty_inputs_are_reported_never_safe() {
         .as_ref()
         .unwrap()
         .contains("stale"));
+}
+
+/// A blinded or covered camera (every point NaN) is a fault: ERROR with its reason and no
+/// distance, whether the scene was clear before (frame 0) or the arm was already at ERROR
+/// (frame 28): it never releases the stop, and the next cloud is processed as usual.
+#[test]
+fn a_cloud_without_valid_points_is_a_fault_not_clear() {
+    let messages = read_messages(&bundled("demo"), &|_, _| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("blinded.mcap");
+    let mut w = BagWriter::create(&path, Compression::None).unwrap();
+    let mut cloud = 0;
+    for m in &messages {
+        let mut data = m.data.to_vec();
+        if &*m.topic == "/camera/depth/points" {
+            if cloud == 0 || cloud == 28 {
+                let c = pointcloud2::decode(&m.data).unwrap();
+                // 0xFF bytes: every coordinate a NaN.
+                let blind = msg::PointCloud2 {
+                    data: std::borrow::Cow::Owned(vec![0xFF; c.data.len()]),
+                    ..c
+                };
+                data = msg::encode(&blind).unwrap();
+            }
+            cloud += 1;
+        }
+        w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &data)
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
+    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
+    let mut frames = Vec::new();
+    let s = replay(&mut monitor, &path, None, &mut |f| frames.push(f.clone())).unwrap();
+    assert_eq!(s.faults.get("no_valid_points"), Some(&2), "{:?}", s.faults);
+    for i in [0, 28] {
+        let f = &frames[i];
+        assert_eq!(f.level, Level::Error, "frame {i}");
+        assert_eq!(f.min_distance_m, None, "frame {i}");
+        assert!(
+            f.fault.as_ref().unwrap().contains("no valid points"),
+            "frame {i}"
+        );
+    }
+    // A config whose source topic the bag lacks: an error that lists what the bag has.
+    let config = Config::load(
+        Path::new(DEMO_CONFIG),
+        &[("camera.topic".into(), "/wrong/points".into())],
+    )
+    .unwrap();
+    let mut wrong = Monitor::new(config, &|_| {}).unwrap();
+    let e = replay(&mut wrong, &path, None, &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("/wrong/points")
+            && e.contains("/camera/depth/points (sensor_msgs/msg/PointCloud2)"),
+        "{e}"
+    );
+    // The frames around them are measured as usual, and the approach is still at ERROR after.
+    assert!(frames[1].min_distance_m.is_some() && frames[27].min_distance_m.is_some());
+    assert_eq!(frames[29].level, Level::Error);
+    assert!(frames[29].min_distance_m.is_some());
 }
 
 /// The generator is reproducible, and the bundled bag is what it makes: a fresh `person` bag

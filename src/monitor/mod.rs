@@ -26,7 +26,7 @@ use crate::cloud::{pointcloud2, CloudError};
 use crate::config::Config;
 use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::msg::{self, JointState, MsgError, PointCloud2, TfMessage};
-use crate::query::{Backend, Engine, QueryError, QueryResult};
+use crate::query::{Backend, Engine, Outcome, QueryError, QueryResult};
 use crate::robot::RobotModel;
 use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
 
@@ -43,6 +43,10 @@ pub enum Fault {
     Query(#[from] QueryError),
     #[error("cloud has no frame_id")]
     NoFrame,
+    /// Every point NaN, infinite, (0, 0, 0) or outside the source's range: a blinded or
+    /// covered sensor. Nothing is known about the scene, so this is a fault, never "clear".
+    #[error("no valid points in the cloud ({total} points)")]
+    NoValidPoints { total: u64 },
     #[error("source {source_name}: {what} for {silent_s:.2} s (source_timeout {timeout_s} s)")]
     SourceTimeout {
         source_name: String,
@@ -63,6 +67,7 @@ impl Fault {
             Fault::Tf(_) => "tf",
             Fault::Query(_) => "query",
             Fault::NoFrame => "decode",
+            Fault::NoValidPoints { .. } => "no_valid_points",
             Fault::SourceTimeout { .. } => "stale_source",
         }
     }
@@ -364,8 +369,14 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
-        Ok(self
-            .engine
-            .query(&cloud.points, &root_from_sensor, &poses, &self.config.query)?)
+        let result =
+            self.engine
+                .query(&cloud.points, &root_from_sensor, &poses, &self.config.query)?;
+        if result.outcome == Outcome::NoPoints {
+            return Err(Fault::NoValidPoints {
+                total: result.counts.total,
+            });
+        }
+        Ok(result)
     }
 }

@@ -10,8 +10,9 @@
 //!
 //! Levels: OK above `warn_distance`, WARN below it, ERROR below `stop_distance` or on a fault. A
 //! level is left upward only once the distance exceeds its threshold by `hysteresis`, so a
-//! distance hovering at a threshold does not flicker. A cloud without valid points, or one over
-//! the latency budget, is at least WARN.
+//! distance hovering at a threshold does not flicker. A fault, a cloud without valid points
+//! among them (a blinded or covered camera), is ERROR and never lowers the level; a frame over
+//! the latency budget is at least WARN.
 
 use crate::config::Config;
 use crate::msg::{

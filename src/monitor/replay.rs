@@ -67,6 +67,15 @@ pub enum ReplayError {
     Monitor(#[from] super::MonitorError),
     #[error(transparent)]
     Bag(#[from] BagError),
+    #[error(
+        "{bag}: no message on the enabled sources' topics ({sources}); the bag has: {found} \
+         (set <source>.topic to the cloud topic)"
+    )]
+    NoClouds {
+        bag: std::path::PathBuf,
+        sources: String,
+        found: String,
+    },
 }
 
 /// Writes a frame's outputs into a bag, each on its topic of the output table.
@@ -114,6 +123,35 @@ pub fn replay(
             || source_topics.iter().any(|s| s == t)
     };
     let messages = read_messages(bag, &keep)?;
+    // A bag with no cloud for any enabled source replays nothing: say so, with what it has,
+    // rather than report "0 frames, 0 faults" as if all were well.
+    if !messages
+        .iter()
+        .any(|m| monitor.source_of(&m.topic).is_some())
+    {
+        let mut found: Vec<String> = read_messages(bag, &|_, _| true)?
+            .iter()
+            .map(|m| format!("{} ({})", m.topic, m.schema))
+            .collect();
+        found.sort();
+        found.dedup();
+        return Err(ReplayError::NoClouds {
+            bag: bag.to_owned(),
+            sources: monitor
+                .config
+                .sources
+                .iter()
+                .filter(|s| s.enabled)
+                .map(|s| s.topic.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            found: if found.is_empty() {
+                "no messages".into()
+            } else {
+                found.join(", ")
+            },
+        });
+    }
     let truth: HashMap<u64, f64> = messages
         .iter()
         .filter(|m| &*m.topic == GROUND_TRUTH_TOPIC)

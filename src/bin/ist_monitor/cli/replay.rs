@@ -104,7 +104,8 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
     let out = args.out.as_deref().map(|p| (p, args.out_compression));
     let mut frames = Vec::new();
     let json = args.json;
-    if !json {
+    // The header with the first frame, so that a bag that replays nothing prints only its error.
+    let header = || {
         println!(
             "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8}",
             "frame",
@@ -116,12 +117,15 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             "link",
             "truth [m]",
             "ms"
-        );
-    }
+        )
+    };
     let summary = replay::replay(&mut monitor, &bag, out, &mut |f| {
         if json {
             frames.push(f.clone());
             return;
+        }
+        if f.index == 0 {
+            header();
         }
         let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
         println!(
