@@ -608,11 +608,6 @@ impl Config {
         let ns = self.namespace.trim_end_matches('/');
         format!("{ns}/{}", self.node_name)
     }
-
-    /// The fully qualified name of a node-private topic `~/name`.
-    pub fn private_topic(&self, name: &str) -> String {
-        format!("{}/{name}", self.node_path())
-    }
 }
 
 #[cfg(test)]
@@ -645,10 +640,7 @@ mod tests {
             (c.namespace.as_str(), c.node_name.as_str()),
             ("/robots", "arm_monitor")
         );
-        assert_eq!(
-            c.private_topic("min_distance"),
-            "/robots/arm_monitor/min_distance"
-        );
+        assert_eq!(c.node_path(), "/robots/arm_monitor");
         assert_eq!(c.query.mode, Mode::Exact);
         assert_eq!(c.query.max_distance_m, 1.0);
         assert_eq!(c.sources[0].max_range_m, Some(4.5));

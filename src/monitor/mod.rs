@@ -151,13 +151,7 @@ impl Monitor {
         trees: &[LinkTree],
     ) -> Result<Self, MonitorError> {
         config.query.validate()?;
-        let mut engine = Engine::new(&model, trees, &config.selection)?;
-        // `gpu` asks for the GPU: it is probed (device, shader) at start-up, so that no frame's
-        // processing time carries it. `auto` probes on its first cloud of `gpu_min_points`
-        // points, so a setup whose clouds never reach that never loads a GPU driver.
-        if config.query.backend == Backend::Gpu {
-            engine.gpu();
-        }
+        let engine = Engine::new(&model, trees, &config.selection)?;
         let (tf, joints) = Self::inputs(&config, &model)?;
         let level = LevelTracker::new(&config);
         Ok(Self {
@@ -195,6 +189,7 @@ impl Monitor {
     /// Loads the GPU driver now when the backend may use it (`gpu`, or `auto`) instead of on
     /// the first cloud that needs it: the live node does this before it goes on the network, so
     /// that no frame's latency carries the probe (about 0.1 s with a software Vulkan driver).
+    /// `replay` leaves it lazy, so that clouds below `gpu_min_points` never load a driver.
     pub fn probe_gpu(&mut self) {
         if self.config.query.backend != Backend::Cpu {
             self.engine.gpu();

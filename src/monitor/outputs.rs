@@ -17,10 +17,9 @@
 use crate::config::Config;
 use crate::msg::{
     Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
-    KeyValue, Marker, MarkerArray, Owned, Point, Pose, RosMessage, Time, Vector3,
+    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, Time, Vector3,
 };
 use crate::query::{Outcome, QueryResult};
-use serde::de::DeserializeSeed;
 
 use super::Fault;
 
@@ -69,7 +68,7 @@ impl LevelTracker {
         }
     }
 
-    /// The level for a conservative distance `d` (`None`: a fault).
+    /// The level for a conservative distance `d` (`None`: no distance is known, a fault).
     pub fn update(&mut self, d: Option<f64>) -> Level {
         let Some(d) = d else {
             self.level = Level::Error;
@@ -140,25 +139,34 @@ impl OutputTopic {
 }
 
 /// What the output table is walked with: each topic with its message type and, for a frame,
-/// its message (`None` when nothing is published on it, as `~/min_distance` on a fault).
+/// its message, handed over (`None` when nothing is published on it, as `~/min_distance` on a
+/// fault, or when only the types are walked).
 pub trait OutputVisitor {
     type Error;
-    fn visit<T>(&mut self, topic: OutputTopic, message: Option<&T>) -> Result<(), Self::Error>
-    where
-        T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
-        Owned<T>: for<'de> DeserializeSeed<'de, Value = T>;
+    fn visit<T: OwnedMessage>(
+        &mut self,
+        topic: OutputTopic,
+        message: Option<T>,
+    ) -> Result<(), Self::Error>;
 }
 
 /// The table: every output topic, in publication order, with its type and the frame's message.
-fn each_output<V: OutputVisitor>(o: Option<&Outputs>, v: &mut V) -> Result<(), V::Error> {
-    v.visit::<Float64>(
-        OutputTopic::MinDistance,
-        o.and_then(|o| o.min_distance.as_ref()),
-    )?;
-    v.visit::<JointState>(OutputTopic::LinkDistances, o.map(|o| &o.link_distances))?;
-    v.visit::<MarkerArray<'static>>(OutputTopic::ClosestPoints, o.map(|o| &o.closest_points))?;
-    v.visit::<DiagnosticArray>(OutputTopic::Diagnostics, o.map(|o| &o.diagnostics))?;
-    v.visit::<Bool>(OutputTopic::SafetyStop, o.map(|o| &o.safety_stop))
+fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V::Error> {
+    let (min, links, markers, diagnostics, stop) = match o {
+        Some(o) => (
+            o.min_distance,
+            Some(o.link_distances),
+            Some(o.closest_points),
+            Some(o.diagnostics),
+            Some(o.safety_stop),
+        ),
+        None => (None, None, None, None, None),
+    };
+    v.visit::<Float64>(OutputTopic::MinDistance, min)?;
+    v.visit::<JointState>(OutputTopic::LinkDistances, links)?;
+    v.visit::<MarkerArray<'static>>(OutputTopic::ClosestPoints, markers)?;
+    v.visit::<DiagnosticArray>(OutputTopic::Diagnostics, diagnostics)?;
+    v.visit::<Bool>(OutputTopic::SafetyStop, stop)
 }
 
 /// Walks every output topic with its type and no message (to create publishers or
@@ -185,8 +193,8 @@ fn point(p: [f64; 3]) -> Point {
 }
 
 impl Outputs {
-    /// Walks every output topic with this frame's message.
-    pub fn visit<V: OutputVisitor>(&self, v: &mut V) -> Result<(), V::Error> {
+    /// Walks every output topic with this frame's message, handed over.
+    pub fn visit<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
         each_output(Some(self), v)
     }
 
@@ -248,13 +256,9 @@ impl Outputs {
                 (d, message)
             }
         };
-        let faulted = result.is_err();
-        let mut level = tracker.update(if faulted {
-            None
-        } else {
-            distance.or(Some(f64::INFINITY))
-        });
-        if !faulted && (distance.is_none() || over_budget) {
+        // No distance (a fault, or a result without one) is ERROR: never read as "clear".
+        let mut level = tracker.update(distance);
+        if over_budget {
             level = level.max(Level::Warn);
         }
         if over_budget {
@@ -349,7 +353,7 @@ impl Outputs {
         };
         Self {
             level,
-            min_distance: distance.filter(|_| !faulted).map(|data| Float64 { data }),
+            min_distance: distance.map(|data| Float64 { data }),
             link_distances,
             closest_points: MarkerArray { markers },
             diagnostics,
@@ -378,11 +382,11 @@ mod tests {
         struct Names(Vec<(OutputTopic, bool)>);
         impl OutputVisitor for Names {
             type Error = ();
-            fn visit<T>(&mut self, topic: OutputTopic, m: Option<&T>) -> Result<(), ()>
-            where
-                T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
-                Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
-            {
+            fn visit<T: OwnedMessage>(
+                &mut self,
+                topic: OutputTopic,
+                m: Option<T>,
+            ) -> Result<(), ()> {
                 self.0.push((topic, m.is_some()));
                 Ok(())
             }

@@ -12,7 +12,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::msg::{self, Float64, Owned, RosMessage};
+use crate::msg::{self, Float64, OwnedMessage};
 use crate::query::Outcome;
 use crate::stats::percentile;
 
@@ -87,13 +87,13 @@ struct BagSink<'a> {
 
 impl OutputVisitor for BagSink<'_> {
     type Error = BagError;
-    fn visit<T>(&mut self, topic: OutputTopic, message: Option<&T>) -> Result<(), BagError>
-    where
-        T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
-        Owned<T>: for<'de> serde::de::DeserializeSeed<'de, Value = T>,
-    {
+    fn visit<T: OwnedMessage>(
+        &mut self,
+        topic: OutputTopic,
+        message: Option<T>,
+    ) -> Result<(), BagError> {
         match message {
-            Some(m) => self.writer.write(&topic.topic(self.node_path), self.at, m),
+            Some(m) => self.writer.write(&topic.topic(self.node_path), self.at, &m),
             None => Ok(()),
         }
     }
@@ -224,7 +224,7 @@ pub fn replay(
         on_frame(&row);
         if let Some(w) = writer.as_mut() {
             let at = m.log_time_ns + (frame.processing_s * 1e9) as u64;
-            o.visit(&mut BagSink {
+            frame.outputs.visit(&mut BagSink {
                 writer: w,
                 node_path: &node_path,
                 at,

@@ -164,11 +164,24 @@ pub fn definition(ty: &str) -> Option<String> {
     Some(out)
 }
 
-/// A seed that deserializes a received message into its owned (`'static`) form, for every
-/// message the node and its tools receive: messages that borrow their byte data from the
-/// sample (`PointCloud2`, `MarkerArray`) are copied out of it once.
-#[derive(Clone, Copy)]
-pub struct Owned<T>(std::marker::PhantomData<T>);
+/// A message the node and its tools send and receive whole: it decodes into its owned
+/// (`'static`) form; messages that borrow their byte data from the sample (`PointCloud2`,
+/// `MarkerArray`) copy it out once.
+pub trait OwnedMessage: RosMessage + std::fmt::Debug + Send + Sync + Sized + 'static {
+    fn deserialize_owned<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error>;
+}
+
+/// The seed that decodes an [`OwnedMessage`] (for subscriptions' `async_stream_seed`). It holds
+/// no `T`, so it is `Copy` whatever `T` is.
+pub struct Owned<T>(std::marker::PhantomData<fn() -> T>);
+
+impl<T> Clone for Owned<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<T> Copy for Owned<T> {}
 
 impl<T> Default for Owned<T> {
     fn default() -> Self {
@@ -176,11 +189,17 @@ impl<T> Default for Owned<T> {
     }
 }
 
+impl<'de, T: OwnedMessage> serde::de::DeserializeSeed<'de> for Owned<T> {
+    type Value = T;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<T, D::Error> {
+        T::deserialize_owned(d)
+    }
+}
+
 macro_rules! owned_as_is {
     ($($ty:ty),*) => {$(
-        impl<'de> serde::de::DeserializeSeed<'de> for Owned<$ty> {
-            type Value = $ty;
-            fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<$ty, D::Error> {
+        impl OwnedMessage for $ty {
+            fn deserialize_owned<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
                 <$ty>::deserialize(d)
             }
         }
@@ -193,9 +212,8 @@ fn owned_bytes(data: std::borrow::Cow<'_, [u8]>) -> std::borrow::Cow<'static, [u
     std::borrow::Cow::Owned(data.into_owned())
 }
 
-impl<'de> serde::de::DeserializeSeed<'de> for Owned<PointCloud2<'static>> {
-    type Value = PointCloud2<'static>;
-    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+impl OwnedMessage for PointCloud2<'static> {
+    fn deserialize_owned<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let m = PointCloud2::deserialize(d)?;
         Ok(PointCloud2 {
             data: owned_bytes(m.data),
@@ -204,9 +222,8 @@ impl<'de> serde::de::DeserializeSeed<'de> for Owned<PointCloud2<'static>> {
     }
 }
 
-impl<'de> serde::de::DeserializeSeed<'de> for Owned<MarkerArray<'static>> {
-    type Value = MarkerArray<'static>;
-    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+impl OwnedMessage for MarkerArray<'static> {
+    fn deserialize_owned<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let m = MarkerArray::deserialize(d)?;
         let markers = m
             .markers

@@ -24,12 +24,12 @@ use futures::StreamExt;
 use ros2_client::{
     Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
 };
-use serde::de::{DeserializeOwned, DeserializeSeed};
+use serde::de::DeserializeOwned;
 
 use crate::config::Config;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::{Frame, Monitor};
-use crate::msg::{JointState, Owned, PointCloud2, RosMessage, TfMessage};
+use crate::msg::{JointState, Owned, OwnedMessage, PointCloud2, RosMessage, TfMessage};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -298,11 +298,7 @@ impl Publishers {
         }
         impl OutputVisitor for Create<'_> {
             type Error = NodeError;
-            fn visit<T>(&mut self, topic: OutputTopic, _: Option<&T>) -> Result<()>
-            where
-                T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
-                Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
-            {
+            fn visit<T: OwnedMessage>(&mut self, topic: OutputTopic, _: Option<T>) -> Result<()> {
                 let p = publisher::<T>(self.node, &topic.topic(self.node_path), self.qos.clone())?;
                 self.made.push((topic, Box::new(p)));
                 Ok(())
@@ -324,11 +320,11 @@ impl Publishers {
         struct Publish<'a>(&'a Publishers);
         impl OutputVisitor for Publish<'_> {
             type Error = String;
-            fn visit<T>(&mut self, topic: OutputTopic, message: Option<&T>) -> Result<(), String>
-            where
-                T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
-                Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
-            {
+            fn visit<T: OwnedMessage>(
+                &mut self,
+                topic: OutputTopic,
+                message: Option<T>,
+            ) -> Result<(), String> {
                 let Some(m) = message else {
                     return Ok(());
                 };
@@ -339,7 +335,7 @@ impl Publishers {
                     .and_then(|(_, p)| p.downcast_ref::<Publisher<T>>())
                     .ok_or_else(|| format!("{}: no publisher", topic.name()))?;
                 publisher
-                    .publish(m.clone())
+                    .publish(m)
                     .map_err(|e| format!("{}: {e:?}", topic.name()))
             }
         }

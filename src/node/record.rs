@@ -8,12 +8,11 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use futures::StreamExt;
-use serde::de::DeserializeSeed;
 
 use super::{subscription, tool_node, NodeError, RELIABLE_QOS};
 use crate::bag::{writer::Compression, BagWriter};
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
-use crate::msg::{Owned, RosMessage};
+use crate::msg::{Owned, OwnedMessage};
 
 /// The bag being written and how many messages went into it.
 type Sink = Arc<Mutex<(Option<BagWriter>, usize)>>;
@@ -28,11 +27,11 @@ struct Subscribe<'a> {
 
 impl OutputVisitor for Subscribe<'_> {
     type Error = NodeError;
-    fn visit<T>(&mut self, topic: OutputTopic, _: Option<&T>) -> Result<(), NodeError>
-    where
-        T: RosMessage + Clone + std::fmt::Debug + Send + Sync + 'static,
-        Owned<T>: for<'de> DeserializeSeed<'de, Value = T>,
-    {
+    fn visit<T: OwnedMessage>(
+        &mut self,
+        topic: OutputTopic,
+        _: Option<T>,
+    ) -> Result<(), NodeError> {
         let name = topic.topic(self.node_path);
         let sub = subscription::<T>(self.node, &name, RELIABLE_QOS)?;
         let sink = self.sink.clone();

@@ -109,8 +109,8 @@ struct Pass<'a> {
     per_link: bool,
     /// Self-filter padding; −∞ when off.
     padding: f32,
+    /// The robot's box, the region of interest (`max_distance`) with it.
     robot_box: RobotBox,
-    max_distance: f32,
 }
 
 impl Pass<'_> {
@@ -289,11 +289,11 @@ impl Pass<'_> {
             return counts;
         }
         let roi = self.robot_box.distance(block.center);
-        if roi - block.radius > self.max_distance {
+        if roi - block.radius > self.robot_box.max_distance {
             counts.outside_roi = block.valid as u64;
             return counts;
         }
-        let partial_roi = roi + block.radius > self.max_distance;
+        let partial_roi = roi + block.radius > self.robot_box.max_distance;
         // The robot's bounding box is also a cheap lower bound for every link at once.
         let mut reach = self.padding;
         for l in 0..self.links.len() {
@@ -314,7 +314,7 @@ impl Pass<'_> {
             if !valid(p) {
                 continue;
             }
-            if partial_roi && self.robot_box.distance(p) > self.max_distance {
+            if partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance {
                 counts.outside_roi += 1;
             } else if mask == 0 {
                 counts.pruned += 1;
@@ -334,7 +334,7 @@ impl Pass<'_> {
             let end = (start + BLOCK).min(self.points.len());
             for (i, &p) in self.points[start..end].iter().enumerate() {
                 if valid(p)
-                    && self.robot_box.distance(p) <= self.max_distance
+                    && self.robot_box.distance(p) <= self.robot_box.max_distance
                     && !self.is_self(p, mask, frontier, spans)
                 {
                     self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
@@ -480,16 +480,17 @@ fn bound_block(chunk: &[[f32; 3]]) -> Block {
     }
 }
 
-/// A query on the CPU: pose, seeds, main pass, then the shared refinement and assembly.
-pub(super) fn run(links: &[QueryLink], bounds: &mut Bounds, input: Input) -> QueryResult {
+/// A query on the CPU, once `bounds` holds the posed links (`Bounds::prepare`, which gave
+/// `robot_box`): seeds, main pass, then the shared refinement and assembly.
+pub(super) fn run(
+    links: &[QueryLink],
+    bounds: &mut Bounds,
+    input: Input,
+    robot_box: RobotBox,
+) -> QueryResult {
     let Input {
-        points,
-        root_from_sensor,
-        link_poses,
-        options,
+        points, options, ..
     } = input;
-    // 1. Pose, in f64, rounded once.
-    let robot_box = bounds.prepare(links, root_from_sensor, link_poses, options);
     let pass = Pass {
         links,
         posed: &bounds.posed,
@@ -502,7 +503,6 @@ pub(super) fn run(links: &[QueryLink], bounds: &mut Bounds, input: Input) -> Que
         per_link: options.per_link,
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
         robot_box,
-        max_distance: options.max_distance_m,
     };
 
     // 2. Seeds: each link from the blocks around the SEEDS sample points nearest to its root

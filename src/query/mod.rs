@@ -127,6 +127,16 @@ pub enum Backend {
 }
 
 impl QueryOptions {
+    /// Whether a cloud of `points` points asks for the GPU: always with `gpu`, from
+    /// `gpu_min_points` on with `auto` (which still stays on the CPU on a software adapter).
+    pub fn wants_gpu(&self, points: usize) -> bool {
+        match self.backend {
+            Backend::Cpu => false,
+            Backend::Gpu => true,
+            Backend::Auto => points >= self.gpu_min_points,
+        }
+    }
+
     /// Refuses a NaN or negative `max_distance_m` and a negative or non-finite padding.
     pub fn validate(&self) -> Result<(), QueryError> {
         if self.max_distance_m.is_nan() || self.max_distance_m < 0.0 {
@@ -402,19 +412,17 @@ impl Engine {
             link_poses,
             options,
         };
-        let wants_gpu = match options.backend {
-            Backend::Cpu => false,
-            Backend::Gpu => true,
-            Backend::Auto => points.len() >= options.gpu_min_points,
-        };
-        if wants_gpu {
+        // Step 1, for either backend: posed links and robot box in f64, rounded once.
+        let robot_box = self
+            .bounds
+            .prepare(&self.links, root_from_sensor, link_poses, options);
+        if options.wants_gpu(points.len()) {
             self.gpu();
             if let GpuSlot::Ready(gpu) = &mut self.gpu {
                 let usable = options.backend == Backend::Gpu || !gpu.is_software();
                 if usable {
-                    let robot_box =
-                        self.bounds
-                            .prepare(&self.links, root_from_sensor, link_poses, options);
+                    // A GPU that gives up leaves `bounds` as prepared (it writes them only on
+                    // success), so the CPU below starts from the same state.
                     match gpu.query(&self.links, &mut self.bounds, &robot_box, input) {
                         Ok(Some(r)) => return Ok(r),
                         Ok(None) => log::debug!(
@@ -425,7 +433,7 @@ impl Engine {
                 }
             }
         }
-        Ok(cpu::run(&self.links, &mut self.bounds, input))
+        Ok(cpu::run(&self.links, &mut self.bounds, input, robot_box))
     }
 
     /// The GPU backend, created on first use; `None` (said once) when there is no usable GPU.

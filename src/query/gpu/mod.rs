@@ -26,7 +26,7 @@ use wgpu::util::DeviceExt;
 
 use super::bounds::{pack_minimum, Bounds, EMPTY};
 use super::layout::{
-    self, Candidate, Counters, PassKind, QueryParams, RobotBox, GPU_CANDIDATES, GPU_STACK,
+    self, Candidate, Counters, PassKind, QueryParams, RobotBox, Stage, GPU_CANDIDATES, GPU_STACK,
     SEED_STRIDE, WORKGROUP,
 };
 use super::{descent, result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
@@ -436,15 +436,15 @@ impl GpuEngine {
             .global_lower
             .store(state.global_lower, std::sync::atomic::Ordering::Relaxed);
         bounds.candidates_mut().extend_from_slice(&candidates);
-        let c = state.counts.map(u64::from);
+        let c = |stage: Stage| u64::from(state.counts[stage as usize]);
         let counts = StageCounts {
             total: n as u64,
-            invalid: c[0],
-            outside_roi: c[1],
-            self_filtered: c[2],
-            pruned: c[3],
-            evaluated: c[4],
-            inside: c[5],
+            invalid: c(Stage::Invalid),
+            outside_roi: c(Stage::OutsideRoi),
+            self_filtered: c(Stage::SelfFiltered),
+            pruned: c(Stage::Pruned),
+            evaluated: c(Stage::Evaluated),
+            inside: c(Stage::Inside),
             exact_refined: 0,
         };
         Ok(Some(result::finish(

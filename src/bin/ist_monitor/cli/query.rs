@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use ist_monitor::cloud;
-use ist_monitor::query::{Backend, Engine, Mode, Outcome};
+use ist_monitor::query::{Engine, Mode, Outcome};
 
 use super::args::{parse_joint, parse_pose, QueryParams, TreeArgs};
 use super::build::cached_trees;
@@ -53,12 +53,7 @@ pub fn query(args: QueryArgs) -> Result<()> {
     // The GPU probe of `gpu`, and of `auto` for a cloud that reaches gpu_min_points (device
     // creation, ~80 ms on a software driver), is done before the clock starts; the one query is
     // then timed as it comes (cold caches). `bench query` measures properly.
-    let gpu_wanted = match options.backend {
-        Backend::Cpu => false,
-        Backend::Gpu => true,
-        Backend::Auto => cloud.points.len() >= options.gpu_min_points,
-    };
-    if gpu_wanted {
+    if options.wants_gpu(cloud.points.len()) {
         engine.gpu();
     }
     let start = Instant::now();
