@@ -61,6 +61,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("joint_states_topic", "/joint_states", "topic", "sensor_msgs/JointState input"),
     p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
     p("joint_state_tolerance", "0.1", "s", "a joint state may be this much older or newer than the cloud"),
+    p("future_stamp_tolerance", "0.1", "s", "a cloud stamped more than this ahead of the clock is a fault (clock skew between machines)"),
     p("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),
     p("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
     p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
@@ -68,7 +69,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("sources", "[camera]", "", "names of the point cloud sources"),
     p("<source>.topic", "/camera/depth/points", "topic", "sensor_msgs/PointCloud2 input of the source"),
     p("<source>.enabled", "true", "", "whether the source is used"),
-    p("<source>.source_timeout", "0.5", "s", "no cloud for this long is a fault"),
+    p("<source>.source_timeout", "0.5", "s", "no cloud for this long, or a cloud stamped longer ago than this, is a fault (as Nav2's collision monitor)"),
     p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
     p("<source>.max_range", "~", "m", "points farther from the sensor than this are dropped (default: none)"),
     p("<source>.qos", "sensor_data", "", "sensor_data (best effort) or reliable"),
@@ -125,6 +126,7 @@ pub struct Config {
     pub joint_states_topic: String,
     pub tf_tolerance_s: f64,
     pub joint_state_tolerance_s: f64,
+    pub future_stamp_tolerance_s: f64,
     pub warn_distance_m: f64,
     pub stop_distance_m: f64,
     pub hysteresis_m: f64,
@@ -572,6 +574,8 @@ impl Config {
             tf_tolerance_s: v.distance("tf_tolerance", "tf_tolerance")?,
             joint_state_tolerance_s: v
                 .distance("joint_state_tolerance", "joint_state_tolerance")?,
+            future_stamp_tolerance_s: v
+                .distance("future_stamp_tolerance", "future_stamp_tolerance")?,
             warn_distance_m,
             stop_distance_m,
             hysteresis_m: v.distance("hysteresis", "hysteresis")?,

@@ -11,7 +11,7 @@ use common::{ist_monitor, DEMO_BAG, DEMO_CONFIG, DEMO_URDF};
 use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
 use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
-use ist_monitor::monitor::replay::{replay, ReplayFrame, GROUND_TRUTH_TOPIC};
+use ist_monitor::monitor::replay::{replay, Clock, ReplayFrame, GROUND_TRUTH_TOPIC};
 use ist_monitor::monitor::{Level, Monitor};
 use ist_monitor::msg::{self, Float64};
 use ist_monitor::robot::RobotModel;
@@ -31,7 +31,10 @@ fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, ist_monitor::monitor::repla
     .unwrap();
     let mut monitor = Monitor::new(config, &|_| {}).unwrap();
     let mut frames = Vec::new();
-    let summary = replay(&mut monitor, bag, None, &mut |f| frames.push(f.clone())).unwrap();
+    let summary = replay(&mut monitor, bag, None, Clock::Log, &mut |f| {
+        frames.push(f.clone())
+    })
+    .unwrap();
     (frames, summary)
 }
 
@@ -96,6 +99,24 @@ fn real_kinect_bag_reference_distances() {
             "panda_leftfinger",
         ),
     ];
+    // The bag's stamps are 29 days before its log times (it was recorded from an older
+    // recording): by the bag's clock the cloud is stale, a fault with no distance.
+    let v = common::json_output(
+        ist_monitor()
+            .arg("replay")
+            .arg(&bag)
+            .arg("--config")
+            .arg(&config)
+            .args(["-p", "max_spheres:=1024", "--json"]),
+    );
+    let frame = &v["frames"][0];
+    assert_eq!(frame["outcome"], "fault", "{frame}");
+    assert!(frame["min_distance_m"].is_null(), "{frame}");
+    let fault = frame["fault"].as_str().unwrap();
+    assert!(
+        fault.starts_with("stale cloud: stamped 2542217.234 s before now"),
+        "{fault}"
+    );
     for (joints, expected, link) in cases {
         let v = common::json_output(
             ist_monitor()
@@ -105,7 +126,7 @@ fn real_kinect_bag_reference_distances() {
                 .arg(&config)
                 .args(["-p", "mode:=exact", "-p", "max_spheres:=1024", "-p"])
                 .arg(format!("fixed_joint_state.positions:={joints}"))
-                .arg("--json"),
+                .args(["--clock", "stamp", "--json"]),
         );
         let frame = &v["frames"][0];
         let d = frame["min_distance_m"].as_f64().unwrap();
@@ -140,7 +161,10 @@ fn faulty_inputs_are_reported_never_safe() {
     let mut monitor = Monitor::new(config.clone(), &|_| {}).unwrap();
     let mut replay_bag = |path: &Path| {
         let mut frames = Vec::new();
-        let s = replay(&mut monitor, path, None, &mut |f| frames.push(f.clone())).unwrap();
+        let s = replay(&mut monitor, path, None, Clock::Log, &mut |f| {
+            frames.push(f.clone())
+        })
+        .unwrap();
         (frames, s)
     };
     // The 5th cloud truncated: one decode fault, the rest as usual.
@@ -235,7 +259,10 @@ fn a_cloud_without_valid_points_is_a_fault_not_clear() {
     let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
     let mut monitor = Monitor::new(config, &|_| {}).unwrap();
     let mut frames = Vec::new();
-    let s = replay(&mut monitor, &path, None, &mut |f| frames.push(f.clone())).unwrap();
+    let s = replay(&mut monitor, &path, None, Clock::Log, &mut |f| {
+        frames.push(f.clone())
+    })
+    .unwrap();
     assert_eq!(s.faults.get("no_valid_points"), Some(&2), "{:?}", s.faults);
     for i in [0, 28] {
         let f = &frames[i];
@@ -253,7 +280,7 @@ fn a_cloud_without_valid_points_is_a_fault_not_clear() {
     )
     .unwrap();
     let mut wrong = Monitor::new(config, &|_| {}).unwrap();
-    let e = replay(&mut wrong, &path, None, &mut |_| {})
+    let e = replay(&mut wrong, &path, None, Clock::Log, &mut |_| {})
         .unwrap_err()
         .to_string();
     assert!(
@@ -269,6 +296,85 @@ fn a_cloud_without_valid_points_is_a_fault_not_clear() {
 
 /// The generator is reproducible, and the bundled bag is what it makes: a fresh `person` bag
 /// has the bundled demo bag's clouds, byte for byte, and its truths.
+/// Stamps against the bag's clock (the log time, as the node's clock): a cloud stamped 0, one
+/// older than `source_timeout` (0.5 s) and one ahead by more than `future_stamp_tolerance`
+/// (0.1 s) are faults with no distance and ERROR; one 50 ms ahead is measured as usual.
+#[test]
+fn cloud_stamps_are_checked_against_the_clock() {
+    let messages = read_messages(&bundled("demo"), &|_, _| true).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("stamps.mcap");
+    let mut w = BagWriter::create(&path, Compression::None).unwrap();
+    // Frame → stamp relative to the cloud's log time (None: stamp 0).
+    let shifts: [(usize, Option<i64>); 4] = [
+        (3, None),
+        (5, Some(-1_000_000_000)),
+        (7, Some(1_000_000_000)),
+        (9, Some(50_000_000)),
+    ];
+    let mut cloud = 0;
+    for m in &messages {
+        let mut data = m.data.to_vec();
+        if &*m.topic == "/camera/depth/points" {
+            if let Some((_, shift)) = shifts.iter().find(|(i, _)| *i == cloud) {
+                let mut c = pointcloud2::decode(&m.data).unwrap();
+                c.header.stamp =
+                    msg::Time::from_nanos(shift.map_or(0, |s| m.log_time_ns as i64 + s));
+                data = msg::encode(&c).unwrap();
+            }
+            cloud += 1;
+        }
+        w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &data)
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
+    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
+    let mut frames = Vec::new();
+    let s = replay(&mut monitor, &path, None, Clock::Log, &mut |f| {
+        frames.push(f.clone())
+    })
+    .unwrap();
+    let expect = [
+        (3, "no_stamp", "stamp is 0"),
+        (5, "stale_cloud", "1.000 s before now"),
+        (7, "future_cloud", "1.000 s after now"),
+    ];
+    for (i, kind, text) in expect {
+        let f = &frames[i];
+        assert_eq!(f.level, Level::Error, "frame {i}");
+        assert_eq!(f.min_distance_m, None, "frame {i}");
+        assert_eq!(f.outcome, "fault", "frame {i}");
+        assert!(
+            f.fault.as_ref().unwrap().contains(text),
+            "frame {i}: {:?}",
+            f.fault
+        );
+        assert_eq!(s.faults.get(kind), Some(&1), "{:?}", s.faults);
+    }
+    assert_eq!(s.faults.values().sum::<usize>(), 3, "{:?}", s.faults);
+    // 50 ms ahead is within the tolerance, and the frames around the faults are measured.
+    for i in [2, 4, 6, 8, 9] {
+        assert!(frames[i].min_distance_m.is_some(), "frame {i}");
+    }
+    // With the stamp as the clock no cloud is refused for its age; the shifted ones then fail
+    // further on, on joint states that do not exist at their stamps: still no distance.
+    let mut frames = Vec::new();
+    let s = replay(&mut monitor, &path, None, Clock::Stamp, &mut |f| {
+        frames.push(f.clone())
+    })
+    .unwrap();
+    assert_eq!(s.faults.get("no_stamp"), Some(&1), "{:?}", s.faults);
+    assert!(
+        !s.faults.contains_key("stale_cloud") && !s.faults.contains_key("future_cloud"),
+        "{:?}",
+        s.faults
+    );
+    for i in [3, 5, 7] {
+        assert_eq!(frames[i].min_distance_m, None, "frame {i}");
+    }
+}
+
 #[test]
 fn generator_reproduces_the_bundled_bag() {
     let model = RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();

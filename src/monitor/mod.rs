@@ -3,7 +3,8 @@
 //! PointCloud2 — and every cloud gives a [`Frame`]: the query result or the fault that stopped
 //! it, and the node's output messages (`outputs`).
 //!
-//! Per cloud: decode → drop points outside the source's `min_range`/`max_range` (they become
+//! Per cloud: decode → the stamp against the clock (0, older than the source's `source_timeout`
+//! or ahead by more than `future_stamp_tolerance` is a fault) → drop points outside the source's `min_range`/`max_range` (they become
 //! invalid points) → the joint values at the cloud's stamp (`tf::JointStateBuffer`) → forward
 //! kinematics → the sensor frame in the robot's root frame at the stamp (`tf::root_from_sensor`)
 //! → the query (`query::Engine`) → outputs. A decode error, a missing or stale transform or
@@ -43,6 +44,20 @@ pub enum Fault {
     Query(#[from] QueryError),
     #[error("cloud has no frame_id")]
     NoFrame,
+    /// A stamp of 0: the driver never set it, so the cloud cannot be placed in time.
+    #[error("cloud stamp is 0 (not set by its publisher)")]
+    NoStamp,
+    /// Older than the source's `source_timeout` by the clock (the node's, or the bag's log
+    /// time in replay): the scene may have changed since.
+    #[error("stale cloud: stamped {age_s:.3} s before now (source_timeout {timeout_s} s)")]
+    StaleCloud { age_s: f64, timeout_s: f64 },
+    /// Ahead of the clock by more than `future_stamp_tolerance`: a wrong clock on one side,
+    /// so neither the stamp nor the transforms looked up at it can be trusted.
+    #[error(
+        "cloud from the future: stamped {ahead_s:.3} s after now \
+         (future_stamp_tolerance {tolerance_s} s)"
+    )]
+    FutureCloud { ahead_s: f64, tolerance_s: f64 },
     /// Every point NaN, infinite, (0, 0, 0) or outside the source's range: a blinded or
     /// covered sensor. Nothing is known about the scene, so this is a fault, never "clear".
     #[error("no valid points in the cloud ({total} points)")]
@@ -67,6 +82,9 @@ impl Fault {
             Fault::Tf(_) => "tf",
             Fault::Query(_) => "query",
             Fault::NoFrame => "decode",
+            Fault::NoStamp => "no_stamp",
+            Fault::StaleCloud { .. } => "stale_cloud",
+            Fault::FutureCloud { .. } => "future_cloud",
             Fault::NoValidPoints { .. } => "no_valid_points",
             Fault::SourceTimeout { .. } => "stale_source",
         }
@@ -265,12 +283,14 @@ impl Monitor {
             .position(|s| s.enabled && s.topic == topic)
     }
 
-    /// Processes one cloud of source `source`, from its CDR payload.
-    pub fn on_cloud(&mut self, source: usize, payload: &[u8]) -> Frame {
+    /// Processes one cloud of source `source`, from its CDR payload; `now_ns` is the clock the
+    /// cloud's stamp is checked against (the node's clock at receipt; in replay, the bag's log
+    /// time).
+    pub fn on_cloud(&mut self, source: usize, payload: &[u8], now_ns: i64) -> Frame {
         let start = Instant::now();
         match pointcloud2::decode(payload) {
             Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
-                me.process(source, &m)
+                me.process(source, &m, now_ns)
             }),
             Err(e) => self.finish_frame(source, start, 0, |_| Err(e.into())),
         }
@@ -289,16 +309,22 @@ impl Monitor {
             silent_s,
             timeout_s: s.source_timeout_s,
         };
-        let now_ns = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos() as i64);
-        self.finish_frame(source, Instant::now(), now_ns, |_| Err(fault))
+        self.finish_frame(source, Instant::now(), msg::Time::now_nanos(), |_| {
+            Err(fault)
+        })
     }
 
-    /// Processes one decoded cloud of source `source`; `start` is when it was received.
-    pub fn on_cloud_message(&mut self, source: usize, m: &PointCloud2, start: Instant) -> Frame {
+    /// Processes one decoded cloud of source `source`; `start` is when it was received and
+    /// `now_ns` the clock then (as [`Monitor::on_cloud`]).
+    pub fn on_cloud_message(
+        &mut self,
+        source: usize,
+        m: &PointCloud2,
+        start: Instant,
+        now_ns: i64,
+    ) -> Frame {
         self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
-            me.process(source, m)
+            me.process(source, m, now_ns)
         })
     }
 
@@ -331,8 +357,35 @@ impl Monitor {
         }
     }
 
-    fn process(&mut self, source: usize, message: &PointCloud2) -> Result<QueryResult, Fault> {
+    /// The stamp against the clock: a cloud with no stamp, one older than the source's
+    /// `source_timeout` or one ahead of the clock is a fault before anything else is done.
+    fn check_stamp(&self, source: usize, stamp_ns: i64, now_ns: i64) -> Result<(), Fault> {
+        if stamp_ns == 0 {
+            return Err(Fault::NoStamp);
+        }
+        let age_s = (now_ns as f64 - stamp_ns as f64) * 1e-9;
+        let timeout_s = self.config.sources[source].source_timeout_s;
+        let tolerance_s = self.config.future_stamp_tolerance_s;
+        if age_s > timeout_s {
+            return Err(Fault::StaleCloud { age_s, timeout_s });
+        }
+        if -age_s > tolerance_s {
+            return Err(Fault::FutureCloud {
+                ahead_s: -age_s,
+                tolerance_s,
+            });
+        }
+        Ok(())
+    }
+
+    fn process(
+        &mut self,
+        source: usize,
+        message: &PointCloud2,
+        now_ns: i64,
+    ) -> Result<QueryResult, Fault> {
         let stamp_ns = message.header.stamp.as_nanos();
+        self.check_stamp(source, stamp_ns, now_ns)?;
         let mut cloud = message.to_cloud()?;
         let frame = cloud.frame_id.take().filter(|f| !f.is_empty());
         let frame = frame.ok_or(Fault::NoFrame)?;

@@ -78,6 +78,18 @@ pub enum ReplayError {
     },
 }
 
+/// What a replayed cloud's stamp is checked against (`Fault::StaleCloud`, `FutureCloud`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Clock {
+    /// The message's log time: when the recorder received it, as the node's clock would have
+    /// read (what `ros2 bag play --clock` gives a node with `use_sim_time`).
+    #[default]
+    Log,
+    /// The cloud's own stamp, which turns the stamp check off: for bags whose log times are
+    /// not when the data was taken (converted, or recorded from a replay). Say so when used.
+    Stamp,
+}
+
 /// Writes a frame's outputs into a bag, each on its topic of the output table.
 struct BagSink<'a> {
     writer: &'a mut BagWriter,
@@ -100,11 +112,12 @@ impl OutputVisitor for BagSink<'_> {
 }
 
 /// Replays `bag` through `monitor` (reset first), calling `on_frame` for each cloud; writes the outputs to
-/// `out` when given.
+/// `out` when given. Each cloud's stamp is checked against `clock`.
 pub fn replay(
     monitor: &mut Monitor,
     bag: &Path,
     out: Option<(&Path, Compression)>,
+    clock: Clock,
     on_frame: &mut dyn FnMut(&ReplayFrame),
 ) -> Result<Summary, ReplayError> {
     monitor.reset()?;
@@ -181,7 +194,12 @@ pub fn replay(
         let Some(source) = monitor.source_of(t) else {
             continue;
         };
-        let frame = monitor.on_cloud(source, &m.data);
+        let now_ns = match clock {
+            Clock::Log => m.log_time_ns as i64,
+            Clock::Stamp => crate::msg::decode::<crate::msg::Header>(&m.data)
+                .map_or(m.log_time_ns as i64, |h| h.stamp.as_nanos()),
+        };
+        let frame = monitor.on_cloud(source, &m.data, now_ns);
         let index = summary.frames;
         summary.frames += 1;
         times.push(frame.processing_s * 1e3);

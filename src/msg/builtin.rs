@@ -17,6 +17,12 @@ ros_message!(
 );
 
 impl Time {
+    /// The system clock, in nanoseconds since the epoch (0 for a clock set before 1970).
+    pub fn now_nanos() -> i64 {
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as i64)
+    }
     /// Nanoseconds since the epoch.
     pub fn as_nanos(self) -> i64 {
         i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)

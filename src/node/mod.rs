@@ -16,20 +16,21 @@ pub mod play;
 pub mod record;
 
 use std::any::Any;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use ros2_client::{
-    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
+    Context, Gid, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
 };
 use serde::de::DeserializeOwned;
 
 use crate::config::Config;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::{Frame, Monitor};
-use crate::msg::{JointState, Owned, OwnedMessage, PointCloud2, RosMessage, TfMessage};
+use crate::msg::{JointState, Owned, OwnedMessage, PointCloud2, RosMessage, TfMessage, Time};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -271,7 +272,8 @@ pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
 /// The newest unprocessed cloud of a source.
 #[derive(Default)]
 struct Slot {
-    cloud: Option<(PointCloud2<'static>, Instant)>,
+    /// The cloud, when it was received, and the clock then (ns since the epoch).
+    cloud: Option<(PointCloud2<'static>, Instant, i64)>,
     last_received: Option<Instant>,
 }
 
@@ -391,22 +393,27 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             .spawn(async move {
                 let mut stream =
                     std::pin::pin!(sub.async_stream_seed(Owned::<PointCloud2<'static>>::default()));
-                let mut last_seq: Option<i64> = None;
+                // Sequence numbers count per writer: two publishers on one topic each have
+                // their own, so a gap is looked for within each writer's series only.
+                let mut last_seq: HashMap<Gid, i64> = HashMap::new();
                 while let Some(item) = stream.next().await {
                     match item {
                         Ok((cloud, info)) => {
                             let seq = info.sequence_number();
-                            if let Some(prev) = last_seq {
+                            if let Some(prev) = last_seq.insert(info.publisher_gid(), seq) {
                                 if seq > prev + 1 {
                                     shared
                                         .dropped
                                         .fetch_add((seq - prev - 1) as u64, Ordering::Relaxed);
                                 }
                             }
-                            last_seq = Some(seq);
                             let now = Instant::now();
                             let mut slot = lock(&shared.slots[k]);
-                            if slot.cloud.replace((cloud, now)).is_some() {
+                            if slot
+                                .cloud
+                                .replace((cloud, now, Time::now_nanos()))
+                                .is_some()
+                            {
                                 shared.dropped.fetch_add(1, Ordering::Relaxed);
                             }
                             slot.last_received = Some(now);
@@ -506,8 +513,8 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
                 let mut slot = lock(&shared.slots[k]);
                 (slot.cloud.take(), slot.last_received)
             };
-            if let Some((cloud, received)) = cloud {
-                let frame = monitor.on_cloud_message(k, &cloud, received);
+            if let Some((cloud, received, clock_ns)) = cloud {
+                let frame = monitor.on_cloud_message(k, &cloud, received, clock_ns);
                 {
                     let (d, e) = counts();
                     outputs.publish(frame, d, e);

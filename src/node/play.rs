@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use ros2_client::Publisher;
@@ -48,12 +48,6 @@ enum Out {
     Cloud(Publisher<PointCloud2<'static>>),
     Joints(Publisher<JointState>),
     Tf(Publisher<TfMessage>),
-}
-
-fn now_ns() -> i64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as i64)
 }
 
 fn shift(t: &mut Time, offset_ns: i64) {
@@ -129,7 +123,7 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
     let started = Instant::now();
     for _ in 0..options.loops.max(1) {
         let loop_start = Instant::now();
-        let offset = now_ns() - t0 as i64;
+        let offset = Time::now_nanos() - t0 as i64;
         for m in &messages {
             let due = Duration::from_secs_f64((m.log_time_ns - t0) as f64 * 1e-9 / options.rate);
             if let Some(wait) = due.checked_sub(loop_start.elapsed()) {

@@ -5,14 +5,14 @@
 
 use std::path::Path;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use futures::StreamExt;
 
 use super::{subscription, tool_node, NodeError, RELIABLE_QOS};
 use crate::bag::{writer::Compression, BagWriter};
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
-use crate::msg::{Owned, OwnedMessage};
+use crate::msg::{Owned, OwnedMessage, Time};
 
 /// The bag being written and how many messages went into it.
 type Sink = Arc<Mutex<(Option<BagWriter>, usize)>>;
@@ -39,9 +39,7 @@ impl OutputVisitor for Subscribe<'_> {
             .spawn(async move {
                 let mut stream = std::pin::pin!(sub.async_stream_seed(Owned::<T>::default()));
                 while let Some(Ok((m, _))) = stream.next().await {
-                    let now = SystemTime::now()
-                        .duration_since(UNIX_EPOCH)
-                        .map_or(0, |d| d.as_nanos() as u64);
+                    let now = Time::now_nanos().max(0) as u64;
                     let mut sink = sink.lock().unwrap_or_else(|p| p.into_inner());
                     let (writer, count) = &mut *sink;
                     if let Some(w) = writer.as_mut() {

@@ -35,6 +35,11 @@ pub struct ReplayArgs {
     /// Where the queries run: cpu, gpu or auto (the same as -p backend:=...).
     #[arg(long, value_enum)]
     backend: Option<Backend>,
+    /// What each cloud's stamp is checked against: the message's log time (as the node's
+    /// clock), or the cloud's own stamp, which turns the stale/future check off — for bags whose
+    /// log times are not when the data was taken.
+    #[arg(long, value_enum, default_value_t = replay::Clock::Log)]
+    clock: replay::Clock,
     /// Print the frames and the summary as JSON.
     #[arg(long)]
     json: bool,
@@ -119,7 +124,10 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             "ms"
         )
     };
-    let summary = replay::replay(&mut monitor, &bag, out, &mut |f| {
+    if args.clock == replay::Clock::Stamp {
+        log::warn!("--clock stamp: cloud stamps are not checked against the bag's clock");
+    }
+    let summary = replay::replay(&mut monitor, &bag, out, args.clock, &mut |f| {
         if json {
             frames.push(f.clone());
             return;
