@@ -137,6 +137,138 @@ fn ply_formats() {
     }
 }
 
+/// Headers that lie about their counts: each an error naming the file and what disagrees,
+/// found before anything of the claimed size is allocated (without the checks these aborted on a
+/// 48 GB allocation, overflowed a capacity, panicked inside pcd-rs, or read part of the file).
+#[test]
+fn lying_headers_are_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let points = sample();
+    let check = |name: &str, bytes: Vec<u8>, expected: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let e = cloud::load(&path, 0).unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains(expected), "{name}: {e}");
+    };
+    let edit = |encoding: &str, from: &[&str], to: &[&str]| {
+        let mut bytes = pcd(encoding, &points);
+        let end = bytes.windows(5).position(|w| w == b"DATA ").unwrap();
+        let mut header = String::from_utf8(bytes[..end].to_vec()).unwrap();
+        for (f, t) in from.iter().zip(to) {
+            header = header.replace(f, t);
+        }
+        bytes.splice(..end, header.into_bytes());
+        bytes
+    };
+    let counts = |n: &str| [format!("WIDTH {n}"), format!("POINTS {n}")];
+    for (name, n, expected) in [
+        ("huge.pcd", "4000000000", "more than the 100000000 points"),
+        (
+            "max.pcd",
+            "18446744073709551615",
+            "more than the 100000000 points",
+        ),
+        ("fewer.pcd", "3", "the data is 56"),
+        ("more.pcd", "5", "the data is 56"),
+    ] {
+        let [w, p] = counts(n);
+        check(
+            name,
+            edit("binary", &["WIDTH 4", "POINTS 4"], &[&w, &p]),
+            expected,
+        );
+    }
+    check(
+        "height.pcd",
+        edit("binary", &["HEIGHT 1"], &["HEIGHT 2"]),
+        "WIDTH 4 × HEIGHT 2 is not POINTS 4",
+    );
+    let [w, p] = counts("5");
+    check(
+        "compressed_count.pcd",
+        edit("binary_compressed", &["WIDTH 4", "POINTS 4"], &[&w, &p]),
+        "inflates to 56 bytes",
+    );
+    let mut bytes = pcd("binary_compressed", &points);
+    let at = bytes
+        .windows(18)
+        .position(|w| w == b"binary_compressed\n")
+        .unwrap()
+        + 18;
+    bytes[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
+    check("compressed_size.pcd", bytes, "block of 4294967295 bytes");
+    let [w, p] = counts("3");
+    check(
+        "ascii_count.pcd",
+        edit("ascii", &["WIDTH 4", "POINTS 4"], &[&w, &p]),
+        "POINTS 3, but 4 lines",
+    );
+    // PLY: vertex counts beyond the maximum, beyond the data, and short of it.
+    let ply = |format: &str, count: &str, body: &[u8]| {
+        let mut b = format!(
+            "ply\nformat {format} 1.0\nelement vertex {count}\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+        )
+        .into_bytes();
+        b.extend(body);
+        b
+    };
+    let binary: Vec<u8> = points
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let text: String = points
+        .iter()
+        .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
+        .collect();
+    for (name, format, count, body, expected) in [
+        (
+            "huge.ply",
+            "binary_little_endian",
+            "2305843009213693952",
+            &binary,
+            "more than the 100000000 points",
+        ),
+        (
+            "big.ply",
+            "binary_little_endian",
+            "4000000000",
+            &binary,
+            "more than the 100000000 points",
+        ),
+        (
+            "more.ply",
+            "binary_little_endian",
+            "5",
+            &binary,
+            "48 bytes of data, 5 vertices of 12 bytes need 60",
+        ),
+        (
+            "fewer.ply",
+            "binary_little_endian",
+            "3",
+            &binary,
+            "need 36 (and no other element follows)",
+        ),
+        (
+            "ascii_more.ply",
+            "ascii",
+            "1000",
+            &text.clone().into_bytes(),
+            "hold fewer vertices",
+        ),
+        (
+            "ascii_fewer.ply",
+            "ascii",
+            "3",
+            &text.clone().into_bytes(),
+            "more data lines than the 3 vertices",
+        ),
+    ] {
+        check(name, ply(format, count, body), expected);
+    }
+}
+
 /// x y z, 4 bytes of padding per point, `pad` bytes after each row of `width` points, through
 /// the library's encoder.
 fn point_cloud2(

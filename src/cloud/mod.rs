@@ -11,6 +11,11 @@
 //! - a bag (`crate::bag`, a `.mcap` file or a rosbag2 folder): its N-th PointCloud2 message.
 //!
 //! Invalid points (NaN, Inf, zeros) are kept as they are: the query counts and skips them.
+//!
+//! Every reader checks a file's counts against the bytes present, and against [`MAX_POINTS`],
+//! before it allocates: a header that claims more points than its data holds (or fewer, which
+//! would silently read part of the file) is an error naming the file, never an allocation of
+//! what the header says.
 
 pub mod pcd;
 pub mod ply;
@@ -19,6 +24,10 @@ pub mod pointcloud2;
 use std::path::{Path, PathBuf};
 
 use crate::msg::RosMessage;
+
+/// The most points a cloud file may declare (1.2 GB as `[f32; 3]`): ten times a 12-megapixel
+/// depth image, a hundred times a 64-beam lidar's sweep.
+pub const MAX_POINTS: u64 = 100_000_000;
 
 /// A point cloud in its sensor frame.
 #[derive(Debug, Clone, PartialEq)]

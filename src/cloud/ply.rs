@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use super::{read, Cloud, CloudError, Scalar};
+use super::{read, Cloud, CloudError, Scalar, MAX_POINTS};
 
 pub fn load(path: &Path) -> Result<Cloud, CloudError> {
     parse(&read(path)?).map_err(|message| CloudError::Ply {
@@ -34,6 +34,7 @@ pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
     let mut vertices = None;
     let mut in_vertex = false;
     let mut seen_element = false;
+    let mut elements_after_vertex = false;
     let mut properties: Vec<(String, Scalar)> = Vec::new();
     let mut first = true;
     loop {
@@ -61,11 +62,17 @@ pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
                     if seen_element {
                         return Err("element vertex must come first".into());
                     }
-                    vertices = Some(
-                        count
-                            .parse::<usize>()
-                            .map_err(|_| format!("vertex count {count:?}"))?,
-                    );
+                    let n = count
+                        .parse::<u64>()
+                        .map_err(|_| format!("vertex count {count:?}"))?;
+                    if n > MAX_POINTS {
+                        return Err(format!(
+                            "element vertex {n}: more than the {MAX_POINTS} points a cloud may have"
+                        ));
+                    }
+                    vertices = Some(n as usize);
+                } else if vertices.is_some() {
+                    elements_after_vertex = true;
                 }
                 in_vertex = *name == "vertex";
                 seen_element = true;
@@ -90,10 +97,18 @@ pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
     };
     let xyz = [find("x")?, find("y")?, find("z")?];
     let body = &bytes[pos..];
-    let mut points = Vec::with_capacity(n);
+    let mut points = Vec::new();
     match format.as_deref() {
         Some("ascii") => {
             let text = std::str::from_utf8(body).map_err(|_| "ascii body is not text")?;
+            // A vertex takes at least one character and one separator per property.
+            if n > body.len() / (2 * properties.len()) {
+                return Err(format!(
+                    "element vertex {n}: the {} bytes of data hold fewer vertices",
+                    body.len()
+                ));
+            }
+            points.reserve_exact(n);
             let mut lines = text.lines().filter(|l| !l.trim().is_empty());
             for i in 0..n {
                 let line = lines.next().ok_or(format!("vertex {i} missing"))?;
@@ -106,6 +121,11 @@ pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
                 };
                 points.push([get(0)?, get(1)?, get(2)?]);
             }
+            if !elements_after_vertex && lines.next().is_some() {
+                return Err(format!(
+                    "more data lines than the {n} vertices of the header, and no other element"
+                ));
+            }
         }
         Some(f @ ("binary_little_endian" | "binary_big_endian")) => {
             let big = f == "binary_big_endian";
@@ -115,13 +135,21 @@ pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
                 offsets.push(record);
                 record += p.1.size();
             }
-            if body.len() < n * record {
+            let need = n
+                .checked_mul(record)
+                .ok_or_else(|| format!("element vertex {n}: size overflows"))?;
+            if body.len() < need || (!elements_after_vertex && body.len() > need) {
                 return Err(format!(
-                    "{} body bytes, {n} vertices need {}",
+                    "{} bytes of data, {n} vertices of {record} bytes need {need}{}",
                     body.len(),
-                    n * record
+                    if body.len() > need {
+                        " (and no other element follows)"
+                    } else {
+                        ""
+                    }
                 ));
             }
+            points.reserve_exact(n);
             for i in 0..n {
                 let r = &body[i * record..];
                 points.push(xyz.map(|k| properties[k].1.read(&r[offsets[k]..], big)));
