@@ -88,6 +88,7 @@ struct State {
     counts: array<atomic<u32>, STAGES>,
     pad1: u32,
     pad2: u32,
+    self_filtered: array<atomic<u32>, MAX_LINKS>,
 }
 
 // layout.rs Candidate.
@@ -248,17 +249,19 @@ fn record(l: u32, point: u32, d: f32) {
     }
 }
 
-fn is_self(p: vec3<f32>) -> bool {
+// The first link with an inner sphere within the self-filter padding of p; NO_LINK if none.
+const NO_LINK: u32 = 0xffffffffu;
+fn self_link(p: vec3<f32>) -> u32 {
     let padding = params.robot_box.padding;
     if padding < 0.0 {
-        return false;
+        return NO_LINK;
     }
     for (var l = 0u; l < params.n_links; l++) {
         if descend(l, in_link(l, p), padding).found {
-            return true;
+            return l;
         }
     }
-    return false;
+    return NO_LINK;
 }
 
 fn point_at(i: u32) -> vec3<f32> {
@@ -274,7 +277,11 @@ fn process(i: u32) -> u32 {
     if box_distance(p) > params.robot_box.max_distance {
         return STAGE_OUTSIDE_ROI;
     }
-    if is_self(p) {
+    let own = self_link(p);
+    if own != NO_LINK {
+        if params.pass_kind == PASS_MAIN {
+            atomicAdd(&state.self_filtered[own], 1u);
+        }
         return STAGE_SELF_FILTERED;
     }
     var evaluated = false;
@@ -311,7 +318,7 @@ fn argmin(i: u32) {
         let hit = descend(l, in_link(l, p), bitcast<f32>(b));
         if hit.found && bitcast<u32>(hit.d) == b {
             if !checked {
-                if is_self(p) {
+                if self_link(p) != NO_LINK {
                     return;
                 }
                 checked = true;

@@ -325,7 +325,16 @@ impl Config {
             path: path.to_owned(),
             source,
         })?;
-        let docs = YamlLoader::load_from_str(&text).map_err(|e| ConfigError::Yaml {
+        Self::parse(&text, path, overrides)
+    }
+
+    /// As [`Config::load`], from the text of the file at `path`.
+    pub fn parse(
+        text: &str,
+        path: &Path,
+        overrides: &[(String, String)],
+    ) -> Result<Self, ConfigError> {
+        let docs = YamlLoader::load_from_str(text).map_err(|e| ConfigError::Yaml {
             path: path.to_owned(),
             message: e.to_string(),
         })?;
@@ -556,6 +565,22 @@ impl Config {
                 format!("{stop_distance_m} m is above warn_distance {warn_distance_m} m"),
             ));
         }
+        let hysteresis_m = v.distance("hysteresis", "hysteresis")?;
+        // A padding that reaches the stop threshold would filter an obstacle at the stop
+        // distance as "robot": the stop could never be raised by it.
+        // (Compared in f32, the precision the query filters in.)
+        if let Some(padding) = query.self_filter_padding_m {
+            if padding >= (stop_distance_m - hysteresis_m) as f32 {
+                return Err(Values::bad(
+                    "self_filter_padding",
+                    format!(
+                        "{padding} m must stay below stop_distance − hysteresis \
+                         ({stop_distance_m} − {hysteresis_m} m): a point filtered as the robot \
+                         could never raise the stop"
+                    ),
+                ));
+            }
+        }
         Ok(Self {
             node_name: node_name.to_owned(),
             namespace: namespace.to_owned(),
@@ -578,7 +603,7 @@ impl Config {
                 .distance("future_stamp_tolerance", "future_stamp_tolerance")?,
             warn_distance_m,
             stop_distance_m,
-            hysteresis_m: v.distance("hysteresis", "hysteresis")?,
+            hysteresis_m,
             latency_budget_s: v.distance("latency_budget", "latency_budget")?,
             sources,
             static_transforms,

@@ -82,7 +82,9 @@ pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
 }
 
 /// The messages of the bag at `path` whose channel passes `keep(topic, schema)`, in log-time
-/// order. Only those are kept in memory.
+/// order. Only those are kept in memory. A file that ends early or has a broken record after its
+/// first message (a recorder that crashed) gives the messages before the break, with a warning
+/// that says where it ends; a file with no readable message is an error.
 pub fn read_messages(
     path: &Path,
     keep: &dyn Fn(&str, &str) -> bool,
@@ -90,38 +92,92 @@ pub fn read_messages(
     let mut out = Vec::new();
     for file in files(path)? {
         let bytes = std::fs::read(&file).map_err(io(&file))?;
-        let bad = |e: mcap::McapError| BagError::Mcap {
-            path: file.clone(),
-            message: e.to_string(),
-        };
-        // Channel id → (topic, schema, encoding), shared by the messages of the channel.
-        let mut channels: HashMap<u16, Names> = HashMap::new();
-        for message in mcap::MessageStream::new(&bytes).map_err(bad)? {
-            let message = message.map_err(bad)?;
-            let c = &message.channel;
-            let schema = c.schema.as_ref().map_or("", |s| s.name.as_str());
-            if !keep(&c.topic, schema) {
-                continue;
-            }
-            let (topic, schema, encoding) = channels
-                .entry(c.id)
-                .or_insert_with(|| {
-                    (
-                        Arc::from(c.topic.as_str()),
-                        Arc::from(schema),
-                        Arc::from(c.message_encoding.as_str()),
-                    )
-                })
-                .clone();
-            out.push(BagMessage {
-                topic,
-                schema,
-                encoding,
-                log_time_ns: message.log_time,
-                data: message.data.into_owned(),
-            });
+        if let Some(end) = read_mcap(&file, &bytes, keep, &mut out)? {
+            log::warn!("{}", end);
         }
     }
     out.sort_by_key(|m| m.log_time_ns);
     Ok(out)
+}
+
+/// Where a damaged file's readable part ends.
+#[derive(Debug, Clone)]
+pub struct Truncated {
+    pub path: PathBuf,
+    /// Messages read from the file before the break (of every channel).
+    pub messages: usize,
+    /// Log time of the last of them, ns.
+    pub last_log_time_ns: u64,
+    pub error: String,
+}
+
+impl std::fmt::Display for Truncated {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: the bag ends early (a recorder that stopped?): read up to message {} at log time \
+             {:.6} s, then: {}",
+            self.path.display(),
+            self.messages,
+            self.last_log_time_ns as f64 * 1e-9,
+            self.error
+        )
+    }
+}
+
+/// The messages of one MCAP file's bytes (`file` names it in errors) that pass `keep`, appended
+/// to `out` in file order. `Some` when the file breaks after at least one message: what was
+/// read before the break is kept.
+pub fn read_mcap(
+    file: &Path,
+    bytes: &[u8],
+    keep: &dyn Fn(&str, &str) -> bool,
+    out: &mut Vec<BagMessage>,
+) -> Result<Option<Truncated>, BagError> {
+    let bad = |e: mcap::McapError| BagError::Mcap {
+        path: file.to_owned(),
+        message: e.to_string(),
+    };
+    // Channel id → (topic, schema, encoding), shared by the messages of the channel.
+    let mut channels: HashMap<u16, Names> = HashMap::new();
+    let (mut read, mut last) = (0usize, 0u64);
+    for message in mcap::MessageStream::new(bytes).map_err(bad)? {
+        let message = match message {
+            Ok(m) => m,
+            Err(e) if read > 0 => {
+                return Ok(Some(Truncated {
+                    path: file.to_owned(),
+                    messages: read,
+                    last_log_time_ns: last,
+                    error: e.to_string(),
+                }))
+            }
+            Err(e) => return Err(bad(e)),
+        };
+        read += 1;
+        last = message.log_time;
+        let c = &message.channel;
+        let schema = c.schema.as_ref().map_or("", |s| s.name.as_str());
+        if !keep(&c.topic, schema) {
+            continue;
+        }
+        let (topic, schema, encoding) = channels
+            .entry(c.id)
+            .or_insert_with(|| {
+                (
+                    Arc::from(c.topic.as_str()),
+                    Arc::from(schema),
+                    Arc::from(c.message_encoding.as_str()),
+                )
+            })
+            .clone();
+        out.push(BagMessage {
+            topic,
+            schema,
+            encoding,
+            log_time_ns: message.log_time,
+            data: message.data.into_owned(),
+        });
+    }
+    Ok(None)
 }

@@ -19,41 +19,42 @@ use super::{read, Cloud, CloudError, MAX_POINTS};
 const LZF_MAX_RATIO: u64 = 88;
 
 pub fn load(path: &Path) -> Result<Cloud, CloudError> {
-    let err = |message: String| CloudError::Pcd {
+    parse(&read(path)?).map_err(|message| CloudError::Pcd {
         path: path.to_owned(),
         message,
-    };
-    let bytes = read(path)?;
-    check_header(&bytes).map_err(err)?;
-    let reader = pcd_rs::DynReader::from_bytes(&bytes).map_err(|e| err(e.to_string()))?;
+    })
+}
+
+/// Parses a PCD file's bytes.
+pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
+    check_header(bytes)?;
+    let reader = pcd_rs::DynReader::from_bytes(bytes).map_err(|e| e.to_string())?;
     let meta = reader.meta().clone();
     let find = |axis: &str| {
         meta.field_defs
             .iter()
             .position(|f| f.name == axis)
-            .ok_or_else(|| err(format!("no field {axis}")))
+            .ok_or_else(|| format!("no field {axis}"))
     };
     let xyz = [find("x")?, find("y")?, find("z")?];
     let mut points = Vec::with_capacity(meta.num_points as usize);
     for (i, record) in reader.enumerate() {
-        let record: DynRecord = record.map_err(|e| err(format!("point {i}: {e}")))?;
+        let record: DynRecord = record.map_err(|e| format!("point {i}: {e}"))?;
         let mut p = [0.0f32; 3];
         for (k, &f) in xyz.iter().enumerate() {
-            p[k] = record.0.get(f).and_then(first_value).ok_or_else(|| {
-                err(format!(
-                    "point {i}: field {} has no value",
-                    ["x", "y", "z"][k]
-                ))
-            })?;
+            p[k] =
+                record.0.get(f).and_then(first_value).ok_or_else(|| {
+                    format!("point {i}: field {} has no value", ["x", "y", "z"][k])
+                })?;
         }
         points.push(p);
     }
     if points.len() as u64 != meta.num_points {
-        return Err(err(format!(
+        return Err(format!(
             "{} points read, the header says {}",
             points.len(),
             meta.num_points
-        )));
+        ));
     }
     Ok(Cloud {
         points,

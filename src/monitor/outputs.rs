@@ -2,7 +2,7 @@
 //!
 //! | topic | type | content |
 //! |---|---|---|
-//! | `~/min_distance` | `std_msgs/Float64` | the conservative distance: the certified lower bound (certified), the exact distance (exact), the inner-sphere distance (fast, not conservative); `max_distance` when nothing is nearer; not published on a fault or a cloud without valid points |
+//! | `~/min_distance` | `std_msgs/Float64` | the conservative distance: the certified lower bound (certified), the exact distance (exact), the inner-sphere distance (fast, not conservative); `max_distance` when nothing is nearer; not published on a fault, a cloud without valid points, or one whose valid points the self-filter all removed |
 //! | `~/link_distances` | `sensor_msgs/JointState` | `name` = links, `position` = each link's conservative distance (`max_distance` when nothing is nearer); `header` = cloud stamp, root frame |
 //! | `~/closest_points` | `visualization_msgs/MarkerArray` | a line from the robot to the nearest obstacle point and a text with the distance, coloured by level; DELETEALL on a fault |
 //! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source: level, reason, figures |
@@ -66,6 +66,13 @@ impl LevelTracker {
             hysteresis_m: config.hysteresis_m,
             level: Level::Ok,
         }
+    }
+
+    /// The level when nothing about the distance can be said but no input failed either: at
+    /// least `floor`, and never below the level held (the stop stays as it was).
+    pub fn hold_at_least(&mut self, floor: Level) -> Level {
+        self.level = self.level.max(floor);
+        self.level
     }
 
     /// The level for a conservative distance `d` (`None`: no distance is known, a fault).
@@ -222,6 +229,13 @@ impl Outputs {
             kv("latency_ms", format!("{:.3}", processing_s * 1e3)),
         ];
         let over_budget = processing_s > config.latency_budget_s;
+        // Every valid point within the self-filter padding of the robot: the camera sees only the
+        // robot, or an obstacle touching it, which the padding cannot tell apart. No distance,
+        // WARN at least, and the level held (a stop is never released by this).
+        let all_self = result.as_ref().is_ok_and(|r| {
+            let c = &r.counts;
+            c.self_filtered > 0 && c.self_filtered == c.total - c.invalid
+        });
         let (distance, mut message) = match result {
             Err(fault) => {
                 values.push(kv("fault", fault.kind().into()));
@@ -238,6 +252,11 @@ impl Outputs {
                     kv("points_self_filtered", c.self_filtered.to_string()),
                     kv("points_invalid", c.invalid.to_string()),
                 ]);
+                values.extend(
+                    r.self_filtered_by_link.iter().map(|(link, n)| {
+                        kv(&format!("points_self_filtered.{link}"), n.to_string())
+                    }),
+                );
                 if let Some(n) = &r.nearest {
                     values.extend([
                         kv("distance_m", format!("{:.6}", n.distance_m)),
@@ -247,8 +266,14 @@ impl Outputs {
                         values.push(kv("lower_m", format!("{l:.6}")));
                     }
                 }
-                let d = conservative_distance(r);
+                let d = conservative_distance(r).filter(|_| !all_self);
                 let message = match d {
+                    _ if all_self => format!(
+                        "the self-filter removed every valid point ({} within \
+                         self_filter_padding of the robot): only the robot is seen, or an \
+                         obstacle touching it",
+                        c.self_filtered
+                    ),
                     Some(d) if r.outcome == Outcome::Nearest => format!("min distance {d:.3} m"),
                     Some(d) => format!("nothing within {d:.3} m"),
                     None => "no valid points in the cloud".into(),
@@ -257,7 +282,11 @@ impl Outputs {
             }
         };
         // No distance (a fault, or a result without one) is ERROR: never read as "clear".
-        let mut level = tracker.update(distance);
+        let mut level = if all_self {
+            tracker.hold_at_least(Level::Warn)
+        } else {
+            tracker.update(distance)
+        };
         if over_budget {
             level = level.max(Level::Warn);
         }

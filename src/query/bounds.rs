@@ -55,6 +55,8 @@ pub(crate) struct Bounds {
     pub global: AtomicU32,
     pub global_lower: AtomicU32,
     pub candidates: Mutex<Vec<Candidate>>,
+    /// Per link: the points the self-filter took as this link.
+    pub self_filtered: Vec<AtomicU64>,
 }
 
 impl Bounds {
@@ -76,6 +78,7 @@ impl Bounds {
             global: AtomicU32::new(f32::INFINITY.to_bits()),
             global_lower: AtomicU32::new(f32::INFINITY.to_bits()),
             candidates: Mutex::new(Vec::new()),
+            self_filtered: links.iter().map(|_| AtomicU64::new(0)).collect(),
         }
     }
 
@@ -91,6 +94,9 @@ impl Bounds {
         pose::pose_links(links, &mut self.posed, root_from_sensor, link_poses);
         for b in &self.best {
             b.store(EMPTY, Relaxed);
+        }
+        for s in &self.self_filtered {
+            s.store(0, Relaxed);
         }
         self.global.store(f32::INFINITY.to_bits(), Relaxed);
         self.global_lower.store(f32::INFINITY.to_bits(), Relaxed);

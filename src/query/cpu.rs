@@ -32,7 +32,7 @@ use wide::{f32x8, CmpEq, CmpLt};
 use super::bounds::{load_distance, load_f32, pack_minimum, Bounds};
 use super::descent::{dist, dist2, lower_bounds, nearest_from, valid};
 use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
-use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
+use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts, MAX_LINKS};
 
 /// Sample points (and their blocks) that seed each link.
 const SEEDS: usize = 3;
@@ -104,6 +104,7 @@ struct Pass<'a> {
     global: &'a AtomicU32,
     global_lower: &'a AtomicU32,
     candidates: &'a Mutex<Vec<Candidate>>,
+    self_filtered: &'a [AtomicU64],
     points: &'a [[f32; 3]],
     mode: Mode,
     per_link: bool,
@@ -170,6 +171,7 @@ impl Pass<'_> {
         frontier: &[u32],
         spans: &[(u32, u32)],
         counts: &mut StageCounts,
+        self_by_link: &mut [u32; MAX_LINKS],
     ) {
         // One look at the frontier nodes per link: which links may hold the point within the
         // padding (self-filter) and which within their bound (evaluation).
@@ -192,9 +194,12 @@ impl Pass<'_> {
                 }
             }
         }
-        if near != 0 && self.is_self(p, near, frontier, spans) {
-            counts.self_filtered += 1;
-            return;
+        if near != 0 {
+            if let Some(l) = self.is_self(p, near, frontier, spans) {
+                counts.self_filtered += 1;
+                self_by_link[l] += 1;
+                return;
+            }
         }
         if eval == 0 {
             counts.pruned += 1;
@@ -205,20 +210,23 @@ impl Pass<'_> {
         counts.inside += inside as u64;
     }
 
-    /// Whether `p` is within the self-filter padding of an inner sphere of a link in `mask`.
+    /// The first link of `mask` with an inner sphere within the self-filter padding of `p`.
     #[inline]
-    fn is_self(&self, p: [f32; 3], mask: u128, frontier: &[u32], spans: &[(u32, u32)]) -> bool {
+    fn is_self(
+        &self,
+        p: [f32; 3],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+    ) -> Option<usize> {
         if self.padding < 0.0 {
-            return false;
+            return None;
         }
-        for l in bits(mask) {
+        bits(mask).find(|&l| {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
-            if nearest_from(link, q, starts(frontier, spans, l), self.padding).is_some() {
-                return true;
-            }
-        }
-        false
+            nearest_from(link, q, starts(frontier, spans, l), self.padding).is_some()
+        })
     }
 
     /// Descends the links of `mask` for an obstacle point and records its distances; returns
@@ -310,6 +318,7 @@ impl Pass<'_> {
         }
         let start = b * BLOCK;
         let end = (start + BLOCK).min(self.points.len());
+        let mut self_by_link = [0u32; MAX_LINKS];
         for (i, &p) in self.points[start..end].iter().enumerate() {
             if !valid(p) {
                 continue;
@@ -319,7 +328,15 @@ impl Pass<'_> {
             } else if mask == 0 {
                 counts.pruned += 1;
             } else {
-                self.point((start + i) as u32, p, mask, frontier, spans, &mut counts);
+                let i = (start + i) as u32;
+                self.point(i, p, mask, frontier, spans, &mut counts, &mut self_by_link);
+            }
+        }
+        if counts.self_filtered > 0 {
+            for (l, &n) in self_by_link[..self.links.len()].iter().enumerate() {
+                if n > 0 {
+                    self.self_filtered[l].fetch_add(u64::from(n), Relaxed);
+                }
             }
         }
         counts
@@ -335,7 +352,7 @@ impl Pass<'_> {
             for (i, &p) in self.points[start..end].iter().enumerate() {
                 if valid(p)
                     && self.robot_box.distance(p) <= self.robot_box.max_distance
-                    && !self.is_self(p, mask, frontier, spans)
+                    && self.is_self(p, mask, frontier, spans).is_none()
                 {
                     self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
                 }
@@ -498,6 +515,7 @@ pub(super) fn run(
         global: &bounds.global,
         global_lower: &bounds.global_lower,
         candidates: &bounds.candidates,
+        self_filtered: &bounds.self_filtered,
         points,
         mode: options.mode,
         per_link: options.per_link,

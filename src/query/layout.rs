@@ -180,8 +180,10 @@ pub struct Counters {
     pub counts: [u32; STAGES],
     pub pad1: u32,
     pub pad2: u32,
+    /// Self-filtered points per link (the first link within the padding).
+    pub self_filtered: [u32; super::MAX_LINKS],
 }
-const _: () = assert!(size_of::<Counters>() == 48);
+const _: () = assert!(size_of::<Counters>() == 48 + 4 * super::MAX_LINKS);
 
 /// An exact-mode candidate: a (point, link) pair whose lower bound may beat the best upper
 /// bound. WGSL `Candidate`.
@@ -252,7 +254,8 @@ pub const MIRRORS: &[Mirror] = &[
             pad,
             counts,
             pad1,
-            pad2
+            pad2,
+            self_filtered
         ]
     ),
     mirror!("Candidate", Candidate, [lower, link, point, pad]),
@@ -268,6 +271,7 @@ pub fn wgsl_constants() -> String {
         u("GPU_STACK", GPU_STACK as u32),
         u("WORKGROUP", WORKGROUP),
         u("STAGES", STAGES as u32),
+        u("MAX_LINKS", super::MAX_LINKS as u32),
         u("MODE_FAST", MODE_FAST),
         u("MODE_CERTIFIED", MODE_CERTIFIED),
         u("MODE_EXACT", MODE_EXACT),

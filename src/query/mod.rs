@@ -563,6 +563,9 @@ pub struct QueryResult {
     /// Per-link minima (only when `per_link`), in the engine's link order.
     pub links: Vec<LinkDistance>,
     pub counts: StageCounts,
+    /// The links the self-filtered points were taken as (the first link, in engine order,
+    /// within the padding), with their counts; links with none are left out.
+    pub self_filtered_by_link: Vec<(String, u64)>,
 }
 
 /// What one query asks: the cloud, where its sensor is, how the robot is posed, the options.

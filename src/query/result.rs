@@ -192,5 +192,11 @@ fn assemble(
         nearest,
         links: link_results,
         counts,
+        self_filtered_by_link: links
+            .iter()
+            .zip(&bounds.self_filtered)
+            .map(|(link, n)| (link.name.clone(), n.load(Relaxed)))
+            .filter(|(_, n)| *n > 0)
+            .collect(),
     }
 }

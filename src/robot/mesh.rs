@@ -140,9 +140,16 @@ pub type TriangleSoup = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
 /// Loads every mesh in a file (merged), as f32 vertices and triangles in file units.
 pub fn load_mesh_file(path: &std::path::Path) -> Result<TriangleSoup, MeshError> {
+    let bytes = std::fs::read(path).map_err(|e| MeshError::Load(e.to_string()))?;
+    load_mesh_bytes(&bytes, path)
+}
+
+/// As [`load_mesh_file`], from the bytes of the file at `path` (its extension picks the
+/// format; a COLLADA file's references are resolved next to it).
+pub fn load_mesh_bytes(bytes: &[u8], path: &std::path::Path) -> Result<TriangleSoup, MeshError> {
     let scene = mesh_loader::Loader::default()
         .merge_meshes(true)
-        .load(path)
+        .load_from_slice(bytes, path)
         .map_err(|e| MeshError::Load(e.to_string()))?;
     let mut vertices = Vec::new();
     let mut triangles = Vec::new();

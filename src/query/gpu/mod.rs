@@ -436,6 +436,9 @@ impl GpuEngine {
             .global_lower
             .store(state.global_lower, std::sync::atomic::Ordering::Relaxed);
         bounds.candidates_mut().extend_from_slice(&candidates);
+        for (n, &s) in bounds.self_filtered.iter().zip(&state.self_filtered) {
+            n.store(u64::from(s), std::sync::atomic::Ordering::Relaxed);
+        }
         let c = |stage: Stage| u64::from(state.counts[stage as usize]);
         let counts = StageCounts {
             total: n as u64,

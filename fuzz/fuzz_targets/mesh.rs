@@ -1,0 +1,9 @@
+#![no_main]
+
+#[path = "../targets.rs"]
+mod targets;
+
+#[global_allocator]
+static ALLOCATOR: targets::Limited = targets::Limited;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| targets::mesh(data));

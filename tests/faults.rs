@@ -1,0 +1,171 @@
+//! The fault model and the self-filter's contract, through the monitor (what `replay` and the
+//! node run): the level never falls on a frame that tells nothing, and what the self-filter
+//! removes is counted per link and said.
+
+mod common;
+
+use std::path::Path;
+
+use ist_monitor::cloud::pointcloud2;
+use ist_monitor::config::Config;
+use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
+use ist_monitor::monitor::{Frame, Level, Monitor};
+use ist_monitor::msg::{self, Header, Time};
+use ist_monitor::robot::RobotModel;
+use nalgebra::Point3;
+
+const STAMP: i64 = 1_700_000_000_000_000_000;
+
+/// The demo arm at rest, seen by a sensor `cam` at the root (`world`), joints fixed at 0.
+fn monitor(extra: &[(&str, &str)]) -> Monitor {
+    let model = RobotModel::load(Path::new(common::DEMO_URDF), &[]).unwrap();
+    let names = model.kinematics.variables().to_vec();
+    let mut overrides: Vec<(String, String)> = vec![
+        ("robot_description".into(), common::DEMO_URDF.into()),
+        ("static_transforms".into(), "[cam]".into()),
+        ("cam.parent_frame".into(), "world".into()),
+        ("cam.child_frame".into(), "cam".into()),
+        ("fixed_joint_state.names".into(), format!("{names:?}")),
+        (
+            "fixed_joint_state.positions".into(),
+            format!("{:?}", vec![0.0; names.len()]),
+        ),
+        ("backend".into(), "cpu".into()),
+    ];
+    overrides.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+    let config = Config::from_overrides(&overrides).unwrap();
+    let trees: Vec<_> = build_robot(
+        &model,
+        &BuildOptions::default(),
+        Some(&TreeCache::at(None)),
+        &|_| {},
+    )
+    .unwrap()
+    .into_iter()
+    .map(|(t, _)| t)
+    .collect();
+    Monitor::with_trees(config, model, &trees).unwrap()
+}
+
+fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
+    let header = Header {
+        stamp: Time::from_nanos(STAMP),
+        frame_id: "cam".into(),
+    };
+    let layout = pointcloud2::Layout::unorganized(points.len() as u32);
+    let m = pointcloud2::encode(header, points, &layout).unwrap();
+    monitor.on_cloud(0, &msg::encode(&m).unwrap(), STAMP)
+}
+
+/// Points on the robot: the centres of every inner sphere of every link, in the root frame.
+fn robot_points(monitor: &Monitor) -> Vec<[f32; 3]> {
+    let model = &monitor.model;
+    let poses = model
+        .kinematics
+        .link_poses(&vec![0.0; model.kinematics.variables().len()]);
+    let trees: Vec<_> = build_robot(
+        model,
+        &BuildOptions::default(),
+        Some(&TreeCache::at(None)),
+        &|_| {},
+    )
+    .unwrap();
+    let mut out = Vec::new();
+    for (tree, _) in trees {
+        let pose = poses[model.kinematics.link_index(&tree.link).unwrap()];
+        for s in &tree.spheres {
+            let c = s.center.map(f64::from);
+            let p = pose * Point3::new(c[0], c[1], c[2]);
+            out.push([p.x as f32, p.y as f32, p.z as f32]);
+        }
+    }
+    out
+}
+
+fn value<'a>(f: &'a Frame, key: &str) -> Option<&'a str> {
+    f.outputs.diagnostics.status[0]
+        .values
+        .iter()
+        .find(|kv| kv.key == key)
+        .map(|kv| kv.value.as_str())
+}
+
+/// A frame in which the self-filter removed every valid point says so at WARN, publishes no
+/// distance, and keeps a stop that was raised: an obstacle touching the robot looks the same.
+#[test]
+fn a_frame_the_self_filter_empties_never_releases_the_stop() {
+    let mut m = monitor(&[]);
+    let robot = robot_points(&m);
+    assert!(robot.len() > 100);
+    // Far away: OK.
+    let f = frame(&mut m, &[[5.0, 5.0, 5.0]]);
+    assert_eq!(f.outputs.level, Level::Ok);
+    // Only the robot: WARN, no distance, the reason said; counted per link.
+    let f = frame(&mut m, &robot);
+    assert_eq!(f.outputs.level, Level::Warn);
+    assert!(f.outputs.min_distance.is_none());
+    let message = &f.outputs.diagnostics.status[0].message;
+    assert!(
+        message.contains("self-filter removed every valid point"),
+        "{message}"
+    );
+    let per_link: u64 = f.outputs.diagnostics.status[0]
+        .values
+        .iter()
+        .filter(|kv| kv.key.starts_with("points_self_filtered."))
+        .map(|kv| kv.value.parse::<u64>().unwrap())
+        .sum();
+    assert_eq!(per_link, robot.len() as u64);
+    assert_eq!(
+        value(&f, "points_self_filtered"),
+        Some(&*robot.len().to_string())
+    );
+    // An obstacle 3 cm from the robot raises the stop; the robot alone next keeps it.
+    let near = {
+        let r = robot_points(&m);
+        let top = r
+            .iter()
+            .copied()
+            .max_by(|a, b| a[2].total_cmp(&b[2]))
+            .unwrap();
+        [top[0], top[1], top[2] + 0.2]
+    };
+    let f = frame(&mut m, &[near]);
+    let d = f.outputs.min_distance.as_ref().map(|d| d.data);
+    assert!(d.is_some_and(|d| d < 0.2), "{d:?}");
+    let mut closer = near;
+    let mut level = f.outputs.level;
+    while level != Level::Error {
+        closer[2] -= 0.01;
+        level = frame(&mut m, &[closer]).outputs.level;
+        assert!(closer[2] > near[2] - 0.2, "never reached the stop");
+    }
+    let f = frame(&mut m, &robot);
+    assert_eq!(f.outputs.level, Level::Error, "the stop was released");
+    assert!(f.outputs.min_distance.is_none());
+    assert!(f.outputs.safety_stop.data);
+}
+
+/// The padding must stay below `stop_distance − hysteresis`: larger, a point at the stop
+/// distance would be filtered as the robot and never raise the stop.
+#[test]
+fn the_self_filter_padding_is_bounded_by_the_stop_distance() {
+    let e = Config::from_overrides(&[("self_filter_padding".into(), "10".into())])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("self_filter_padding") && e.contains("stop_distance"),
+        "{e}"
+    );
+    let e = Config::from_overrides(&[("self_filter_padding".into(), "0.08".into())])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("0.08 m must stay below"), "{e}");
+    assert!(Config::from_overrides(&[("self_filter_padding".into(), "0.079".into())]).is_ok());
+    // Without the self-filter the padding is not used, so not checked.
+    assert!(Config::from_overrides(&[
+        ("self_filter_padding".into(), "10".into()),
+        ("self_filter".into(), "false".into())
+    ])
+    .is_ok());
+}
