@@ -4,6 +4,6 @@
 mod targets;
 
 #[global_allocator]
-static ALLOCATOR: targets::Limited = targets::Limited;
+static ALLOCATOR: targets::Limited = targets::Limited(targets::LIMIT);
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| targets::pointcloud2(data));

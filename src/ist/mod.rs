@@ -167,9 +167,21 @@ pub fn build_robot(
     cache: Option<&TreeCache>,
     done: &(dyn Fn(&str) + Sync),
 ) -> Result<Vec<(LinkTree, Origin)>, IstError> {
+    build_links(model, &|_| true, options, cache, done)
+}
+
+/// As [`build_robot`], for the links whose name passes `selected` only.
+pub fn build_links(
+    model: &RobotModel,
+    selected: &(dyn Fn(&str) -> bool + Sync),
+    options: &BuildOptions,
+    cache: Option<&TreeCache>,
+    done: &(dyn Fn(&str) + Sync),
+) -> Result<Vec<(LinkTree, Origin)>, IstError> {
     model
         .links
         .par_iter()
+        .filter(|link| selected(&link.name))
         .map(|link| {
             let key = cache::key(link, options);
             if let Some(cache) = cache {

@@ -154,11 +154,16 @@ impl Monitor {
         let urdf = config.robot_urdf()?;
         let model = RobotModel::load(&urdf, &config.package_paths)
             .map_err(|source| MonitorError::Robot { urdf, source })?;
+        // The selection is checked before any tree is built (a robot with too many links, or a
+        // misspelt link, is refused at once), and only the selected links are built.
+        config.selection.check(&model)?;
         let cache = TreeCache::at(config.cache_dir.as_deref());
-        let trees: Vec<LinkTree> = ist::build_robot(&model, &config.build, Some(&cache), built)?
-            .into_iter()
-            .map(|(t, _)| t)
-            .collect();
+        let selected = |name: &str| config.selection.selects(name);
+        let trees: Vec<LinkTree> =
+            ist::build_links(&model, &selected, &config.build, Some(&cache), built)?
+                .into_iter()
+                .map(|(t, _)| t)
+                .collect();
         Self::with_trees(config, model, &trees)
     }
 
@@ -212,6 +217,11 @@ impl Monitor {
         if self.config.query.backend != Backend::Cpu {
             self.engine.gpu();
         }
+    }
+
+    /// How many links the engine monitors (after `links`/`exclude_links`).
+    pub fn links(&self) -> usize {
+        self.engine.links().len()
     }
 
     /// Forgets every transform, joint state and level received, as at start-up (a replay of

@@ -195,29 +195,35 @@ fn forward<T, U>(
     tx: std::sync::mpsc::Sender<U>,
     wrap: impl Fn(T) -> U + Send + 'static,
     shared: &Arc<Shared>,
-) where
+) -> smol::Task<()>
+where
     T: RosMessage + DeserializeOwned + Send + Sync + 'static,
     U: Send + 'static,
 {
     let shared = shared.clone();
-    executor
-        .spawn(async move {
-            let mut stream = std::pin::pin!(sub.async_stream());
-            while let Some(item) = stream.next().await {
-                match item {
-                    Ok((m, _)) => {
-                        if tx.send(wrap(m)).is_err() {
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        log::warn!("{what}: {e:?}");
-                        shared.input_errors.fetch_add(1, Ordering::Relaxed);
+    executor.spawn(async move {
+        let mut stream = std::pin::pin!(sub.async_stream());
+        while let Some(item) = stream.next().await {
+            match item {
+                Ok((m, _)) => {
+                    if tx.send(wrap(m)).is_err() {
+                        break;
                     }
                 }
+                Err(e) => {
+                    log::warn!("{what}: {e:?}");
+                    shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                }
             }
-        })
-        .detach();
+        }
+    })
+}
+
+/// What the kernel grants a socket that asks for `requested` receive-buffer bytes with
+/// `SO_RCVBUF` (Linux clamps it to `net.core.rmem_max`); `None` where that is not readable.
+pub fn granted_receive_buffer(requested: usize) -> Option<usize> {
+    let max = std::fs::read_to_string("/proc/sys/net/core/rmem_max").ok()?;
+    Some(requested.min(max.trim().parse().ok()?))
 }
 
 /// The node's command-line remappings (`--ros-args -r __node:=… -r __ns:=… -p name:=value`).
@@ -360,6 +366,43 @@ impl Publishers {
     }
 }
 
+/// The one line that says the node is up and what it watches, and a warning when the kernel
+/// grants less socket buffer than a cloud burst needs.
+fn log_up(config: &Config, monitor: &Monitor) {
+    let sources: Vec<String> = config
+        .sources
+        .iter()
+        .filter(|s| s.enabled)
+        .map(|s| format!("{} on {}", s.name, s.topic))
+        .collect();
+    let granted = granted_receive_buffer(SOCKET_BUFFER);
+    log::info!(
+        "up: node {}, robot '{}' ({} links monitored), mode {}, sources: {}; outputs under {}; \
+         DDS (RustDDS) on domain {}; socket receive buffer {} MiB asked, {} granted",
+        config.node_path(),
+        monitor.model.name,
+        monitor.links(),
+        format!("{:?}", config.query.mode).to_lowercase(),
+        sources.join(", "),
+        config.node_path(),
+        std::env::var("ROS_DOMAIN_ID").unwrap_or_else(|_| "0".into()),
+        SOCKET_BUFFER >> 20,
+        granted.map_or("unknown".into(), |g| format!(
+            "{:.1} MiB",
+            g as f64 / (1 << 20) as f64
+        )),
+    );
+    if let Some(g) = granted.filter(|&g| g < SOCKET_BUFFER) {
+        log::warn!(
+            "the kernel grants {:.1} MiB of socket receive buffer (net.core.rmem_max): a cloud \
+             larger than that arriving in one burst loses datagrams and is dropped whole; raise \
+             it once with `sudo sysctl -w net.core.rmem_max={}` (README, 'Host setup')",
+            g as f64 / (1 << 20) as f64,
+            SOCKET_BUFFER
+        );
+    }
+}
+
 /// Runs the node until `stop` is set.
 pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
     monitor.probe_gpu();
@@ -379,6 +422,9 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
     });
     // Inputs: clouds into slots; TF and joint states into a queue the processing thread drains
     // (they are small; the monitor is owned by that thread).
+    // The subscription tasks, cancelled before the node is dropped: a DDS reader dropped after
+    // its participant has stopped makes RustDDS log an error on every normal shutdown.
+    let mut tasks: Vec<smol::Task<()>> = Vec::new();
     let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
     let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
     for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
@@ -389,46 +435,44 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         };
         let sub = subscription::<PointCloud2<'static>>(&mut node, &s.topic, qos)?;
         let shared = shared.clone();
-        executor
-            .spawn(async move {
-                let mut stream =
-                    std::pin::pin!(sub.async_stream_seed(Owned::<PointCloud2<'static>>::default()));
-                // Sequence numbers count per writer: two publishers on one topic each have
-                // their own, so a gap is looked for within each writer's series only.
-                let mut last_seq: HashMap<Gid, i64> = HashMap::new();
-                while let Some(item) = stream.next().await {
-                    match item {
-                        Ok((cloud, info)) => {
-                            let seq = info.sequence_number();
-                            if let Some(prev) = last_seq.insert(info.publisher_gid(), seq) {
-                                if seq > prev + 1 {
-                                    shared
-                                        .dropped
-                                        .fetch_add((seq - prev - 1) as u64, Ordering::Relaxed);
-                                }
+        tasks.push(executor.spawn(async move {
+            let mut stream =
+                std::pin::pin!(sub.async_stream_seed(Owned::<PointCloud2<'static>>::default()));
+            // Sequence numbers count per writer: two publishers on one topic each have
+            // their own, so a gap is looked for within each writer's series only.
+            let mut last_seq: HashMap<Gid, i64> = HashMap::new();
+            while let Some(item) = stream.next().await {
+                match item {
+                    Ok((cloud, info)) => {
+                        let seq = info.sequence_number();
+                        if let Some(prev) = last_seq.insert(info.publisher_gid(), seq) {
+                            if seq > prev + 1 {
+                                shared
+                                    .dropped
+                                    .fetch_add((seq - prev - 1) as u64, Ordering::Relaxed);
                             }
-                            let now = Instant::now();
-                            let mut slot = lock(&shared.slots[k]);
-                            if slot
-                                .cloud
-                                .replace((cloud, now, Time::now_nanos()))
-                                .is_some()
-                            {
-                                shared.dropped.fetch_add(1, Ordering::Relaxed);
-                            }
-                            slot.last_received = Some(now);
-                            drop(slot);
-                            *lock(&shared.wake_lock) = true;
-                            shared.wake.notify_one();
                         }
-                        Err(e) => {
-                            log::warn!("cloud: {e:?}");
-                            shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                        let now = Instant::now();
+                        let mut slot = lock(&shared.slots[k]);
+                        if slot
+                            .cloud
+                            .replace((cloud, now, Time::now_nanos()))
+                            .is_some()
+                        {
+                            shared.dropped.fetch_add(1, Ordering::Relaxed);
                         }
+                        slot.last_received = Some(now);
+                        drop(slot);
+                        *lock(&shared.wake_lock) = true;
+                        shared.wake.notify_one();
+                    }
+                    Err(e) => {
+                        log::warn!("cloud: {e:?}");
+                        shared.input_errors.fetch_add(1, Ordering::Relaxed);
                     }
                 }
-            })
-            .detach();
+            }
+        }));
     }
     for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
         let qos = if is_static {
@@ -437,20 +481,27 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             RELIABLE_QOS.history(History::KeepLast { depth: 100 })
         };
         let sub = subscription::<TfMessage>(&mut node, name, qos)?;
-        forward(
+        tasks.push(forward(
             &executor,
             sub,
             name,
             tf_tx.clone(),
             move |m| (m, is_static),
             &shared,
-        );
+        ));
     }
     let joint_qos = QosProfile::subscription_default()
         .reliability_best_effort()
         .history(History::KeepLast { depth: 100 });
     let sub = subscription::<JointState>(&mut node, &config.joint_states_topic, joint_qos)?;
-    forward(&executor, sub, "joint states", js_tx, |m| m, &shared);
+    tasks.push(forward(
+        &executor,
+        sub,
+        "joint states",
+        js_tx,
+        |m| m,
+        &shared,
+    ));
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });
@@ -468,12 +519,9 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
                 }
             }))
         })?;
-    log::info!(
-        "node {}/{} up: {} source(s)",
-        config.namespace.trim_end_matches('/'),
-        config.node_name,
-        sources.len()
-    );
+    log_up(&config, &monitor);
+    let mut heard = vec![false; sources.len()];
+    let mut silent_logged = vec![false; sources.len()];
     let started = Instant::now();
     let counts = || {
         (
@@ -514,6 +562,18 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
                 (slot.cloud.take(), slot.last_received)
             };
             if let Some((cloud, received, clock_ns)) = cloud {
+                if !heard[k] || silent_logged[k] {
+                    log::info!(
+                        "source {}: {} cloud on {} ({}×{}, frame '{}')",
+                        s.name,
+                        if heard[k] { "again a" } else { "first" },
+                        s.topic,
+                        cloud.width,
+                        cloud.height,
+                        cloud.header.frame_id
+                    );
+                    (heard[k], silent_logged[k]) = (true, false);
+                }
                 let frame = monitor.on_cloud_message(k, &cloud, received, clock_ns);
                 {
                     let (d, e) = counts();
@@ -526,6 +586,17 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             let timeout = Duration::from_secs_f64(s.source_timeout_s);
             let due = last_fault_report[k].is_none_or(|t| now.duration_since(t) >= timeout / 2);
             if silent > timeout && due {
+                if !silent_logged[k] {
+                    log::warn!(
+                        "source {}: no cloud on {} for {:.1} s (source_timeout {} s): ERROR \
+                         until one arrives",
+                        s.name,
+                        s.topic,
+                        silent.as_secs_f64(),
+                        s.source_timeout_s
+                    );
+                    silent_logged[k] = true;
+                }
                 let frame = monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none());
                 {
                     let (d, e) = counts();
@@ -534,6 +605,9 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
                 last_fault_report[k] = Some(now);
             }
         }
+    }
+    for task in tasks {
+        smol::block_on(task.cancel());
     }
     drop(outputs);
     drop(node);

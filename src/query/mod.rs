@@ -289,6 +289,38 @@ pub struct LinkSelection {
     pub exclude: Vec<String>,
 }
 
+impl LinkSelection {
+    /// Whether link `name` takes part.
+    pub fn selects(&self, name: &str) -> bool {
+        (self.include.is_empty() || self.include.iter().any(|n| n == name))
+            && !self.exclude.iter().any(|n| n == name)
+    }
+
+    /// Checks the selection against `model` before anything is built: every name it gives is a
+    /// link with collision geometry, and the links it selects are at least one and at most
+    /// [`MAX_LINKS`].
+    pub fn check(&self, model: &RobotModel) -> Result<(), QueryError> {
+        let known = || {
+            model
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for name in self.include.iter().chain(&self.exclude) {
+            if !model.links.iter().any(|l| &l.name == name) {
+                return Err(QueryError::UnknownLink(name.clone(), known()));
+            }
+        }
+        match model.links.iter().filter(|l| self.selects(&l.name)).count() {
+            0 => Err(QueryError::NoLinks),
+            n if n > MAX_LINKS => Err(QueryError::TooManyLinks(n)),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// The query engine: the selected links and the scratch memory reused from query to query.
 pub struct Engine {
     links: Vec<QueryLink>,
@@ -312,23 +344,10 @@ impl Engine {
         trees: &[LinkTree],
         selection: &LinkSelection,
     ) -> Result<Self, QueryError> {
-        let known = || {
-            trees
-                .iter()
-                .map(|t| t.link.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        for name in selection.include.iter().chain(&selection.exclude) {
-            if !trees.iter().any(|t| &t.link == name) {
-                return Err(QueryError::UnknownLink(name.clone(), known()));
-            }
-        }
+        selection.check(model)?;
         let mut links = Vec::new();
         for tree in trees {
-            let selected = (selection.include.is_empty() || selection.include.contains(&tree.link))
-                && !selection.exclude.contains(&tree.link);
-            if !selected {
+            if !selection.selects(&tree.link) {
                 continue;
             }
             let pose_index = model

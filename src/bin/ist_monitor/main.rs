@@ -17,16 +17,70 @@ mod cli;
 mod demo;
 
 fn main() -> std::process::ExitCode {
+    runtime_dir();
+    // Ours at info (the node's "up" line, a source's first cloud, the GPU found), the rest at
+    // warn; the GPU and DDS crates only at error. RUST_LOG replaces all of it.
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(
-        "warn,wgpu_hal=error,wgpu_core=error,naga=error,rustdds=error,ros2_client=error",
+        "warn,ist_monitor=info,wgpu_hal=error,wgpu_core=error,naga=error,rustdds=error,\
+         ros2_client=error",
     ))
     .format_timestamp(None)
     .init();
     match cli::run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// The error and its causes on one line, each said once: our error types already print their
+/// source (`"{path}: {source}"`), and a context that names a file is not repeated by a cause
+/// that starts with the same file.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let mut c = cause.to_string();
+        if out.contains(&c) {
+            continue;
+        }
+        if let Some(last) = out.rsplit(' ').next().filter(|w| !w.is_empty()) {
+            if let Some(rest) = c.strip_prefix(last) {
+                c = rest.trim_start_matches(':').trim_start().to_owned();
+            }
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&c);
+    }
+    out
+}
+
+/// A private `XDG_RUNTIME_DIR` where none is set (services, containers, `sudo`), made before any
+/// thread starts: the Vulkan driver's window-system code otherwise prints "error:
+/// XDG_RUNTIME_DIR is invalid or not set" on every GPU probe, and a safety node must not teach
+/// its operators to ignore error lines. Qt and systemd-less desktops fall back the same way.
+fn runtime_dir() {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    let usable = |p: &std::path::Path| {
+        std::fs::metadata(p).is_ok_and(|m| m.is_dir() && m.permissions().mode() & 0o077 == 0)
+    };
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| usable(std::path::Path::new(&d))) {
+        return;
+    }
+    // Owned by us: the uid of a file we just made.
+    let probe = std::env::temp_dir().join(format!("ist_monitor-uid-{}", std::process::id()));
+    let uid = std::fs::File::create(&probe)
+        .and_then(|f| f.metadata())
+        .map(|m| m.uid());
+    let _ = std::fs::remove_file(&probe);
+    let Ok(uid) = uid else { return };
+    let dir = std::env::temp_dir().join(format!("runtime-{uid}"));
+    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+    if std::fs::metadata(&dir).is_ok_and(|m| m.uid() == uid) && usable(&dir) {
+        // Sound: no other thread exists yet (edition 2021, where set_var is safe).
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
     }
 }
