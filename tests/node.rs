@@ -185,6 +185,59 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     assert!(distances.iter().any(|d| *d < 0.05));
 }
 
+/// While its trees are built (a cold cache: about 10 s for the demo arm on 2 cores) the node is
+/// on the network and says it is not monitoring: ERROR with the reason, the safety stop, no
+/// distance. SIGTERM during the build ends it at once, with status 0.
+#[test]
+fn a_node_building_its_trees_says_so_and_stops_at_once() {
+    if !in_private_network("a_node_building_its_trees_says_so_and_stops_at_once") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("empty_cache");
+    let record = dir.path().join("outputs.mcap");
+    let mut node = spawn(&["node", "-p", &format!("cache_dir:={}", cache.display())]);
+    let recorded = ist_monitor()
+        .args(["record", "--duration", "2.5", "--out"])
+        .arg(&record)
+        .status()
+        .unwrap();
+    assert!(recorded.success());
+    let asked = std::time::Instant::now();
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let status = node.wait().unwrap();
+    let took = asked.elapsed().as_secs_f64();
+    assert!(status.success(), "{status:?}");
+    assert!(took < 2.0, "SIGTERM answered after {took:.2} s");
+    let messages = read_messages(&record, &|_, _| true).unwrap();
+    let diagnostics: Vec<DiagnosticStatus> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/diagnostics")
+        .map(|m| msg::decode::<DiagnosticArray>(&m.data).unwrap().status[0].clone())
+        .collect();
+    assert!(diagnostics.len() >= 2, "{} diagnostics", diagnostics.len());
+    for s in &diagnostics {
+        assert_eq!(s.level, DiagnosticStatus::ERROR);
+        assert!(
+            s.message.starts_with("not monitoring: loading the robot"),
+            "{}",
+            s.message
+        );
+    }
+    let stops: Vec<bool> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/ist_monitor/safety_stop")
+        .map(|m| msg::decode::<msg::Bool>(&m.data).unwrap().data)
+        .collect();
+    assert!(!stops.is_empty() && stops.iter().all(|s| *s));
+    assert!(!messages
+        .iter()
+        .any(|m| &*m.topic == "/ist_monitor/min_distance"));
+}
+
 /// Interop with an independent DDS implementation: the `cyclonedds` Python package publishes a
 /// sensor_msgs/PointCloud2 under the ROS 2 naming (`rt/…`, `sensor_msgs::msg::dds_::PointCloud2_`)
 /// and reads the node's `~/min_distance`, which must be the distance the library computes for

@@ -375,6 +375,30 @@ fn cloud_stamps_are_checked_against_the_clock() {
     }
 }
 
+/// A bag cut short (a recorder that crashed) replays up to its last readable record; a file with
+/// no readable message is an error naming it.
+#[test]
+fn a_truncated_bag_replays_up_to_where_it_ends() {
+    let bytes = std::fs::read(bundled("demo").join("demo_0.mcap")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
+    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
+    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
+    let mut frames = Vec::new();
+    let s = replay(&mut monitor, &cut, None, Clock::Log, &mut |f| {
+        frames.push(f.clone())
+    })
+    .unwrap();
+    assert!(s.frames >= 10 && s.frames < 30, "{} frames", s.frames);
+    assert!(s.faults.is_empty(), "{:?}", s.faults);
+    std::fs::write(&cut, &bytes[..100]).unwrap();
+    let e = replay(&mut monitor, &cut, None, Clock::Log, &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cut.mcap") && e.contains("MCAP"), "{e}");
+}
+
 #[test]
 fn generator_reproduces_the_bundled_bag() {
     let model = RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();

@@ -200,6 +200,44 @@ fn point(p: [f64; 3]) -> Point {
 }
 
 impl Outputs {
+    /// The outputs of a node that is not monitoring yet (its robot or trees are still being
+    /// loaded): ERROR with the reason, the safety stop, no distance and no links.
+    pub fn not_monitoring(config: &Config, reason: &str, stamp_ns: i64) -> Self {
+        let header = Header {
+            stamp: Time::from_nanos(stamp_ns),
+            frame_id: String::new(),
+        };
+        Self {
+            level: Level::Error,
+            min_distance: None,
+            link_distances: JointState {
+                header: header.clone(),
+                ..JointState::default()
+            },
+            closest_points: MarkerArray {
+                markers: vec![Marker {
+                    header: header.clone(),
+                    action: Marker::DELETEALL,
+                    ..Marker::default()
+                }],
+            },
+            diagnostics: DiagnosticArray {
+                header,
+                status: vec![DiagnosticStatus {
+                    level: Level::Error.diagnostic(),
+                    name: format!("{}: monitor", config.node_name),
+                    message: format!("not monitoring: {reason}"),
+                    hardware_id: String::new(),
+                    values: vec![KeyValue {
+                        key: "fault".into(),
+                        value: "not_monitoring".into(),
+                    }],
+                }],
+            },
+            safety_stop: Bool { data: true },
+        }
+    }
+
     /// Walks every output topic with this frame's message, handed over.
     pub fn visit<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
         each_output(Some(self), v)

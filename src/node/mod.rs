@@ -29,7 +29,7 @@ use serde::de::DeserializeOwned;
 
 use crate::config::Config;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
-use crate::monitor::{Frame, Monitor};
+use crate::monitor::{Frame, Monitor, MonitorError, Outputs};
 use crate::msg::{JointState, Owned, OwnedMessage, PointCloud2, RosMessage, TfMessage, Time};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -86,6 +86,10 @@ pub enum NodeError {
     NothingToPlay(std::path::PathBuf),
     #[error("starting the executor thread: {0}")]
     Thread(#[from] std::io::Error),
+    #[error(transparent)]
+    Monitor(#[from] crate::monitor::MonitorError),
+    #[error("the thread building the monitor stopped without an answer")]
+    BuildLost,
 }
 
 type Result<T, E = NodeError> = std::result::Result<T, E>;
@@ -325,6 +329,23 @@ impl Publishers {
     /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
     /// join the diagnostics.
     fn publish(&self, frame: Frame, dropped: u64, input_errors: u64) {
+        let mut o = frame.outputs;
+        for status in &mut o.diagnostics.status {
+            status.values.extend([
+                crate::msg::KeyValue {
+                    key: "clouds_dropped".into(),
+                    value: dropped.to_string(),
+                },
+                crate::msg::KeyValue {
+                    key: "input_errors".into(),
+                    value: input_errors.to_string(),
+                },
+            ]);
+        }
+        self.publish_outputs(o);
+    }
+
+    fn publish_outputs(&self, o: Outputs) {
         struct Publish<'a>(&'a Publishers);
         impl OutputVisitor for Publish<'_> {
             type Error = String;
@@ -346,19 +367,6 @@ impl Publishers {
                     .publish(m)
                     .map_err(|e| format!("{}: {e:?}", topic.name()))
             }
-        }
-        let mut o = frame.outputs;
-        for status in &mut o.diagnostics.status {
-            status.values.extend([
-                crate::msg::KeyValue {
-                    key: "clouds_dropped".into(),
-                    value: dropped.to_string(),
-                },
-                crate::msg::KeyValue {
-                    key: "input_errors".into(),
-                    value: input_errors.to_string(),
-                },
-            ]);
         }
         if let Err(e) = o.visit(&mut Publish(self)) {
             log::warn!("publishing: {e}");
@@ -403,12 +411,98 @@ fn log_up(config: &Config, monitor: &Monitor) {
     }
 }
 
-/// Runs the node until `stop` is set.
-pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
-    monitor.probe_gpu();
-    let config: Config = monitor.config.clone();
+/// Waits for `build` (on its own thread), publishing "not monitoring" (ERROR, the safety stop,
+/// no distance) every half second meanwhile; `None` when `stop` is set first.
+fn wait_for_monitor(
+    config: &Config,
+    stop: &AtomicBool,
+    outputs: &Publishers,
+    build: impl FnOnce(&(dyn Fn(&str) + Sync)) -> Result<Monitor, MonitorError> + Send + 'static,
+) -> Result<Option<Monitor>> {
+    let done = Arc::new(AtomicU64::new(0));
+    let counter = done.clone();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::Builder::new()
+        .name("monitor build".into())
+        .spawn(move || {
+            let _ = tx.send(build(&|_| {
+                counter.fetch_add(1, Ordering::Relaxed);
+            }));
+        })?;
+    log::info!(
+        "not monitoring yet: loading robot_description and its inner sphere trees \
+         (ERROR and safety_stop on {}/... until ready)",
+        config.node_path()
+    );
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            log::info!("stopped before the monitor was ready");
+            return Ok(None);
+        }
+        let reason = format!(
+            "loading the robot and its inner sphere trees ({} links ready)",
+            done.load(Ordering::Relaxed)
+        );
+        outputs.publish_outputs(Outputs::not_monitoring(config, &reason, Time::now_nanos()));
+        match rx.recv_timeout(Duration::from_millis(500)) {
+            Ok(monitor) => return Ok(Some(monitor?)),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(NodeError::BuildLost)
+            }
+        }
+    }
+}
+
+/// Runs the node until `stop` is set. The node is on the network from the start: while `build`
+/// makes the monitor (loads the robot, builds or loads its trees) it reports "not monitoring"
+/// (ERROR with the reason, the safety stop), and a stop during the build ends it at once.
+pub fn run(
+    config: Config,
+    stop: Arc<AtomicBool>,
+    build: impl FnOnce(&(dyn Fn(&str) + Sync)) -> Result<Monitor, MonitorError> + Send + 'static,
+) -> Result<()> {
     let executor = Arc::new(smol::Executor::new());
     let (_ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;
+    let out_qos = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
+        .history(History::KeepLast { depth: 10 });
+    let outputs = Publishers::new(&mut node, &config.node_path(), out_qos)?;
+    let ex = executor.clone();
+    // The executor outlives the node: dropping the node tells its spinner to stop.
+    let stop_ex = Arc::new(AtomicBool::new(false));
+    let stop_spinner = stop_ex.clone();
+    let spin_thread = std::thread::Builder::new()
+        .name("ros2 executor".into())
+        .spawn(move || {
+            smol::block_on(ex.run(async {
+                while !stop_ex.load(Ordering::Relaxed) {
+                    smol::Timer::after(Duration::from_millis(50)).await;
+                }
+            }))
+        })?;
+    let shutdown = move |tasks: Vec<smol::Task<()>>, outputs: Publishers, node: Node| {
+        for task in tasks {
+            smol::block_on(task.cancel());
+        }
+        drop(outputs);
+        drop(node);
+        std::thread::sleep(Duration::from_millis(50));
+        stop_spinner.store(true, Ordering::Relaxed);
+        let _ = spin_thread.join();
+    };
+    let mut monitor = match wait_for_monitor(&config, &stop, &outputs, build) {
+        Ok(Some(m)) => m,
+        Ok(None) => {
+            shutdown(Vec::new(), outputs, node);
+            return Ok(());
+        }
+        Err(e) => {
+            shutdown(Vec::new(), outputs, node);
+            return Err(e);
+        }
+    };
+    monitor.probe_gpu();
     let sources = config.sources.clone();
     let shared = Arc::new(Shared {
         slots: sources
@@ -502,23 +596,6 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
         |m| m,
         &shared,
     ));
-    let out_qos = QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
-        .history(History::KeepLast { depth: 10 });
-    let outputs = Publishers::new(&mut node, &config.node_path(), out_qos)?;
-    let ex = executor.clone();
-    // The executor outlives the node: dropping the node tells its spinner to stop.
-    let stop_ex = Arc::new(AtomicBool::new(false));
-    let stop_spinner = stop_ex.clone();
-    let spin_thread = std::thread::Builder::new()
-        .name("ros2 executor".into())
-        .spawn(move || {
-            smol::block_on(ex.run(async {
-                while !stop_ex.load(Ordering::Relaxed) {
-                    smol::Timer::after(Duration::from_millis(50)).await;
-                }
-            }))
-        })?;
     log_up(&config, &monitor);
     let mut heard = vec![false; sources.len()];
     let mut silent_logged = vec![false; sources.len()];
@@ -606,14 +683,7 @@ pub fn run(mut monitor: Monitor, stop: Arc<AtomicBool>) -> Result<()> {
             }
         }
     }
-    for task in tasks {
-        smol::block_on(task.cancel());
-    }
-    drop(outputs);
-    drop(node);
-    std::thread::sleep(Duration::from_millis(50));
-    stop_spinner.store(true, Ordering::Relaxed);
-    let _ = spin_thread.join();
+    shutdown(tasks, outputs, node);
     Ok(())
 }
 

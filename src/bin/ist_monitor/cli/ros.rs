@@ -9,8 +9,9 @@ use clap::Args;
 use ist_monitor::node;
 
 use super::args::{parse_positive, parse_seconds};
-use super::replay::{load_config, monitor_from_config};
+use super::replay::load_config;
 use crate::demo;
+use ist_monitor::monitor::Monitor;
 
 #[derive(Args)]
 pub struct NodeArgs {
@@ -69,16 +70,15 @@ pub fn node(args: NodeArgs) -> Result<()> {
     if let Some(ns) = ros.namespace {
         config.namespace = ns;
     }
-    // Signals first: a stop during the tree build ends the node cleanly once it is built.
+    // Signals first: the node answers them throughout, the tree build included.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
     }
-    let monitor = monitor_from_config(config)?;
-    if stop.load(std::sync::atomic::Ordering::Relaxed) {
-        return Ok(());
-    }
-    Ok(node::run(monitor, stop)?)
+    let c = config.clone();
+    Ok(node::run(config, stop, move |built| {
+        Monitor::new(c, built)
+    })?)
 }
 
 pub fn play(args: PlayArgs) -> Result<()> {
