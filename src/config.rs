@@ -45,7 +45,8 @@ const fn p(
 /// Every parameter of the node. `<source>.x` and `<transform>.x` are declared for each name in
 /// `sources` and `static_transforms`.
 pub const PARAMETERS: &[ParamDecl] = &[
-    p("robot_description", "~", "path", "URDF file (required); relative paths are relative to this file; package:// is resolved through package_paths"),
+    p("robot_description", "~", "path", "the robot: a URDF file (relative paths are relative to this file), a package:// URI (resolved through package_paths, ROS_PACKAGE_PATH, AMENT_PREFIX_PATH) or the URDF text itself; required unless robot_description_topic is set"),
+    p("robot_description_topic", "~", "topic", "without robot_description: the node takes the URDF from this std_msgs/String topic (transient local, as robot_state_publisher publishes /robot_description) and reports 'not monitoring' until it arrives"),
     p("package_paths", "[]", "NAME=DIR", "where package://NAME is found"),
     p("mode", "certified", "", "fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or exact (distance to the collision meshes)"),
     p("max_distance", "2.0", "m", "points farther than this from the robot's bounding box are culled"),
@@ -111,13 +112,25 @@ pub struct SourceConfig {
     pub reliable: bool,
 }
 
+/// Where the robot's URDF comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RobotSource {
+    /// A file, or a `package://` URI (resolved by [`Config::robot_source`]).
+    File(PathBuf),
+    /// The URDF text given as the parameter's value.
+    Text(String),
+    /// A `std_msgs/String` topic the node reads it from.
+    Topic(String),
+}
+
 /// The validated configuration.
 #[derive(Debug, Clone)]
 pub struct Config {
     /// Node name and namespace from the file's top key (`/ns/name`), `ist_monitor` for `/**`.
     pub node_name: String,
     pub namespace: String,
-    pub robot_description: Option<PathBuf>,
+    /// `robot_description`, or `robot_description_topic` when it is not set.
+    pub robot_description: Option<RobotSource>,
     pub package_paths: Vec<PackagePath>,
     pub query: QueryOptions,
     pub selection: LinkSelection,
@@ -584,9 +597,13 @@ impl Config {
         Ok(Self {
             node_name: node_name.to_owned(),
             namespace: namespace.to_owned(),
-            robot_description: v
-                .opt_string("robot_description", "robot_description")?
-                .map(path),
+            robot_description: match v.opt_string("robot_description", "robot_description")? {
+                Some(s) if s.trim_start().starts_with('<') => Some(RobotSource::Text(s)),
+                Some(s) => Some(RobotSource::File(path(s))),
+                None => v
+                    .opt_string("robot_description_topic", "robot_description_topic")?
+                    .map(RobotSource::Topic),
+            },
             package_paths,
             query,
             selection: LinkSelection {
@@ -611,24 +628,41 @@ impl Config {
         })
     }
 
-    /// The URDF file: `robot_description` with `package://` resolved. A safety monitor never
-    /// guesses its robot: without `robot_description` this is an error naming the parameter.
-    pub fn robot_urdf(&self) -> Result<PathBuf, ConfigError> {
-        let Some(p) = &self.robot_description else {
-            return Err(ConfigError::Invalid {
-                name: "robot_description".into(),
-                message: "not set: the monitor needs the robot's URDF (a path, or package://)"
-                    .into(),
-            });
+    /// Where the robot comes from, with `package://` resolved. A safety monitor never guesses
+    /// its robot: with neither `robot_description` nor `robot_description_topic` this is an
+    /// error naming them.
+    pub fn robot_source(&self) -> Result<RobotSource, ConfigError> {
+        let bad = |message: String| ConfigError::Invalid {
+            name: "robot_description".into(),
+            message,
         };
-        match p.to_str().filter(|s| s.starts_with("package://")) {
-            Some(uri) => resolve_uri(uri, Path::new("."), &self.package_paths).map_err(|e| {
-                ConfigError::Invalid {
-                    name: "robot_description".into(),
-                    message: format!("{uri}: {e}"),
+        match &self.robot_description {
+            None => Err(bad(
+                "not set: the monitor needs the robot's URDF (a file, a package:// \
+                 URI or the URDF text), or robot_description_topic"
+                    .into(),
+            )),
+            Some(RobotSource::File(p)) => {
+                match p.to_str().filter(|s| s.starts_with("package://")) {
+                    Some(uri) => resolve_uri(uri, Path::new("."), &self.package_paths)
+                        .map(RobotSource::File)
+                        .map_err(|e| bad(format!("{uri}: {e}"))),
+                    None => Ok(RobotSource::File(p.clone())),
                 }
+            }
+            Some(other) => Ok(other.clone()),
+        }
+    }
+
+    /// The URDF file of `robot_description` (an error when the robot comes as text or from a
+    /// topic).
+    pub fn robot_urdf(&self) -> Result<PathBuf, ConfigError> {
+        match self.robot_source()? {
+            RobotSource::File(p) => Ok(p),
+            _ => Err(ConfigError::Invalid {
+                name: "robot_description".into(),
+                message: "not a file".into(),
             }),
-            None => Ok(p.clone()),
         }
     }
 

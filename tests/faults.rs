@@ -169,3 +169,43 @@ fn the_self_filter_padding_is_bounded_by_the_stop_distance() {
     ])
     .is_ok());
 }
+
+/// The robot description as a file, as the URDF text itself (what MoveIt's `robot_description`
+/// parameter holds), or from a topic (only the node reads one); none is an error naming both
+/// parameters.
+#[test]
+fn the_robot_comes_from_a_file_the_urdf_text_or_a_topic() {
+    let dir = Path::new(common::DEMO_URDF).parent().unwrap();
+    let text = std::fs::read_to_string(common::DEMO_URDF).unwrap().replace(
+        "filename=\"meshes/",
+        &format!("filename=\"file://{}/meshes/", dir.display()),
+    );
+    let from_text =
+        Config::from_overrides(&[("robot_description".into(), format!("{text:?}"))]).unwrap();
+    let m = Monitor::new(from_text, &|_| {}).unwrap();
+    let from_file = Monitor::new(
+        Config::from_overrides(&[("robot_description".into(), common::DEMO_URDF.into())]).unwrap(),
+        &|_| {},
+    )
+    .unwrap();
+    assert_eq!(m.model.name, from_file.model.name);
+    assert_eq!(m.links(), from_file.links());
+    let topic = Config::from_overrides(&[(
+        "robot_description_topic".into(),
+        "/robot_description".into(),
+    )])
+    .unwrap();
+    let e = Monitor::new(topic, &|_| {}).err().unwrap().to_string();
+    assert!(
+        e.contains("only the live node reads the robot from a topic"),
+        "{e}"
+    );
+    let e = Monitor::new(Config::default(), &|_| {})
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("robot_description") && e.contains("robot_description_topic"),
+        "{e}"
+    );
+}

@@ -238,7 +238,8 @@ fn a_node_building_its_trees_says_so_and_stops_at_once() {
         .any(|m| &*m.topic == "/ist_monitor/min_distance"));
 }
 
-/// Interop with an independent DDS implementation: the `cyclonedds` Python package publishes a
+/// Interop with an independent DDS implementation: the `cyclonedds` Python package publishes the
+/// robot description on `/robot_description` (the node waits for it) and a
 /// sensor_msgs/PointCloud2 under the ROS 2 naming (`rt/…`, `sensor_msgs::msg::dds_::PointCloud2_`)
 /// and reads the node's `~/min_distance`, which must be the distance the library computes for
 /// the same points.
@@ -253,11 +254,16 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
     let (model, trees) = demo_trees();
     let joints =
         "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
+    // The robot comes from the peer on /robot_description, as robot_state_publisher gives it.
     let mut node = spawn(&[
         "node",
         "--ros-args",
         "-p",
         "backend:=cpu",
+        "-p",
+        "robot_description:=~",
+        "-p",
+        "robot_description_topic:=/robot_description",
         "-p",
         &format!("fixed_joint_state.names:={joints}"),
         "-p",
@@ -265,7 +271,7 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
     ]);
     std::thread::sleep(Duration::from_millis(1500));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
-    let out = common::json_output(Command::new(python).arg(script));
+    let out = common::json_output(Command::new(python).arg(script).arg(common::DEMO_URDF));
     Command::new("kill")
         .arg(node.id().to_string())
         .status()

@@ -24,7 +24,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 
 use crate::cloud::{pointcloud2, CloudError};
-use crate::config::Config;
+use crate::config::{Config, RobotSource};
 use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::msg::{self, JointState, MsgError, PointCloud2, TfMessage};
 use crate::query::{Backend, Engine, Outcome, QueryError, QueryResult};
@@ -144,6 +144,11 @@ pub enum MonitorError {
     },
     #[error("parameter fixed_joint_state.names: {0}")]
     FixedJoint(JointError),
+    #[error(
+        "robot_description_topic {0}: only the live node reads the robot from a topic (set \
+         robot_description for replay and the command line)"
+    )]
+    FromTopic(String),
 }
 
 impl Monitor {
@@ -151,9 +156,33 @@ impl Monitor {
     /// static transforms and fixed joints; `built` is called with each link's name as its tree
     /// is ready. Errors here are start-up errors.
     pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self, MonitorError> {
-        let urdf = config.robot_urdf()?;
-        let model = RobotModel::load(&urdf, &config.package_paths)
-            .map_err(|source| MonitorError::Robot { urdf, source })?;
+        let model = match config.robot_source()? {
+            RobotSource::File(urdf) => RobotModel::load(&urdf, &config.package_paths)
+                .map_err(|source| MonitorError::Robot { urdf, source })?,
+            RobotSource::Text(xml) => Self::model_from_text(&config, &xml, "robot_description")?,
+            RobotSource::Topic(topic) => return Err(MonitorError::FromTopic(topic)),
+        };
+        Self::with_model(config, model, built)
+    }
+
+    /// The robot of URDF text that came from `from` (the parameter or the topic): relative
+    /// mesh paths from the current folder, `package://` as for a file.
+    pub fn model_from_text(
+        config: &Config,
+        xml: &str,
+        from: &str,
+    ) -> Result<RobotModel, MonitorError> {
+        let urdf = std::path::PathBuf::from(from);
+        RobotModel::from_text(xml, &urdf, std::path::Path::new("."), &config.package_paths)
+            .map_err(|source| MonitorError::Robot { urdf, source })
+    }
+
+    /// As [`Monitor::new`], with the robot loaded.
+    pub fn with_model(
+        config: Config,
+        model: RobotModel,
+        built: &(dyn Fn(&str) + Sync),
+    ) -> Result<Self, MonitorError> {
         // The selection is checked before any tree is built (a robot with too many links, or a
         // misspelt link, is refused at once), and only the selected links are built.
         config.selection.check(&model)?;

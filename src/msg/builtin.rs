@@ -67,6 +67,13 @@ pub struct Float64 {
 }
 ros_message!(Float64, "std_msgs/msg/Float64", "float64 data\n");
 
+/// `std_msgs/msg/String` (`/robot_description`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StringMessage {
+    pub data: String,
+}
+ros_message!(StringMessage, "std_msgs/msg/String", "string data\n");
+
 /// `std_msgs/msg/Bool`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Bool {

@@ -28,9 +28,12 @@ use ros2_client::{
 use serde::de::DeserializeOwned;
 
 use crate::config::Config;
+use crate::config::RobotSource;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
-use crate::monitor::{Frame, Monitor, MonitorError, Outputs};
-use crate::msg::{JointState, Owned, OwnedMessage, PointCloud2, RosMessage, TfMessage, Time};
+use crate::monitor::{Frame, Monitor, Outputs};
+use crate::msg::{
+    JointState, Owned, OwnedMessage, PointCloud2, RosMessage, StringMessage, TfMessage, Time,
+};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -50,6 +53,12 @@ pub const TF_STATIC_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_reliable(WhenFull::DEFAULT)
     .durability(Durability::TransientLocal)
     .history(History::KeepLast { depth: 100 });
+/// QoS of `/robot_description`, as robot_state_publisher offers it: reliable, transient local,
+/// the last one.
+pub const ROBOT_DESCRIPTION_QOS: QosProfile = QosProfile::subscription_default()
+    .reliability_reliable(WhenFull::DEFAULT)
+    .durability(Durability::TransientLocal)
+    .history(History::KeepLast { depth: 1 });
 /// QoS of `/tf` and outputs: reliable, a short history.
 pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_reliable(WhenFull::DEFAULT)
@@ -90,6 +99,8 @@ pub enum NodeError {
     Monitor(#[from] crate::monitor::MonitorError),
     #[error("the thread building the monitor stopped without an answer")]
     BuildLost,
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
 }
 
 type Result<T, E = NodeError> = std::result::Result<T, E>;
@@ -411,41 +422,88 @@ fn log_up(config: &Config, monitor: &Monitor) {
     }
 }
 
-/// Waits for `build` (on its own thread), publishing "not monitoring" (ERROR, the safety stop,
-/// no distance) every half second meanwhile; `None` when `stop` is set first.
+/// Makes the monitor on its own thread (the robot from its file or text, or from
+/// `robot_description_topic` once it arrives; the trees built or loaded), publishing "not
+/// monitoring" (ERROR with the reason, the safety stop, no distance) every half second
+/// meanwhile; `None` when `stop` is set first.
 fn wait_for_monitor(
     config: &Config,
     stop: &AtomicBool,
+    node: &mut Node,
+    executor: &smol::Executor<'static>,
     outputs: &Publishers,
-    build: impl FnOnce(&(dyn Fn(&str) + Sync)) -> Result<Monitor, MonitorError> + Send + 'static,
-) -> Result<Option<Monitor>> {
-    let done = Arc::new(AtomicU64::new(0));
-    let counter = done.clone();
+) -> Result<(Option<Monitor>, Option<smol::Task<()>>)> {
+    let reason = Arc::new(Mutex::new(String::new()));
+    let say = {
+        let reason = reason.clone();
+        move |r: String| *lock(&reason) = r
+    };
+    let source = config.robot_source()?;
+    // The URDF from the topic, forwarded to the build thread; the first one is used.
+    let (urdf_tx, urdf_rx) = std::sync::mpsc::channel::<String>();
+    let task = match &source {
+        RobotSource::Topic(topic) => {
+            say(format!("waiting for the robot description on {topic}"));
+            let sub = subscription::<StringMessage>(node, topic, ROBOT_DESCRIPTION_QOS)?;
+            let topic = topic.clone();
+            Some(executor.spawn(async move {
+                let mut stream = std::pin::pin!(sub.async_stream());
+                while let Some(item) = stream.next().await {
+                    match item {
+                        Ok((m, _)) => {
+                            let _ = urdf_tx.send(m.data);
+                            break;
+                        }
+                        Err(e) => log::warn!("{topic}: {e:?}"),
+                    }
+                }
+            }))
+        }
+        _ => None,
+    };
     let (tx, rx) = std::sync::mpsc::channel();
+    let build_config = config.clone();
     std::thread::Builder::new()
         .name("monitor build".into())
         .spawn(move || {
-            let _ = tx.send(build(&|_| {
-                counter.fetch_add(1, Ordering::Relaxed);
-            }));
+            let done = AtomicU64::new(0);
+            let progress = |_: &str| {
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                say(format!(
+                    "building or loading the inner sphere trees ({n} links ready)"
+                ));
+            };
+            let monitor = match source {
+                RobotSource::Topic(topic) => match urdf_rx.recv() {
+                    Ok(xml) => {
+                        log::info!("robot description received on {topic}");
+                        say("loading the robot".into());
+                        Monitor::model_from_text(&build_config, &xml, &topic)
+                            .and_then(|model| Monitor::with_model(build_config, model, &progress))
+                    }
+                    Err(_) => return,
+                },
+                _ => {
+                    say("loading the robot".into());
+                    Monitor::new(build_config, &progress)
+                }
+            };
+            let _ = tx.send(monitor);
         })?;
     log::info!(
-        "not monitoring yet: loading robot_description and its inner sphere trees \
-         (ERROR and safety_stop on {}/... until ready)",
+        "not monitoring yet: ERROR and safety_stop on {}/... until the robot and its trees are \
+         ready",
         config.node_path()
     );
     loop {
         if stop.load(Ordering::Relaxed) {
             log::info!("stopped before the monitor was ready");
-            return Ok(None);
+            return Ok((None, task));
         }
-        let reason = format!(
-            "loading the robot and its inner sphere trees ({} links ready)",
-            done.load(Ordering::Relaxed)
-        );
-        outputs.publish_outputs(Outputs::not_monitoring(config, &reason, Time::now_nanos()));
+        let r = lock(&reason).clone();
+        outputs.publish_outputs(Outputs::not_monitoring(config, &r, Time::now_nanos()));
         match rx.recv_timeout(Duration::from_millis(500)) {
-            Ok(monitor) => return Ok(Some(monitor?)),
+            Ok(monitor) => return Ok((Some(monitor?), task)),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
                 return Err(NodeError::BuildLost)
@@ -457,11 +515,7 @@ fn wait_for_monitor(
 /// Runs the node until `stop` is set. The node is on the network from the start: while `build`
 /// makes the monitor (loads the robot, builds or loads its trees) it reports "not monitoring"
 /// (ERROR with the reason, the safety stop), and a stop during the build ends it at once.
-pub fn run(
-    config: Config,
-    stop: Arc<AtomicBool>,
-    build: impl FnOnce(&(dyn Fn(&str) + Sync)) -> Result<Monitor, MonitorError> + Send + 'static,
-) -> Result<()> {
+pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
     let executor = Arc::new(smol::Executor::new());
     let (_ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;
     let out_qos = QosProfile::publisher_default()
@@ -491,10 +545,15 @@ pub fn run(
         stop_spinner.store(true, Ordering::Relaxed);
         let _ = spin_thread.join();
     };
-    let mut monitor = match wait_for_monitor(&config, &stop, &outputs, build) {
-        Ok(Some(m)) => m,
-        Ok(None) => {
-            shutdown(Vec::new(), outputs, node);
+    let mut monitor = match wait_for_monitor(&config, &stop, &mut node, &executor, &outputs) {
+        Ok((Some(m), task)) => {
+            if let Some(t) = task {
+                smol::block_on(t.cancel());
+            }
+            m
+        }
+        Ok((None, task)) => {
+            shutdown(task.into_iter().collect(), outputs, node);
             return Ok(());
         }
         Err(e) => {

@@ -81,8 +81,23 @@ impl RobotModel {
             path: path.to_owned(),
             source,
         })?;
-        let robot = parse_urdf(&xml, path)?;
-        let base = path.parent().unwrap_or(Path::new("."));
+        Self::from_text(
+            &xml,
+            path,
+            path.parent().unwrap_or(Path::new(".")),
+            packages,
+        )
+    }
+
+    /// A robot from URDF text; `path` names it in errors (the file, or where the text came
+    /// from) and relative mesh paths are taken from `base`.
+    pub fn from_text(
+        xml: &str,
+        path: &Path,
+        base: &Path,
+        packages: &[PackagePath],
+    ) -> Result<Self, RobotError> {
+        let robot = parse_urdf(xml, path)?;
         let kinematics = Kinematics::from_urdf(&robot, &path.display().to_string())?;
         let mut links = Vec::new();
         let mut skipped_links = Vec::new();

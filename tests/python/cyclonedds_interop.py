@@ -1,11 +1,17 @@
 """Interop with an independent DDS implementation: Eclipse Cyclone DDS (the `cyclonedds`
 package) talks to ist_monitor under the ROS 2 naming, as a standard ROS 2 node would.
 
-    cyclonedds_interop.py   publish a sensor_msgs/PointCloud2 on rt/camera/depth/points (frame
-                            camera_link, one plane of points in front of the camera) at 10 Hz
-                            and print, as JSON, the first std_msgs/Float64 received on
-                            rt/ist_monitor/min_distance (or null after 15 s)
+    cyclonedds_interop.py [URDF]
+                            publish the URDF file's text (mesh paths made absolute) on
+                            rt/robot_description as std_msgs/String, reliable and transient
+                            local as robot_state_publisher does; then a sensor_msgs/PointCloud2
+                            on rt/camera/depth/points (frame camera_link, one plane of points in
+                            front of the camera) at 10 Hz, and print, as JSON, the first
+                            std_msgs/Float64 received on rt/ist_monitor/min_distance (or null
+                            after 30 s)
 """
+import os
+import sys
 import json
 import struct
 import time
@@ -58,6 +64,11 @@ class Float64_(IdlStruct, typename="std_msgs::msg::dds_::Float64_"):
     data: float64
 
 
+@dataclass
+class String_(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    data: str
+
+
 def cloud():
     # camera_link is x forward: a 20 × 20 patch 0.6 m ahead of the camera.
     points = [(0.6, -0.2 + 0.02 * i, -0.2 + 0.02 * j) for i in range(20) for j in range(20)]
@@ -72,11 +83,19 @@ def cloud():
 
 def main():
     dp = DomainParticipant(0)
+    if len(sys.argv) > 1:
+        urdf = os.path.abspath(sys.argv[1])
+        text = open(urdf).read().replace('filename="meshes/',
+                                         f'filename="file://{os.path.dirname(urdf)}/meshes/')
+        description = DataWriter(dp, Topic(dp, "rt/robot_description", String_), qos=Qos(
+            Policy.Reliability.Reliable(max_blocking_time=1),
+            Policy.Durability.TransientLocal, Policy.History.KeepLast(1)))
+        description.write(String_(text))
     cloud_topic = Topic(dp, "rt/camera/depth/points", PointCloud2_)
     writer = DataWriter(dp, cloud_topic, qos=Qos(Policy.Reliability.BestEffort))
     out_topic = Topic(dp, "rt/ist_monitor/min_distance", Float64_)
     reader = DataReader(dp, out_topic, qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1)))
-    deadline = time.time() + 15
+    deadline = time.time() + 30
     received = None
     while time.time() < deadline and received is None:
         writer.write(cloud())

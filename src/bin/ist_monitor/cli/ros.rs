@@ -11,7 +11,6 @@ use ist_monitor::node;
 use super::args::{parse_positive, parse_seconds};
 use super::replay::load_config;
 use crate::demo;
-use ist_monitor::monitor::Monitor;
 
 #[derive(Args)]
 pub struct NodeArgs {
@@ -75,10 +74,7 @@ pub fn node(args: NodeArgs) -> Result<()> {
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
     }
-    let c = config.clone();
-    Ok(node::run(config, stop, move |built| {
-        Monitor::new(c, built)
-    })?)
+    Ok(node::run(config, stop)?)
 }
 
 pub fn play(args: PlayArgs) -> Result<()> {
