@@ -185,6 +185,60 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     assert!(distances.iter().any(|d| *d < 0.05));
 }
 
+/// The fault model through DDS: the bag with one fault of each kind, played to the node, gives
+/// each as ERROR with its kind in the diagnostics, and the node answers the good clouds around
+/// them.
+#[test]
+fn every_fault_kind_reaches_the_node_as_an_error() {
+    if !in_private_network("every_fault_kind_reaches_the_node_as_an_error") {
+        return;
+    }
+    demo_trees();
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("faults.mcap");
+    common::write_fault_bag(&bag);
+    let record = dir.path().join("outputs.mcap");
+    let mut node = spawn(&["node"]);
+    let mut recorder = spawn(&[
+        "record",
+        "--duration",
+        "7",
+        "--out",
+        record.to_str().unwrap(),
+    ]);
+    std::thread::sleep(Duration::from_secs(2));
+    let played = ist_monitor()
+        .arg("play")
+        .arg(&bag)
+        .args(["--wait", "1.5"])
+        .status()
+        .unwrap();
+    assert!(played.success());
+    assert!(recorder.wait().unwrap().success());
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    assert!(node.wait().unwrap().success());
+    let messages = read_messages(&record, &|_, _| true).unwrap();
+    let mut kinds = std::collections::BTreeSet::new();
+    let mut measured = 0;
+    for m in messages.iter().filter(|m| &*m.topic == "/diagnostics") {
+        let status = msg::decode::<DiagnosticArray>(&m.data).unwrap().status[0].clone();
+        match status.values.iter().find(|kv| kv.key == "fault") {
+            Some(kv) => {
+                assert_eq!(status.level, DiagnosticStatus::ERROR, "{}", status.message);
+                kinds.insert(kv.value.clone());
+            }
+            None => measured += 1,
+        }
+    }
+    for (_, kind) in common::FAULTS {
+        assert!(kinds.contains(*kind), "{kind} not reported; got {kinds:?}");
+    }
+    assert!(measured >= 20, "{measured} clouds measured");
+}
+
 /// While its trees are built (a cold cache: about 10 s for the demo arm on 2 cores) the node is
 /// on the network and says it is not monitoring: ERROR with the reason, the safety stop, no
 /// distance. SIGTERM during the build ends it at once, with status 0.

@@ -399,6 +399,35 @@ fn a_truncated_bag_replays_up_to_where_it_ends() {
     assert!(e.contains("cut.mcap") && e.contains("MCAP"), "{e}");
 }
 
+/// The fault model, one of each kind in one bag: each gives ERROR and no distance on its frame
+/// and only there, and no fault ever lowers the level.
+#[test]
+fn every_fault_kind_is_an_error_with_no_distance() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("faults.mcap");
+    common::write_fault_bag(&path);
+    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
+    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
+    let mut frames = Vec::new();
+    let s = replay(&mut monitor, &path, None, Clock::Log, &mut |f| {
+        frames.push(f.clone())
+    })
+    .unwrap();
+    let expected: std::collections::BTreeMap<String, usize> = common::FAULTS
+        .iter()
+        .map(|(_, kind)| (kind.to_string(), 1))
+        .collect();
+    assert_eq!(s.faults, expected);
+    for &(i, kind) in common::FAULTS {
+        let f = &frames[i];
+        assert_eq!(f.outcome, "fault", "frame {i} ({kind})");
+        assert_eq!(f.level, Level::Error, "frame {i} ({kind})");
+        assert_eq!(f.min_distance_m, None, "frame {i} ({kind})");
+        // The frame after it is measured again.
+        assert!(frames[i + 1].min_distance_m.is_some(), "frame {}", i + 1);
+    }
+}
+
 #[test]
 fn generator_reproduces_the_bundled_bag() {
     let model = RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();

@@ -50,7 +50,11 @@ enum Out {
     Tf(Publisher<TfMessage>),
 }
 
+/// Shifts a stamp; a stamp of 0 (never set) stays 0, as `ros2 bag play` leaves it.
 fn shift(t: &mut Time, offset_ns: i64) {
+    if t.as_nanos() == 0 {
+        return;
+    }
     *t = Time::from_nanos(t.as_nanos() + offset_ns);
 }
 

@@ -105,3 +105,57 @@ pub fn has_gpu(engine: &mut ist_monitor::query::Engine) -> bool {
     eprintln!("skipped: no GPU adapter and CI is not set");
     false
 }
+
+/// The faults every frame may have, one each, made from the demo bag (each edit keeps the
+/// message decodable as CDR, so that `play` can publish it): `(cloud index, fault kind)`.
+pub const FAULTS: &[(usize, &str)] = &[
+    (3, "no_valid_points"),
+    (6, "no_stamp"),
+    (9, "stale_cloud"),
+    (12, "future_cloud"),
+    (15, "tf"),
+    (18, "decode"),
+    (24, "stale_joint_state"),
+];
+
+/// Writes the demo bag with the [`FAULTS`] to `path`: an all-NaN cloud, a stamp of 0, a stamp
+/// 1 s old and one 1 s ahead of the log time, a frame no transform reaches, a height the data
+/// does not hold, and no joint state in the 0.15 s before a cloud.
+pub fn write_fault_bag(path: &Path) {
+    use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
+    use ist_monitor::cloud::pointcloud2;
+    use ist_monitor::msg;
+    let messages = read_messages(Path::new(DEMO_BAG), &|_, _| true).unwrap();
+    let clouds: Vec<u64> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/camera/depth/points")
+        .map(|m| m.log_time_ns)
+        .collect();
+    let gap = clouds[24];
+    let mut w = BagWriter::create(path, Compression::None).unwrap();
+    let mut cloud = 0;
+    for m in &messages {
+        let t = m.log_time_ns;
+        let mut data = m.data.to_vec();
+        if &*m.topic == "/joint_states" && t > gap - 150_000_000 && t <= gap + 50_000_000 {
+            continue;
+        }
+        if &*m.topic == "/camera/depth/points" {
+            let mut c = pointcloud2::decode(&m.data).unwrap();
+            let log = t as i64;
+            match cloud {
+                3 => c.data = std::borrow::Cow::Owned(vec![0xFF; c.data.len()]),
+                6 => c.header.stamp = msg::Time::from_nanos(0),
+                9 => c.header.stamp = msg::Time::from_nanos(log - 1_000_000_000),
+                12 => c.header.stamp = msg::Time::from_nanos(log + 1_000_000_000),
+                15 => c.header.frame_id = "nowhere".into(),
+                18 => c.height *= 2,
+                _ => {}
+            }
+            data = msg::encode(&c).unwrap();
+            cloud += 1;
+        }
+        w.write_cdr(&m.topic, &m.schema, t, &data).unwrap();
+    }
+    w.finish().unwrap();
+}
