@@ -4,6 +4,15 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// Says that the running test skips, and why, on the process's standard error itself: the
+/// test harness captures `eprintln!`, so a skip would otherwise be invisible. `.ci/run` counts
+/// these lines (`SKIPPED <test>: <reason>`).
+pub fn skip(reason: &str) {
+    use std::io::Write;
+    let name = std::thread::current().name().unwrap_or("?").to_owned();
+    let _ = std::io::stderr().write_all(format!("SKIPPED {name}: {reason}\n").as_bytes());
+}
+
 /// The demo robot, bag and parameters file of this checkout.
 pub const DEMO_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/demo_arm.urdf");
 pub const DEMO_BAG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/bags/demo");
@@ -24,7 +33,7 @@ pub fn shared() -> Option<PathBuf> {
     if std::env::var_os("CI").is_some() {
         panic!("CI is set but ../shared is missing: the shared robots are required in CI");
     }
-    eprintln!("skipped: ../shared is absent and CI is not set");
+    skip("../shared is absent and CI is not set");
     None
 }
 
@@ -77,7 +86,7 @@ pub fn venv_python() -> Option<PathBuf> {
     if std::env::var_os("CI").is_some() {
         panic!("CI is set but .venv/bin/python with rosbags is missing: .ci/run installs it");
     }
-    eprintln!("skipped: .venv/bin/python with rosbags is absent and CI is not set");
+    skip(".venv/bin/python with rosbags is absent and CI is not set");
     None
 }
 
@@ -102,7 +111,7 @@ pub fn has_gpu(engine: &mut ist_monitor::query::Engine) -> bool {
     if std::env::var_os("CI").is_some() {
         panic!("CI is set but no GPU adapter (lavapipe: mesa-vulkan-drivers) was found");
     }
-    eprintln!("skipped: no GPU adapter and CI is not set");
+    skip("no GPU adapter and CI is not set");
     false
 }
 

@@ -77,10 +77,18 @@ fn runtime_dir() {
         .map(|m| m.uid());
     let _ = std::fs::remove_file(&probe);
     let Ok(uid) = uid else { return };
-    let dir = std::env::temp_dir().join(format!("runtime-{uid}"));
-    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
-    if std::fs::metadata(&dir).is_ok_and(|m| m.uid() == uid) && usable(&dir) {
-        // Sound: no other thread exists yet (edition 2021, where set_var is safe).
-        std::env::set_var("XDG_RUNTIME_DIR", &dir);
+    // runtime-UID, or one of this process where that name is taken by another user (inside a
+    // user namespace, for one).
+    for name in [
+        format!("runtime-{uid}"),
+        format!("runtime-{uid}-{}", std::process::id()),
+    ] {
+        let dir = std::env::temp_dir().join(name);
+        let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+        if std::fs::metadata(&dir).is_ok_and(|m| m.uid() == uid) && usable(&dir) {
+            // Sound: no other thread exists yet (edition 2021, where set_var is safe).
+            std::env::set_var("XDG_RUNTIME_DIR", &dir);
+            return;
+        }
     }
 }
