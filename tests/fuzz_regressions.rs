@@ -7,7 +7,10 @@ mod targets;
 
 use std::path::Path;
 
-const TARGETS: &[(&str, fn(&[u8]))] = &[
+/// A fuzz target's body.
+type Target = fn(&[u8]);
+
+const TARGETS: &[(&str, Target)] = &[
     ("pointcloud2", targets::pointcloud2),
     ("messages", targets::messages),
     ("pcd", targets::pcd),

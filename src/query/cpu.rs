@@ -97,6 +97,16 @@ fn frontier(link: &QueryLink, c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32
     }
 }
 
+/// Where one point of the main pass ended.
+enum PointStage {
+    /// Within the padding of this link's inner spheres.
+    SelfFiltered(usize),
+    Pruned,
+    Evaluated {
+        inside: bool,
+    },
+}
+
 struct Pass<'a> {
     links: &'a [QueryLink],
     posed: &'a [PosedLink],
@@ -161,7 +171,7 @@ impl Pass<'_> {
     }
 
     /// One valid point inside the region of interest; `mask` holds the links whose frontier
-    /// (`frontier[spans[l]]`) is not empty.
+    /// (`frontier[spans[l]]`) is not empty. Returns where the point ended.
     #[inline]
     fn point(
         &self,
@@ -170,9 +180,7 @@ impl Pass<'_> {
         mask: u128,
         frontier: &[u32],
         spans: &[(u32, u32)],
-        counts: &mut StageCounts,
-        self_by_link: &mut [u32; MAX_LINKS],
-    ) {
+    ) -> PointStage {
         // One look at the frontier nodes per link: which links may hold the point within the
         // padding (self-filter) and which within their bound (evaluation).
         let mut near = 0u128;
@@ -196,18 +204,15 @@ impl Pass<'_> {
         }
         if near != 0 {
             if let Some(l) = self.is_self(p, near, frontier, spans) {
-                counts.self_filtered += 1;
-                self_by_link[l] += 1;
-                return;
+                return PointStage::SelfFiltered(l);
             }
         }
         if eval == 0 {
-            counts.pruned += 1;
-            return;
+            return PointStage::Pruned;
         }
-        let inside = self.evaluate(i, p, eval, frontier, spans);
-        counts.evaluated += 1;
-        counts.inside += inside as u64;
+        PointStage::Evaluated {
+            inside: self.evaluate(i, p, eval, frontier, spans),
+        }
     }
 
     /// The first link of `mask` with an inner sphere within the self-filter padding of `p`.
@@ -328,8 +333,17 @@ impl Pass<'_> {
             } else if mask == 0 {
                 counts.pruned += 1;
             } else {
-                let i = (start + i) as u32;
-                self.point(i, p, mask, frontier, spans, &mut counts, &mut self_by_link);
+                match self.point((start + i) as u32, p, mask, frontier, spans) {
+                    PointStage::SelfFiltered(l) => {
+                        counts.self_filtered += 1;
+                        self_by_link[l] += 1;
+                    }
+                    PointStage::Pruned => counts.pruned += 1,
+                    PointStage::Evaluated { inside } => {
+                        counts.evaluated += 1;
+                        counts.inside += inside as u64;
+                    }
+                }
             }
         }
         if counts.self_filtered > 0 {
