@@ -56,6 +56,25 @@ fn malformed_collada() {
     assert_names(&e, &["body", "collision element 0", "bad.dae"]);
 }
 
+/// A mesh in a format not read (here PLY) names the file and the formats that are; the mesh
+/// library's own message printed `{path:?}` literally.
+#[test]
+fn unsupported_mesh_format() {
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::write(dir.path().join("body.ply"), "ply\n").expect("w");
+    let e = error_of(dir.path(), &one_link_urdf(r#"<mesh filename="body.ply"/>"#));
+    assert_names(
+        &e,
+        &[
+            "body",
+            "collision element 0",
+            "body.ply",
+            "unsupported mesh format",
+        ],
+    );
+    assert!(!e.contains("{path"), "{e}");
+}
+
 #[test]
 fn open_mesh() {
     let dir = tempfile::tempdir().expect("tmp");

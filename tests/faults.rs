@@ -209,3 +209,53 @@ fn the_robot_comes_from_a_file_the_urdf_text_or_a_topic() {
         "{e}"
     );
 }
+
+/// A robot with more links than the engine handles (129 > 128), or a link selection naming a
+/// link it does not have, is refused before a single tree is built.
+#[test]
+fn too_many_links_are_refused_before_any_tree_is_built() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut urdf = String::from("<robot name=\"many\"><link name=\"l0\"><collision><geometry><box size=\"0.1 0.1 0.1\"/></geometry></collision></link>");
+    for i in 1..129 {
+        urdf.push_str(&format!(
+            "<link name=\"l{i}\"><collision><geometry><box size=\"0.1 0.1 0.1\"/></geometry></collision></link>\
+             <joint name=\"j{i}\" type=\"fixed\"><parent link=\"l{}\"/><child link=\"l{i}\"/></joint>",
+            i - 1
+        ));
+    }
+    urdf.push_str("</robot>");
+    let path = dir.path().join("many.urdf");
+    std::fs::write(&path, urdf).unwrap();
+    let built = std::sync::atomic::AtomicUsize::new(0);
+    let count = |_: &str| {
+        built.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    };
+    let config = |extra: &[(&str, &str)]| {
+        let mut o = vec![
+            ("robot_description".to_string(), path.display().to_string()),
+            (
+                "cache_dir".to_string(),
+                dir.path().join("cache").display().to_string(),
+            ),
+            // Small trees: the last case builds all 128.
+            ("max_spheres".to_string(), "16".to_string()),
+        ];
+        o.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+        Config::from_overrides(&o).unwrap()
+    };
+    let e = Monitor::new(config(&[]), &count).err().unwrap().to_string();
+    assert!(e.contains("129 links") && e.contains("at most 128"), "{e}");
+    let e = Monitor::new(config(&[("links", "[l0, nope]")]), &count)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("nope"), "{e}");
+    assert_eq!(built.load(std::sync::atomic::Ordering::Relaxed), 0);
+    // Leaving one out is within the limit; only the selected links are built.
+    let model = RobotModel::load(&path, &[]).unwrap();
+    let c = config(&[("exclude_links", "[l128]")]);
+    assert!(c.selection.check(&model).is_ok());
+    let m = Monitor::new(config(&[("links", "[l3, l7]")]), &count).unwrap();
+    assert_eq!(m.links(), 2);
+    assert_eq!(built.load(std::sync::atomic::Ordering::Relaxed), 2);
+}

@@ -89,16 +89,21 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     let dir = tempfile::tempdir().unwrap();
     let record = dir.path().join("outputs.mcap");
     let record_arg = record.to_str().unwrap();
-    let mut node = spawn(&[
-        "node",
-        "--ros-args",
-        "-r",
-        "__node:=watch",
-        "-r",
-        "__ns:=/robot1",
-        "-p",
-        "camera.source_timeout:=0.5",
-    ]);
+    let node = ist_monitor()
+        .args([
+            "node",
+            "--ros-args",
+            "-r",
+            "__node:=watch",
+            "-r",
+            "__ns:=/robot1",
+            "-p",
+            "camera.source_timeout:=0.5",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     let mut recorder = spawn(&[
         "record",
         "--node",
@@ -129,7 +134,17 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
         .arg(node.id().to_string())
         .status()
         .unwrap();
-    assert!(node.wait().unwrap().success());
+    // A normal start and stop logs no error line (an operator must not learn to ignore them).
+    let out = node.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert!(log.contains("up: node /robot1/watch"), "{log}");
+    for line in log.lines() {
+        assert!(
+            !line.starts_with("[ERROR") && !line.to_lowercase().starts_with("error"),
+            "an error line in a normal run: {line}"
+        );
+    }
     for run in [&first, &second] {
         assert_eq!(run["clouds_published"], 30);
         let received = run["outputs_received"].as_u64().unwrap();

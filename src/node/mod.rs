@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use ros2_client::{
-    Context, Gid, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
+    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
 };
 use serde::de::DeserializeOwned;
 
@@ -288,6 +288,30 @@ pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
         }
     }
     Ok(out)
+}
+
+/// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer
+/// numbers its own samples, so two publishers on one topic are followed separately.
+struct SequenceGaps<K> {
+    last: HashMap<K, i64>,
+}
+
+impl<K> Default for SequenceGaps<K> {
+    fn default() -> Self {
+        Self {
+            last: HashMap::new(),
+        }
+    }
+}
+
+impl<K: std::hash::Hash + Eq> SequenceGaps<K> {
+    /// How many samples of `writer` were skipped before `seq`.
+    fn lost(&mut self, writer: K, seq: i64) -> u64 {
+        match self.last.insert(writer, seq) {
+            Some(prev) if seq > prev + 1 => (seq - prev - 1) as u64,
+            _ => 0,
+        }
+    }
 }
 
 /// The newest unprocessed cloud of a source.
@@ -591,20 +615,12 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
         tasks.push(executor.spawn(async move {
             let mut stream =
                 std::pin::pin!(sub.async_stream_seed(Owned::<PointCloud2<'static>>::default()));
-            // Sequence numbers count per writer: two publishers on one topic each have
-            // their own, so a gap is looked for within each writer's series only.
-            let mut last_seq: HashMap<Gid, i64> = HashMap::new();
+            let mut gaps = SequenceGaps::default();
             while let Some(item) = stream.next().await {
                 match item {
                     Ok((cloud, info)) => {
-                        let seq = info.sequence_number();
-                        if let Some(prev) = last_seq.insert(info.publisher_gid(), seq) {
-                            if seq > prev + 1 {
-                                shared
-                                    .dropped
-                                    .fetch_add((seq - prev - 1) as u64, Ordering::Relaxed);
-                            }
-                        }
+                        let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
+                        shared.dropped.fetch_add(lost, Ordering::Relaxed);
                         let now = Instant::now();
                         let mut slot = lock(&shared.slots[k]);
                         if slot
@@ -778,6 +794,22 @@ mod tests {
             let bad: Vec<String> = bad.iter().map(|s| s.to_string()).collect();
             assert!(parse_ros_args(&bad).is_err(), "{bad:?}");
         }
+    }
+
+    #[test]
+    fn sequence_gaps_are_counted_per_writer() {
+        let mut g = SequenceGaps::default();
+        // Two writers interleaved, each without a gap: nothing lost.
+        let lost: u64 = [(1, 1), (2, 1), (1, 2), (2, 2), (1, 3), (2, 3)]
+            .into_iter()
+            .map(|(w, s)| g.lost(w, s))
+            .sum();
+        assert_eq!(lost, 0);
+        // Writer 1 skips 4 and 5.
+        assert_eq!(g.lost(1, 6), 2);
+        assert_eq!(g.lost(2, 4), 0);
+        // A restarted writer (its numbers start again) is not a loss.
+        assert_eq!(g.lost(2, 1), 0);
     }
 
     #[test]

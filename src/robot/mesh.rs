@@ -147,6 +147,17 @@ pub fn load_mesh_file(path: &std::path::Path) -> Result<TriangleSoup, MeshError>
 /// As [`load_mesh_file`], from the bytes of the file at `path` (its extension picks the
 /// format; a COLLADA file's references are resolved next to it).
 pub fn load_mesh_bytes(bytes: &[u8], path: &std::path::Path) -> Result<TriangleSoup, MeshError> {
+    // Checked here: mesh-loader's own error for another format prints `{path:?}` literally.
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("stl" | "dae" | "obj")) {
+        return Err(MeshError::Load(format!(
+            "{}: unsupported mesh format (STL, COLLADA .dae and OBJ are read)",
+            path.display()
+        )));
+    }
     let scene = mesh_loader::Loader::default()
         .merge_meshes(true)
         .load_from_slice(bytes, path)
