@@ -125,59 +125,105 @@ impl std::fmt::Display for Truncated {
     }
 }
 
+/// The largest record a bag may hold: 1 GiB (a PointCloud2 of 33 million 32-byte points),
+/// and no more than 1024 bytes per byte of the file (a zstd chunk of a real cloud inflates
+/// far less). The `mcap` crate sizes its buffers by the lengths the file declares, so a record
+/// of 5·10¹⁸ bytes in a 4 KB file (found by fuzzing) would otherwise abort the process.
+pub fn record_length_limit(file_len: usize) -> usize {
+    file_len.saturating_mul(1024).clamp(64 << 20, 1 << 30)
+}
+
 /// The messages of one MCAP file's bytes (`file` names it in errors) that pass `keep`, appended
 /// to `out` in file order. `Some` when the file breaks after at least one message: what was
-/// read before the break is kept.
+/// read before the break is kept. Records longer than [`record_length_limit`] are refused
+/// before anything of their size is allocated.
 pub fn read_mcap(
     file: &Path,
     bytes: &[u8],
     keep: &dyn Fn(&str, &str) -> bool,
     out: &mut Vec<BagMessage>,
 ) -> Result<Option<Truncated>, BagError> {
-    let bad = |e: mcap::McapError| BagError::Mcap {
+    use mcap::records::Record;
+    use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    let bad = |message: String| BagError::Mcap {
         path: file.to_owned(),
-        message: e.to_string(),
+        message,
     };
-    // Channel id → (topic, schema, encoding), shared by the messages of the channel.
+    let mut reader = LinearReader::new_with_options(
+        LinearReaderOptions::default()
+            .with_validate_chunk_crcs(true)
+            .with_record_length_limit(record_length_limit(bytes.len())),
+    );
+    let mut rest = bytes;
+    // Schema id → name; channel id → (topic, schema, encoding), shared by its messages.
+    let mut schemas: HashMap<u16, Arc<str>> = HashMap::new();
     let mut channels: HashMap<u16, Names> = HashMap::new();
     let (mut read, mut last) = (0usize, 0u64);
-    for message in mcap::MessageStream::new(bytes).map_err(bad)? {
-        let message = match message {
-            Ok(m) => m,
-            Err(e) if read > 0 => {
-                return Ok(Some(Truncated {
-                    path: file.to_owned(),
-                    messages: read,
-                    last_log_time_ns: last,
-                    error: e.to_string(),
-                }))
-            }
-            Err(e) => return Err(bad(e)),
-        };
-        read += 1;
-        last = message.log_time;
-        let c = &message.channel;
-        let schema = c.schema.as_ref().map_or("", |s| s.name.as_str());
-        if !keep(&c.topic, schema) {
-            continue;
+    let broken = |error: String, read: usize, last: u64| {
+        if read > 0 {
+            Ok(Some(Truncated {
+                path: file.to_owned(),
+                messages: read,
+                last_log_time_ns: last,
+                error,
+            }))
+        } else {
+            Err(bad(error))
         }
-        let (topic, schema, encoding) = channels
-            .entry(c.id)
-            .or_insert_with(|| {
-                (
-                    Arc::from(c.topic.as_str()),
-                    Arc::from(schema),
-                    Arc::from(c.message_encoding.as_str()),
-                )
-            })
-            .clone();
-        out.push(BagMessage {
-            topic,
-            schema,
-            encoding,
-            log_time_ns: message.log_time,
-            data: message.data.into_owned(),
-        });
+    };
+    while let Some(event) = reader.next_event() {
+        let (opcode, data) = match event {
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let n = need.min(rest.len());
+                reader.insert(n).copy_from_slice(&rest[..n]);
+                reader.notify_read(n);
+                rest = &rest[n..];
+                continue;
+            }
+            Ok(LinearReadEvent::Record { opcode, data }) => (opcode, data),
+            Err(e) => return broken(e.to_string(), read, last),
+        };
+        match mcap::parse_record(opcode, data) {
+            Ok(Record::Schema { header, .. }) => {
+                schemas.insert(header.id, Arc::from(header.name.as_str()));
+            }
+            Ok(Record::Channel(c)) => {
+                let schema = schemas
+                    .get(&c.schema_id)
+                    .cloned()
+                    .unwrap_or_else(|| "".into());
+                channels.insert(
+                    c.id,
+                    (
+                        Arc::from(c.topic.as_str()),
+                        schema,
+                        Arc::from(c.message_encoding.as_str()),
+                    ),
+                );
+            }
+            Ok(Record::Message { header, data }) => {
+                let Some((topic, schema, encoding)) = channels.get(&header.channel_id) else {
+                    let e = format!(
+                        "message on channel {} before its Channel record",
+                        header.channel_id
+                    );
+                    return broken(e, read, last);
+                };
+                read += 1;
+                last = header.log_time;
+                if keep(topic, schema) {
+                    out.push(BagMessage {
+                        topic: topic.clone(),
+                        schema: schema.clone(),
+                        encoding: encoding.clone(),
+                        log_time_ns: header.log_time,
+                        data: data.into_owned(),
+                    });
+                }
+            }
+            Ok(_) => {}
+            Err(e) => return broken(e.to_string(), read, last),
+        }
     }
     Ok(None)
 }
