@@ -174,6 +174,13 @@ pub fn read_mcap(
     while let Some(event) = reader.next_event() {
         let (opcode, data) = match event {
             Ok(LinearReadEvent::ReadRequest(need)) => {
+                // The reader asks again, forever, when nothing is left to give it.
+                if rest.is_empty() {
+                    let e = format!(
+                        "the file ends in the middle of a record ({need} more bytes needed)"
+                    );
+                    return broken(e, read, last);
+                }
                 let n = need.min(rest.len());
                 reader.insert(n).copy_from_slice(&rest[..n]);
                 reader.notify_read(n);
