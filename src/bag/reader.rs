@@ -143,7 +143,7 @@ pub fn read_mcap(
     keep: &dyn Fn(&str, &str) -> bool,
     out: &mut Vec<BagMessage>,
 ) -> Result<Option<Truncated>, BagError> {
-    use mcap::records::Record;
+    use mcap::records::{op, Record};
     use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
     let bad = |message: String| BagError::Mcap {
         path: file.to_owned(),
@@ -190,6 +190,12 @@ pub fn read_mcap(
             Ok(LinearReadEvent::Record { opcode, data }) => (opcode, data),
             Err(e) => return broken(e.to_string(), read, last),
         };
+        // Only the records a replay uses are parsed: the others (attachments, indexes,
+        // metadata) are skipped unread, and mcap 0.26 panics on a short attachment (found by
+        // fuzzing).
+        if ![op::SCHEMA, op::CHANNEL, op::MESSAGE].contains(&opcode) {
+            continue;
+        }
         match mcap::parse_record(opcode, data) {
             Ok(Record::Schema { header, .. }) => {
                 schemas.insert(header.id, Arc::from(header.name.as_str()));
