@@ -8,7 +8,6 @@ use std::path::Path;
 
 use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
-use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
 use ist_monitor::monitor::{Frame, Level, Monitor};
 use ist_monitor::msg::{self, Header, Time};
 use ist_monitor::robot::RobotModel;
@@ -16,11 +15,22 @@ use nalgebra::Point3;
 
 const STAMP: i64 = 1_700_000_000_000_000_000;
 
-/// The demo arm at rest, seen by a sensor `cam` at the root (`world`), joints fixed at 0.
-fn monitor(extra: &[(&str, &str)]) -> Monitor {
-    let model = RobotModel::load(Path::new(common::DEMO_URDF), &[]).unwrap();
+/// The demo arm at rest, seen by a sensor `cam` at the root (`world`), joints fixed at 0; and
+/// points on it: the centres of every inner sphere of every link, in the root frame.
+fn arm_at_rest() -> (Monitor, Vec<[f32; 3]>) {
+    let (model, trees) = common::demo_trees();
     let names = model.kinematics.variables().to_vec();
-    let mut overrides: Vec<(String, String)> = vec![
+    let poses = model.kinematics.link_poses(&vec![0.0; names.len()]);
+    let mut robot = Vec::new();
+    for tree in &trees {
+        let pose = poses[model.kinematics.link_index(&tree.link).unwrap()];
+        for s in &tree.spheres {
+            let c = s.center.map(f64::from);
+            let p = pose * Point3::new(c[0], c[1], c[2]);
+            robot.push([p.x as f32, p.y as f32, p.z as f32]);
+        }
+    }
+    let overrides: Vec<(String, String)> = vec![
         ("robot_description".into(), common::DEMO_URDF.into()),
         ("static_transforms".into(), "[cam]".into()),
         ("cam.parent_frame".into(), "world".into()),
@@ -32,19 +42,8 @@ fn monitor(extra: &[(&str, &str)]) -> Monitor {
         ),
         ("backend".into(), "cpu".into()),
     ];
-    overrides.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
     let config = Config::from_overrides(&overrides).unwrap();
-    let trees: Vec<_> = build_robot(
-        &model,
-        &BuildOptions::default(),
-        Some(&TreeCache::at(None)),
-        &|_| {},
-    )
-    .unwrap()
-    .into_iter()
-    .map(|(t, _)| t)
-    .collect();
-    Monitor::with_trees(config, model, &trees).unwrap()
+    (Monitor::with_trees(config, model, &trees).unwrap(), robot)
 }
 
 fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
@@ -54,32 +53,7 @@ fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
     };
     let layout = pointcloud2::Layout::unorganized(points.len() as u32);
     let m = pointcloud2::encode(header, points, &layout).unwrap();
-    monitor.on_cloud(0, &msg::encode(&m).unwrap(), STAMP)
-}
-
-/// Points on the robot: the centres of every inner sphere of every link, in the root frame.
-fn robot_points(monitor: &Monitor) -> Vec<[f32; 3]> {
-    let model = &monitor.model;
-    let poses = model
-        .kinematics
-        .link_poses(&vec![0.0; model.kinematics.variables().len()]);
-    let trees: Vec<_> = build_robot(
-        model,
-        &BuildOptions::default(),
-        Some(&TreeCache::at(None)),
-        &|_| {},
-    )
-    .unwrap();
-    let mut out = Vec::new();
-    for (tree, _) in trees {
-        let pose = poses[model.kinematics.link_index(&tree.link).unwrap()];
-        for s in &tree.spheres {
-            let c = s.center.map(f64::from);
-            let p = pose * Point3::new(c[0], c[1], c[2]);
-            out.push([p.x as f32, p.y as f32, p.z as f32]);
-        }
-    }
-    out
+    monitor.on_cloud(0, &msg::encode(&m).unwrap(), Some(STAMP))
 }
 
 fn value<'a>(f: &'a Frame, key: &str) -> Option<&'a str> {
@@ -94,8 +68,7 @@ fn value<'a>(f: &'a Frame, key: &str) -> Option<&'a str> {
 /// distance, and keeps a stop that was raised: an obstacle touching the robot looks the same.
 #[test]
 fn a_frame_the_self_filter_empties_never_releases_the_stop() {
-    let mut m = monitor(&[]);
-    let robot = robot_points(&m);
+    let (mut m, robot) = arm_at_rest();
     assert!(robot.len() > 100);
     // Far away: OK.
     let f = frame(&mut m, &[[5.0, 5.0, 5.0]]);
@@ -120,10 +93,10 @@ fn a_frame_the_self_filter_empties_never_releases_the_stop() {
         value(&f, "points_self_filtered"),
         Some(&*robot.len().to_string())
     );
-    // An obstacle 3 cm from the robot raises the stop; the robot alone next keeps it.
+    // An obstacle above the arm, moved down until it raises the stop; the robot alone next
+    // keeps the stop.
     let near = {
-        let r = robot_points(&m);
-        let top = r
+        let top = robot
             .iter()
             .copied()
             .max_by(|a, b| a[2].total_cmp(&b[2]))

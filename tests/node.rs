@@ -11,11 +11,9 @@ use std::path::Path;
 
 use common::ist_monitor;
 use ist_monitor::bag::read_messages;
-use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
 use ist_monitor::monitor::outputs::OutputTopic;
 use ist_monitor::msg::{self, DiagnosticArray, DiagnosticStatus, Float64};
 use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions};
-use ist_monitor::robot::RobotModel;
 
 /// True inside the private network; outside, runs `test` of this binary there and returns false.
 fn in_private_network(test: &str) -> bool {
@@ -52,23 +50,6 @@ fn in_private_network(test: &str) -> bool {
     false
 }
 
-/// The demo arm's trees, built into the default cache before a node starts, so that the node
-/// loads them in milliseconds instead of building them while the test's clock runs.
-fn demo_trees() -> (RobotModel, Vec<ist_monitor::ist::LinkTree>) {
-    let model = RobotModel::load(Path::new(common::DEMO_URDF), &[]).unwrap();
-    let trees = build_robot(
-        &model,
-        &BuildOptions::default(),
-        Some(&TreeCache::at(None)),
-        &|_| {},
-    )
-    .unwrap()
-    .into_iter()
-    .map(|(t, _)| t)
-    .collect();
-    (model, trees)
-}
-
 fn spawn(args: &[&str]) -> Child {
     ist_monitor()
         .args(args)
@@ -85,7 +66,7 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     if !in_private_network("node_serves_clouds_and_reports_a_stopped_source") {
         return;
     }
-    demo_trees();
+    common::demo_trees();
     let dir = tempfile::tempdir().unwrap();
     let record = dir.path().join("outputs.mcap");
     let record_arg = record.to_str().unwrap();
@@ -226,7 +207,7 @@ fn every_fault_kind_reaches_the_node_as_an_error() {
     if !in_private_network("every_fault_kind_reaches_the_node_as_an_error") {
         return;
     }
-    demo_trees();
+    common::demo_trees();
     let dir = tempfile::tempdir().unwrap();
     let bag = dir.path().join("faults.mcap");
     common::write_fault_bag(&bag);
@@ -338,7 +319,7 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
     let Some(python) = common::venv_python() else {
         return;
     };
-    let (model, trees) = demo_trees();
+    let (model, trees) = common::demo_trees();
     let joints =
         "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
     // The robot comes from the peer on /robot_description, as robot_state_publisher gives it.

@@ -8,10 +8,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::{ist_monitor, DEMO_BAG, DEMO_CONFIG, DEMO_URDF};
-use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
-use ist_monitor::cloud::pointcloud2;
+use ist_monitor::bag::read_messages;
 use ist_monitor::config::Config;
-use ist_monitor::monitor::replay::{replay, Clock, ReplayFrame, GROUND_TRUTH_TOPIC};
+use ist_monitor::monitor::replay::{replay, Clock, ReplayFrame, Summary, GROUND_TRUTH_TOPIC};
 use ist_monitor::monitor::{Level, Monitor};
 use ist_monitor::msg::{self, Float64};
 use ist_monitor::robot::RobotModel;
@@ -23,19 +22,25 @@ fn bundled(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, ist_monitor::monitor::replay::Summary) {
+fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, Summary) {
     let config = Config::load(
         Path::new(DEMO_CONFIG),
         &[("mode".to_string(), mode.to_string())],
     )
     .unwrap();
-    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
+    replay_all(&mut Monitor::new(config, &|_| {}).unwrap(), bag, Clock::Log)
+}
+
+/// Every frame of `bag` through `monitor`, and the summary.
+fn replay_all(monitor: &mut Monitor, bag: &Path, clock: Clock) -> (Vec<ReplayFrame>, Summary) {
     let mut frames = Vec::new();
-    let summary = replay(&mut monitor, bag, None, Clock::Log, &mut |f| {
-        frames.push(f.clone())
-    })
-    .unwrap();
+    let summary = replay(monitor, bag, None, clock, &mut |f| frames.push(f.clone())).unwrap();
     (frames, summary)
+}
+
+/// The demo config's monitor.
+fn demo_monitor() -> Monitor {
+    Monitor::new(Config::load(Path::new(DEMO_CONFIG), &[]).unwrap(), &|_| {}).unwrap()
 }
 
 /// Every frame of both bundled bags: the recorded exact distance lies in the certified interval,
@@ -136,48 +141,26 @@ fn real_kinect_bag_reference_distances() {
     }
 }
 
-/// Keeps, changes (log time, payload) or drops (`None`) one message of a bag.
-type Edit<'a> = dyn Fn(&str, u64, &[u8]) -> Option<(u64, Vec<u8>)> + 'a;
-
 /// Faults in the inputs: a malformed cloud, no joint states, no camera transform, stale joint
 /// states. Each is a fault of its frames with its reason, no distance is published for it, and
 /// the other frames are processed as usual.
 #[test]
 fn faulty_inputs_are_reported_never_safe() {
-    let messages = read_messages(&bundled("demo"), &|_, _| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let write = |name: &str, edit: &Edit<'_>| {
+    let write = |name: &str, edit: &common::Edit<'_>| {
         let path = dir.path().join(format!("{name}.mcap"));
-        let mut w = BagWriter::create(&path, Compression::None).unwrap();
-        for m in &messages {
-            if let Some((t, data)) = edit(&m.topic, m.log_time_ns, &m.data) {
-                w.write_cdr(&m.topic, &m.schema, t, &data).unwrap();
-            }
-        }
-        w.finish().unwrap();
+        common::edit_demo_bag(&path, edit);
         path
     };
-    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
-    let mut monitor = Monitor::new(config.clone(), &|_| {}).unwrap();
-    let mut replay_bag = |path: &Path| {
-        let mut frames = Vec::new();
-        let s = replay(&mut monitor, path, None, Clock::Log, &mut |f| {
-            frames.push(f.clone())
-        })
-        .unwrap();
-        (frames, s)
-    };
+    let mut monitor = demo_monitor();
+    let mut replay_bag = |path: &Path| replay_all(&mut monitor, path, Clock::Log);
     // The 5th cloud truncated: one decode fault, the rest as usual.
     let mut cloud_index = 0;
-    let clouds_seen = std::cell::Cell::new(0);
-    let truncated = write("truncated", &|topic, t, data| {
-        if topic == "/camera/depth/points" {
-            clouds_seen.set(clouds_seen.get() + 1);
-            if clouds_seen.get() == 5 {
-                return Some((t, data[..data.len() / 2].to_vec()));
-            }
-        }
-        Some((t, data.to_vec()))
+    let truncated = write("truncated", &|_, _, cloud, data| {
+        Some(match cloud {
+            Some(4) => data[..data.len() / 2].to_vec(),
+            _ => data.to_vec(),
+        })
     });
     let (frames, s) = replay_bag(&truncated);
     assert_eq!(s.faults.get("decode"), Some(&1), "{:?}", s.faults);
@@ -197,8 +180,8 @@ fn faulty_inputs_are_reported_never_safe() {
         ("/joint_states", "joint_state", "joint shoulder_pan"),
         ("/tf_static", "tf", "camera_optical_frame"),
     ] {
-        let bag = write(&dropped[1..], &|topic, t, data| {
-            (topic != dropped).then(|| (t, data.to_vec()))
+        let bag = write(&dropped[1..], &|topic, _, _, data| {
+            (topic != dropped).then(|| data.to_vec())
         });
         let (frames, s) = replay_bag(&bag);
         assert_eq!(s.faults.get(kind), Some(&frames.len()), "{dropped}");
@@ -211,9 +194,9 @@ fn faulty_inputs_are_reported_never_safe() {
             .all(|f| f.min_distance_m.is_none() && f.level == Level::Error));
     }
     // Joint states that stop after the first second: later clouds are stale, earlier fine.
-    let stale = write("stale", &|topic, t, data| {
-        let first = messages[0].log_time_ns;
-        (topic != "/joint_states" || t < first + 1_000_000_000).then(|| (t, data.to_vec()))
+    let first = read_messages(&bundled("demo"), &|_, _| true).unwrap()[0].log_time_ns;
+    let stale = write("stale", &|topic, t, _, data| {
+        (topic != "/joint_states" || t < first + 1_000_000_000).then(|| data.to_vec())
     });
     let (frames, s) = replay_bag(&stale);
     let n_stale = s.faults.get("stale_joint_state").copied().unwrap_or(0);
@@ -233,36 +216,17 @@ fn faulty_inputs_are_reported_never_safe() {
 /// (frame 28): it never releases the stop, and the next cloud is processed as usual.
 #[test]
 fn a_cloud_without_valid_points_is_a_fault_not_clear() {
-    let messages = read_messages(&bundled("demo"), &|_, _| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("blinded.mcap");
-    let mut w = BagWriter::create(&path, Compression::None).unwrap();
-    let mut cloud = 0;
-    for m in &messages {
-        let mut data = m.data.to_vec();
-        if &*m.topic == "/camera/depth/points" {
-            if cloud == 0 || cloud == 28 {
-                let c = pointcloud2::decode(&m.data).unwrap();
-                // 0xFF bytes: every coordinate a NaN.
-                let blind = msg::PointCloud2 {
-                    data: std::borrow::Cow::Owned(vec![0xFF; c.data.len()]),
-                    ..c
-                };
-                data = msg::encode(&blind).unwrap();
-            }
-            cloud += 1;
-        }
-        w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &data)
-            .unwrap();
-    }
-    w.finish().unwrap();
-    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
-    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
-    let mut frames = Vec::new();
-    let s = replay(&mut monitor, &path, None, Clock::Log, &mut |f| {
-        frames.push(f.clone())
-    })
-    .unwrap();
+    common::edit_demo_bag(&path, |_, _, cloud, data| {
+        Some(match cloud {
+            // 0xFF bytes: every coordinate a NaN.
+            Some(0 | 28) => common::edit_cloud(data, |c| c.data = vec![0xFF; c.data.len()].into()),
+            _ => data.to_vec(),
+        })
+    });
+    let mut monitor = demo_monitor();
+    let (frames, s) = replay_all(&mut monitor, &path, Clock::Log);
     assert_eq!(s.faults.get("no_valid_points"), Some(&2), "{:?}", s.faults);
     for i in [0, 28] {
         let f = &frames[i];
@@ -301,40 +265,25 @@ fn a_cloud_without_valid_points_is_a_fault_not_clear() {
 /// (0.1 s) are faults with no distance and ERROR; one 50 ms ahead is measured as usual.
 #[test]
 fn cloud_stamps_are_checked_against_the_clock() {
-    let messages = read_messages(&bundled("demo"), &|_, _| true).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("stamps.mcap");
-    let mut w = BagWriter::create(&path, Compression::None).unwrap();
-    // Frame → stamp relative to the cloud's log time (None: stamp 0).
+    // Cloud → stamp relative to its log time (None: stamp 0).
     let shifts: [(usize, Option<i64>); 4] = [
         (3, None),
         (5, Some(-1_000_000_000)),
         (7, Some(1_000_000_000)),
         (9, Some(50_000_000)),
     ];
-    let mut cloud = 0;
-    for m in &messages {
-        let mut data = m.data.to_vec();
-        if &*m.topic == "/camera/depth/points" {
-            if let Some((_, shift)) = shifts.iter().find(|(i, _)| *i == cloud) {
-                let mut c = pointcloud2::decode(&m.data).unwrap();
-                c.header.stamp =
-                    msg::Time::from_nanos(shift.map_or(0, |s| m.log_time_ns as i64 + s));
-                data = msg::encode(&c).unwrap();
-            }
-            cloud += 1;
-        }
-        w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &data)
-            .unwrap();
-    }
-    w.finish().unwrap();
-    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
-    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
-    let mut frames = Vec::new();
-    let s = replay(&mut monitor, &path, None, Clock::Log, &mut |f| {
-        frames.push(f.clone())
-    })
-    .unwrap();
+    common::edit_demo_bag(&path, |_, t, cloud, data| {
+        Some(match shifts.iter().find(|(i, _)| Some(*i) == cloud) {
+            Some((_, shift)) => common::edit_cloud(data, |c| {
+                c.header.stamp = msg::Time::from_nanos(shift.map_or(0, |s| t as i64 + s))
+            }),
+            None => data.to_vec(),
+        })
+    });
+    let mut monitor = demo_monitor();
+    let (frames, s) = replay_all(&mut monitor, &path, Clock::Log);
     let expect = [
         (3, "no_stamp", "stamp is 0"),
         (5, "stale_cloud", "1.000 s before now"),
@@ -359,11 +308,7 @@ fn cloud_stamps_are_checked_against_the_clock() {
     }
     // With the stamp as the clock no cloud is refused for its age; the shifted ones then fail
     // further on, on joint states that do not exist at their stamps: still no distance.
-    let mut frames = Vec::new();
-    let s = replay(&mut monitor, &path, None, Clock::Stamp, &mut |f| {
-        frames.push(f.clone())
-    })
-    .unwrap();
+    let (frames, s) = replay_all(&mut monitor, &path, Clock::Stamp);
     assert_eq!(s.faults.get("no_stamp"), Some(&1), "{:?}", s.faults);
     assert!(
         !s.faults.contains_key("stale_cloud") && !s.faults.contains_key("future_cloud"),
@@ -383,13 +328,8 @@ fn a_truncated_bag_replays_up_to_where_it_ends() {
     let dir = tempfile::tempdir().unwrap();
     let cut = dir.path().join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
-    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
-    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
-    let mut frames = Vec::new();
-    let s = replay(&mut monitor, &cut, None, Clock::Log, &mut |f| {
-        frames.push(f.clone())
-    })
-    .unwrap();
+    let mut monitor = demo_monitor();
+    let (_, s) = replay_all(&mut monitor, &cut, Clock::Log);
     assert!(s.frames >= 10 && s.frames < 30, "{} frames", s.frames);
     assert!(s.faults.is_empty(), "{:?}", s.faults);
     std::fs::write(&cut, &bytes[..100]).unwrap();
@@ -406,13 +346,8 @@ fn every_fault_kind_is_an_error_with_no_distance() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("faults.mcap");
     common::write_fault_bag(&path);
-    let config = Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
-    let mut monitor = Monitor::new(config, &|_| {}).unwrap();
-    let mut frames = Vec::new();
-    let s = replay(&mut monitor, &path, None, Clock::Log, &mut |f| {
-        frames.push(f.clone())
-    })
-    .unwrap();
+    let mut monitor = demo_monitor();
+    let (frames, s) = replay_all(&mut monitor, &path, Clock::Log);
     let expected: std::collections::BTreeMap<String, usize> = common::FAULTS
         .iter()
         .map(|(_, kind)| (kind.to_string(), 1))

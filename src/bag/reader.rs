@@ -81,8 +81,8 @@ pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     Ok(files)
 }
 
-/// The messages of the bag at `path` whose channel passes `keep(topic, schema)`, in log-time
-/// order. Only those are kept in memory. A file that ends early or has a broken record after its
+/// The messages of the bag at `path` whose channel passes `keep(topic, schema)` (asked once per
+/// channel record), in log-time order. Only those are kept in memory. A file that ends early or has a broken record after its
 /// first message (a recorder that crashed) gives the messages before the break, with a warning
 /// that says where it ends; a file with no readable message is an error.
 pub fn read_messages(
@@ -155,9 +155,10 @@ pub fn read_mcap(
             .with_record_length_limit(record_length_limit(bytes.len())),
     );
     let mut rest = bytes;
-    // Schema id → name; channel id → (topic, schema, encoding), shared by its messages.
+    // Schema id → name; channel id → (topic, schema, encoding), shared by its messages, and
+    // whether `keep` wants them (asked once per channel).
     let mut schemas: HashMap<u16, Arc<str>> = HashMap::new();
-    let mut channels: HashMap<u16, Names> = HashMap::new();
+    let mut channels: HashMap<u16, (Names, bool)> = HashMap::new();
     let (mut read, mut last) = (0usize, 0u64);
     let broken = |error: String, read: usize, last: u64| {
         if read > 0 {
@@ -205,17 +206,17 @@ pub fn read_mcap(
                     .get(&c.schema_id)
                     .cloned()
                     .unwrap_or_else(|| "".into());
-                channels.insert(
-                    c.id,
-                    (
-                        Arc::from(c.topic.as_str()),
-                        schema,
-                        Arc::from(c.message_encoding.as_str()),
-                    ),
+                let kept = keep(&c.topic, &schema);
+                let names = (
+                    Arc::from(c.topic.as_str()),
+                    schema,
+                    Arc::from(c.message_encoding.as_str()),
                 );
+                channels.insert(c.id, (names, kept));
             }
             Ok(Record::Message { header, data }) => {
-                let Some((topic, schema, encoding)) = channels.get(&header.channel_id) else {
+                let Some(((topic, schema, encoding), kept)) = channels.get(&header.channel_id)
+                else {
                     let e = format!(
                         "message on channel {} before its Channel record",
                         header.channel_id
@@ -224,7 +225,7 @@ pub fn read_mcap(
                 };
                 read += 1;
                 last = header.log_time;
-                if keep(topic, schema) {
+                if *kept {
                     out.push(BagMessage {
                         topic: topic.clone(),
                         schema: schema.clone(),

@@ -116,6 +116,22 @@ pub fn point_cloud_from_bag(path: &Path, index: usize) -> Result<Cloud, CloudErr
     })
 }
 
+/// The next line of a PCD or PLY text header at `*pos` (trimmed), moving `*pos` past it;
+/// `ends_before` says what the header lacks when it has no more lines.
+pub(crate) fn header_line<'a>(
+    bytes: &'a [u8],
+    pos: &mut usize,
+    ends_before: &str,
+) -> Result<&'a str, String> {
+    let end = bytes[*pos..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .ok_or_else(|| format!("header ends before {ends_before}"))?;
+    let line = std::str::from_utf8(&bytes[*pos..*pos + end]).map_err(|_| "header is not text")?;
+    *pos += end + 1;
+    Ok(line.trim())
+}
+
 /// Reads a scalar of PCD/PLY/PointField type `kind` at `bytes[..]` as f32.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Scalar {

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use pcd_rs::record::{DynRecord, Field};
 
-use super::{read, Cloud, CloudError, MAX_POINTS};
+use super::{header_line, read, Cloud, CloudError, MAX_POINTS};
 
 /// The largest LZF inflation: a back reference of 3 bytes gives at most 264 bytes.
 const LZF_MAX_RATIO: u64 = 88;
@@ -88,14 +88,7 @@ pub fn check_header(bytes: &[u8]) -> Result<(), String> {
     let mut counts: Option<Vec<u64>> = None;
     let (mut width, mut height, mut points) = (None, None, None);
     let data = loop {
-        let end = bytes[pos..]
-            .iter()
-            .position(|&b| b == b'\n')
-            .ok_or("header ends before its DATA line")?;
-        let line = std::str::from_utf8(&bytes[pos..pos + end])
-            .map_err(|_| "header is not text")?
-            .trim();
-        pos += end + 1;
+        let line = header_line(bytes, &mut pos, "its DATA line")?;
         let words: Vec<&str> = line.split_whitespace().collect();
         let numbers = |what: &str| -> Result<Vec<u64>, String> {
             words[1..]

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use super::{read, Cloud, CloudError, Scalar, MAX_POINTS};
+use super::{header_line, read, Cloud, CloudError, Scalar, MAX_POINTS};
 
 pub fn load(path: &Path) -> Result<Cloud, CloudError> {
     parse(&read(path)?).map_err(|message| CloudError::Ply {
@@ -38,14 +38,7 @@ pub fn parse(bytes: &[u8]) -> Result<Cloud, String> {
     let mut properties: Vec<(String, Scalar)> = Vec::new();
     let mut first = true;
     loop {
-        let end = bytes[pos..]
-            .iter()
-            .position(|&b| b == b'\n')
-            .ok_or("header ends before end_header")?;
-        let line = std::str::from_utf8(&bytes[pos..pos + end])
-            .map_err(|_| "header is not text")?
-            .trim();
-        pos += end + 1;
+        let line = header_line(bytes, &mut pos, "end_header")?;
         if first {
             if line != "ply" {
                 return Err("does not start with \"ply\"".into());

@@ -128,7 +128,10 @@ pub fn replay(
         .iter()
         .map(|s| s.topic.clone())
         .collect();
-    let keep = |t: &str, _: &str| {
+    // Every channel of the bag, to say what it has when it has no cloud for the sources.
+    let channels = std::cell::RefCell::new(std::collections::BTreeSet::new());
+    let keep = |t: &str, schema: &str| {
+        channels.borrow_mut().insert(format!("{t} ({schema})"));
         t == "/tf"
             || t == "/tf_static"
             || t == joint_topic
@@ -142,12 +145,7 @@ pub fn replay(
         .iter()
         .any(|m| monitor.source_of(&m.topic).is_some())
     {
-        let mut found: Vec<String> = read_messages(bag, &|_, _| true)?
-            .iter()
-            .map(|m| format!("{} ({})", m.topic, m.schema))
-            .collect();
-        found.sort();
-        found.dedup();
+        let found: Vec<String> = channels.into_inner().into_iter().collect();
         return Err(ReplayError::NoClouds {
             bag: bag.to_owned(),
             sources: monitor
@@ -194,11 +192,7 @@ pub fn replay(
         let Some(source) = monitor.source_of(t) else {
             continue;
         };
-        let now_ns = match clock {
-            Clock::Log => m.log_time_ns as i64,
-            Clock::Stamp => crate::msg::decode::<crate::msg::Header>(&m.data)
-                .map_or(m.log_time_ns as i64, |h| h.stamp.as_nanos()),
-        };
+        let now_ns = (clock == Clock::Log).then_some(m.log_time_ns as i64);
         let frame = monitor.on_cloud(source, &m.data, now_ns);
         let index = summary.frames;
         summary.frames += 1;

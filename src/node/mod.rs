@@ -419,29 +419,25 @@ fn log_up(config: &Config, monitor: &Monitor) {
         .map(|s| format!("{} on {}", s.name, s.topic))
         .collect();
     let granted = granted_receive_buffer(SOCKET_BUFFER);
+    let mib = |b: usize| format!("{:.1} MiB", b as f64 / (1 << 20) as f64);
     log::info!(
-        "up: node {}, robot '{}' ({} links monitored), mode {}, sources: {}; outputs under {}; \
-         DDS (RustDDS) on domain {}; socket receive buffer {} MiB asked, {} granted",
+        "up: node {} (outputs on ~/ and /diagnostics), robot '{}' ({} links monitored), mode {}, \
+         sources: {}; DDS (RustDDS) on domain {}; socket receive buffer {} asked, {} granted",
         config.node_path(),
         monitor.model.name,
         monitor.links(),
         format!("{:?}", config.query.mode).to_lowercase(),
         sources.join(", "),
-        config.node_path(),
         std::env::var("ROS_DOMAIN_ID").unwrap_or_else(|_| "0".into()),
-        SOCKET_BUFFER >> 20,
-        granted.map_or("unknown".into(), |g| format!(
-            "{:.1} MiB",
-            g as f64 / (1 << 20) as f64
-        )),
+        mib(SOCKET_BUFFER),
+        granted.map_or("unknown".into(), mib),
     );
     if let Some(g) = granted.filter(|&g| g < SOCKET_BUFFER) {
         log::warn!(
-            "the kernel grants {:.1} MiB of socket receive buffer (net.core.rmem_max): a cloud \
-             larger than that arriving in one burst loses datagrams and is dropped whole; raise \
-             it once with `sudo sysctl -w net.core.rmem_max={}` (README, 'Host setup')",
-            g as f64 / (1 << 20) as f64,
-            SOCKET_BUFFER
+            "the kernel grants {} of socket receive buffer (net.core.rmem_max): a cloud larger \
+             than that arriving in one burst loses datagrams and is dropped whole; raise it once \
+             with `sudo sysctl -w net.core.rmem_max={SOCKET_BUFFER}` (README, 'Host setup')",
+            mib(g)
         );
     }
 }

@@ -127,44 +127,94 @@ pub const FAULTS: &[(usize, &str)] = &[
     (24, "stale_joint_state"),
 ];
 
+/// The demo bag's cloud topic.
+pub const DEMO_CLOUD_TOPIC: &str = "/camera/depth/points";
+
+/// One message's edit for [`edit_demo_bag`]: (topic, log time, cloud index, payload) → the
+/// payload to write, or `None` to leave it out.
+pub type Edit<'a> = dyn Fn(&str, u64, Option<usize>, &[u8]) -> Option<Vec<u8>> + 'a;
+
+/// Writes the demo bag to `path` with `edit` applied to each message: it gets the topic, the
+/// log time, the message's index among the clouds (`None` for other topics) and the payload,
+/// and returns the payload to write (`None`: the message is left out).
+pub fn edit_demo_bag(
+    path: &Path,
+    mut edit: impl FnMut(&str, u64, Option<usize>, &[u8]) -> Option<Vec<u8>>,
+) {
+    use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
+    let messages = read_messages(Path::new(DEMO_BAG), &|_, _| true).unwrap();
+    let mut w = BagWriter::create(path, Compression::None).unwrap();
+    let mut clouds = 0;
+    for m in &messages {
+        let cloud = (&*m.topic == DEMO_CLOUD_TOPIC).then(|| {
+            clouds += 1;
+            clouds - 1
+        });
+        if let Some(data) = edit(&m.topic, m.log_time_ns, cloud, &m.data) {
+            w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &data)
+                .unwrap();
+        }
+    }
+    w.finish().unwrap();
+}
+
+/// A PointCloud2 payload with `change` applied.
+pub fn edit_cloud(
+    payload: &[u8],
+    change: impl FnOnce(&mut ist_monitor::msg::PointCloud2<'_>),
+) -> Vec<u8> {
+    let mut c = ist_monitor::cloud::pointcloud2::decode(payload).unwrap();
+    change(&mut c);
+    ist_monitor::msg::encode(&c).unwrap()
+}
+
 /// Writes the demo bag with the [`FAULTS`] to `path`: an all-NaN cloud, a stamp of 0, a stamp
 /// 1 s old and one 1 s ahead of the log time, a frame no transform reaches, a height the data
 /// does not hold, and no joint state in the 0.15 s before a cloud.
 pub fn write_fault_bag(path: &Path) {
-    use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
-    use ist_monitor::cloud::pointcloud2;
-    use ist_monitor::msg;
-    let messages = read_messages(Path::new(DEMO_BAG), &|_, _| true).unwrap();
-    let clouds: Vec<u64> = messages
-        .iter()
-        .filter(|m| &*m.topic == "/camera/depth/points")
-        .map(|m| m.log_time_ns)
-        .collect();
-    let gap = clouds[24];
-    let mut w = BagWriter::create(path, Compression::None).unwrap();
-    let mut cloud = 0;
-    for m in &messages {
-        let t = m.log_time_ns;
-        let mut data = m.data.to_vec();
-        if &*m.topic == "/joint_states" && t > gap - 150_000_000 && t <= gap + 50_000_000 {
-            continue;
+    use ist_monitor::msg::Time;
+    let clouds =
+        ist_monitor::bag::read_messages(Path::new(DEMO_BAG), &|t, _| t == DEMO_CLOUD_TOPIC)
+            .unwrap();
+    let gap = clouds[24].log_time_ns;
+    edit_demo_bag(path, |topic, t, cloud, data| {
+        if topic == "/joint_states" && t > gap - 150_000_000 && t <= gap + 50_000_000 {
+            return None;
         }
-        if &*m.topic == "/camera/depth/points" {
-            let mut c = pointcloud2::decode(&m.data).unwrap();
-            let log = t as i64;
-            match cloud {
-                3 => c.data = std::borrow::Cow::Owned(vec![0xFF; c.data.len()]),
-                6 => c.header.stamp = msg::Time::from_nanos(0),
-                9 => c.header.stamp = msg::Time::from_nanos(log - 1_000_000_000),
-                12 => c.header.stamp = msg::Time::from_nanos(log + 1_000_000_000),
-                15 => c.header.frame_id = "nowhere".into(),
-                18 => c.height *= 2,
-                _ => {}
-            }
-            data = msg::encode(&c).unwrap();
-            cloud += 1;
-        }
-        w.write_cdr(&m.topic, &m.schema, t, &data).unwrap();
-    }
-    w.finish().unwrap();
+        let log = t as i64;
+        Some(match cloud {
+            Some(3) => edit_cloud(data, |c| c.data = vec![0xFF; c.data.len()].into()),
+            Some(6) => edit_cloud(data, |c| c.header.stamp = Time::from_nanos(0)),
+            Some(9) => edit_cloud(data, |c| {
+                c.header.stamp = Time::from_nanos(log - 1_000_000_000)
+            }),
+            Some(12) => edit_cloud(data, |c| {
+                c.header.stamp = Time::from_nanos(log + 1_000_000_000)
+            }),
+            Some(15) => edit_cloud(data, |c| c.header.frame_id = "nowhere".into()),
+            Some(18) => edit_cloud(data, |c| c.height *= 2),
+            _ => data.to_vec(),
+        })
+    });
+}
+
+/// The demo arm's trees, built into the default cache (so that a node started after loads them
+/// in milliseconds).
+pub fn demo_trees() -> (
+    ist_monitor::robot::RobotModel,
+    Vec<ist_monitor::ist::LinkTree>,
+) {
+    use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
+    let model = ist_monitor::robot::RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();
+    let trees = build_robot(
+        &model,
+        &BuildOptions::default(),
+        Some(&TreeCache::at(None)),
+        &|_| {},
+    )
+    .unwrap()
+    .into_iter()
+    .map(|(t, _)| t)
+    .collect();
+    (model, trees)
 }

@@ -70,13 +70,10 @@ fn runtime_dir() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| usable(std::path::Path::new(&d))) {
         return;
     }
-    // Owned by us: the uid of a file we just made.
-    let probe = std::env::temp_dir().join(format!("ist_monitor-uid-{}", std::process::id()));
-    let uid = std::fs::File::create(&probe)
-        .and_then(|f| f.metadata())
-        .map(|m| m.uid());
-    let _ = std::fs::remove_file(&probe);
-    let Ok(uid) = uid else { return };
+    // Our uid: the owner of our own /proc entry.
+    let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+        return;
+    };
     // runtime-UID, or one of this process where that name is taken by another user (inside a
     // user namespace, for one).
     for name in [
