@@ -20,7 +20,8 @@ fn query(c: &mut Criterion) {
         eprintln!("skipped: {} is absent", shared.display());
         return;
     }
-    let scenario = load_scenario(shared, ScenarioName::Kinect).expect("scenario");
+    let demo = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scenario = load_scenario(shared, demo, ScenarioName::Kinect).expect("scenario");
     let cache = TreeCache::at(None);
     let trees: Vec<_> = build_robot(
         &scenario.model,
@@ -34,13 +35,8 @@ fn query(c: &mut Criterion) {
     .collect();
     let mut engine =
         Engine::new(&scenario.model, &trees, &LinkSelection::default()).expect("engine");
-    let k = &scenario.model.kinematics;
-    let poses = k.link_poses(
-        &k.values_from_names(&scenario.poses[0].1, Some(0.0))
-            .expect("joints"),
-    );
-    let points = &scenario.clouds[0].1.points;
-    let sensor = scenario.root_from_sensor;
+    let case = &scenario.cases[0];
+    let (points, sensor, poses) = (&case.points, case.root_from_sensor, &case.link_poses);
     let mut group = c.benchmark_group("kinect_panda_ready");
     group.bench_function("floor_touch_every_point", |b| {
         b.iter(|| peers::touch_every_point(points))
@@ -56,14 +52,14 @@ fn query(c: &mut Criterion) {
             group.bench_function(name.to_lowercase(), |b| {
                 b.iter(|| {
                     engine
-                        .query(points, &sensor, &poses, &options)
+                        .query(points, &sensor, poses, &options)
                         .expect("query")
                 })
             });
         }
     }
     group.bench_function("peer_b_parry_shared_bound", |b| {
-        b.iter(|| peers::exact_shared_bound(&engine, points, &sensor, &poses))
+        b.iter(|| peers::exact_shared_bound(&engine, points, &sensor, poses))
     });
     group.finish();
 }

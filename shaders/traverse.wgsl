@@ -74,7 +74,7 @@ struct Params {
     n_work: u32,
     pass_kind: u32,
     capacity: u32,
-    pad0: u32,
+    per_link_range: f32,
     pad1: u32,
     pad2: u32,
 }
@@ -220,18 +220,24 @@ fn descend(l: u32, q: vec3<f32>, bound: f32) -> Hit {
 
 // The largest inner-sphere distance of link `l` that can still change the result.
 fn threshold(l: u32) -> f32 {
+    // bounds.rs threshold(), the same rule.
     let g = as_f32(atomicLoad(&state.global));
-    var t = g;
-    if params.per_link != 0u {
-        t = as_f32(atomicLoad(&minima[l]));
-    }
-    if params.mode == MODE_CERTIFIED && params.per_link == 0u {
-        t = max(t, as_f32(atomicLoad(&state.global_lower)) + links[l].gap);
+    let gap = links[l].gap;
+    var needed = g;
+    if params.mode == MODE_CERTIFIED {
+        needed = max(g, as_f32(atomicLoad(&state.global_lower)) + gap);
     }
     if params.mode == MODE_EXACT {
-        t = max(t, g + links[l].gap);
+        needed = g + gap;
     }
-    return t;
+    if params.per_link == 0u {
+        return needed;
+    }
+    let own = as_f32(atomicLoad(&minima[l]));
+    if params.mode == MODE_EXACT {
+        return max(needed, min(own, params.per_link_range));
+    }
+    return min(own, max(needed, params.per_link_range));
 }
 
 fn record(l: u32, point: u32, d: f32) {

@@ -53,6 +53,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("self_filter", "true", "", "drop cloud points on the robot itself"),
     p("self_filter_padding", "0.01", "m", "a point this close to the robot is the robot"),
     p("per_link", "true", "", "also compute the minimum of every link"),
+    p("per_link_range", "~", "m", "per-link minima are measured up to this distance; a link farther away is reported as farther than a certified bound, which costs far less (default: warn_distance + hysteresis; .inf: every link measured)"),
     p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points on a hardware GPU"),
     p("gpu_min_points", "100000", "points", "crossover of backend auto (measure it with `ist_monitor bench gpu`)"),
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
@@ -435,6 +436,15 @@ impl Config {
             Yaml::Real(s) if s == ".inf" => f64::INFINITY,
             _ => v.distance("max_distance", "max_distance")?,
         } as f32;
+        let warn_distance_m = v.distance("warn_distance", "warn_distance")?;
+        let stop_distance_m = v.distance("stop_distance", "stop_distance")?;
+        if stop_distance_m > warn_distance_m {
+            return Err(Values::bad(
+                "stop_distance",
+                format!("{stop_distance_m} m is above warn_distance {warn_distance_m} m"),
+            ));
+        }
+        let hysteresis_m = v.distance("hysteresis", "hysteresis")?;
         let query = QueryOptions {
             mode,
             max_distance_m,
@@ -444,6 +454,11 @@ impl Config {
                 .transpose()?
                 .map(|x| x as f32),
             per_link: v.bool("per_link", "per_link")?,
+            per_link_range_m: match v.raw("per_link_range", "per_link_range") {
+                Yaml::Null => (warn_distance_m + hysteresis_m) as f32,
+                Yaml::Real(s) if s == ".inf" => f32::INFINITY,
+                _ => v.distance("per_link_range", "per_link_range")? as f32,
+            },
             backend: match v.string("backend", "backend")?.as_str() {
                 "cpu" => Backend::Cpu,
                 "gpu" => Backend::Gpu,
@@ -570,15 +585,6 @@ impl Config {
                 format!("{} values for {} names", positions.len(), names.len()),
             ));
         }
-        let warn_distance_m = v.distance("warn_distance", "warn_distance")?;
-        let stop_distance_m = v.distance("stop_distance", "stop_distance")?;
-        if stop_distance_m > warn_distance_m {
-            return Err(Values::bad(
-                "stop_distance",
-                format!("{stop_distance_m} m is above warn_distance {warn_distance_m} m"),
-            ));
-        }
-        let hysteresis_m = v.distance("hysteresis", "hysteresis")?;
         // A padding that reaches the stop threshold would filter an obstacle at the stop
         // distance as "robot": the stop could never be raised by it.
         // (Compared in f32, the precision the query filters in.)

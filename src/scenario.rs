@@ -216,8 +216,8 @@ pub fn link_from_optical() -> Isometry3<f64> {
 /// Why a scenario cannot be generated.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    #[error("the robot has no link {CAMERA_LINK} to mount the camera on")]
-    NoCameraLink,
+    #[error("the robot has no link {0} to mount the camera on")]
+    NoCameraLink(String),
     #[error("link {0} has collision geometry but is not in the robot's kinematics")]
     NotInKinematics(String),
     #[error("joint values: {0}")]
@@ -228,6 +228,215 @@ pub enum ScenarioError {
     Cloud(#[from] CloudError),
 }
 
+/// Where the camera is mounted: a link of the robot and the optical frame's pose in it.
+#[derive(Debug, Clone)]
+pub struct Mount {
+    pub link: String,
+    pub link_from_optical: Isometry3<f64>,
+}
+
+impl Mount {
+    /// The demo robot's fixed camera: [`OPTICAL_FRAME`] under [`CAMERA_LINK`].
+    pub fn fixed() -> Self {
+        Self {
+            link: CAMERA_LINK.into(),
+            link_from_optical: link_from_optical(),
+        }
+    }
+}
+
+/// One rendered depth frame.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Joint values (the kinematics' variables) and the link poses they give.
+    pub joints: Vec<f64>,
+    pub link_poses: Vec<Isometry3<f64>>,
+    /// `root_from_optical`: the cloud's frame in the robot's root.
+    pub root_from_sensor: Isometry3<f64>,
+    /// Organized, row-major, NaN where no return; in the optical frame.
+    pub points: Vec<[f32; 3]>,
+    /// Exact minimum distance between the robot's meshes and the obstacle points (`None`: no
+    /// obstacle point, or not asked for).
+    pub truth_m: Option<f64>,
+    pub obstacle_points: usize,
+    pub robot_points: usize,
+}
+
+/// The simulated camera and scene: renders frames along the scene's trajectory, drawing noise
+/// from one stream in frame order (the same seed gives the same frames).
+pub struct Renderer<'a> {
+    model: &'a RobotModel,
+    params: ScenarioParams,
+    camera: usize,
+    link_from_optical: Isometry3<f64>,
+    solids: Vec<(usize, Vec<Solid>)>,
+    fx: f64,
+    cx: f64,
+    cy: f64,
+    noise: Noise,
+}
+
+impl<'a> Renderer<'a> {
+    pub fn new(
+        model: &'a RobotModel,
+        params: &ScenarioParams,
+        mount: &Mount,
+    ) -> Result<Self, ScenarioError> {
+        let k = &model.kinematics;
+        let camera = k
+            .link_index(&mount.link)
+            .ok_or_else(|| ScenarioError::NoCameraLink(mount.link.clone()))?;
+        let solids: Vec<(usize, Vec<Solid>)> = model
+            .links
+            .iter()
+            .map(|l| {
+                let index = k
+                    .link_index(&l.name)
+                    .ok_or_else(|| ScenarioError::NotInKinematics(l.name.clone()))?;
+                Ok((
+                    index,
+                    l.elements.iter().map(|e| Solid::new(&e.mesh)).collect(),
+                ))
+            })
+            .collect::<Result<_, ScenarioError>>()?;
+        let w = params.width as f64;
+        let fx = 0.5 * w / (0.5 * params.hfov_deg.to_radians()).tan();
+        Ok(Self {
+            model,
+            params: params.clone(),
+            camera,
+            link_from_optical: mount.link_from_optical,
+            solids,
+            fx,
+            cx: 0.5 * (w - 1.0),
+            cy: 0.5 * (params.height as f64 - 1.0),
+            noise: Noise(params.seed),
+        })
+    }
+
+    /// The pinhole matrix K (fx = fy, principal point at the image centre).
+    pub fn k(&self) -> [f64; 9] {
+        let (fx, cx, cy) = (self.fx, self.cx, self.cy);
+        [fx, 0.0, cx, 0.0, fx, cy, 0.0, 0.0, 1.0]
+    }
+
+    /// The unit ray of pixel `i` (row-major) in the optical frame.
+    fn ray(&self, i: usize) -> Vector3<f64> {
+        let w = self.params.width as usize;
+        let (u, v) = ((i % w) as f64, (i / w) as f64);
+        Vector3::new((u - self.cx) / self.fx, (v - self.cy) / self.fx, 1.0).normalize()
+    }
+
+    /// The scene's joint values at `s` ∈ [0, 1] of its trajectory.
+    pub fn joints(&self, s: f64) -> Result<Vec<f64>, ScenarioError> {
+        let named = joints_at(self.params.scene, s);
+        Ok(self.model.kinematics.values_from_names(&named, Some(0.0))?)
+    }
+
+    /// Renders the frame at `s` ∈ [0, 1]; the exact truth only when `truth` is asked (it costs
+    /// one exact distance per obstacle point).
+    pub fn frame(&mut self, s: f64, truth: bool) -> Result<Frame, ScenarioError> {
+        let params = &self.params;
+        let (w, h) = (params.width as usize, params.height as usize);
+        let q = self.joints(s)?;
+        let poses = self.model.kinematics.link_poses(&q);
+        let world_from_optical = poses[self.camera] * self.link_from_optical;
+        let origin = world_from_optical.translation.vector.into();
+        let scene = obstacles(params.scene, s);
+        let solids = &self.solids;
+        // One ray per pixel: (range, on the robot), in row-major order.
+        let hits: Vec<Option<(f64, bool)>> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let d = world_from_optical.rotation * self.ray(i);
+                let mut best: Option<(f64, bool)> = None;
+                let mut take = |t: Option<f64>, robot: bool| {
+                    if let Some(t) = t.filter(|t| best.is_none_or(|b| *t < b.0)) {
+                        best = Some((t, robot));
+                    }
+                };
+                for (shape, pose) in &scene {
+                    take(
+                        ray_hit(shape.as_ref(), pose, &origin, &d, params.max_range_m),
+                        false,
+                    );
+                }
+                for (link, elements) in solids {
+                    let lo = poses[*link].inverse_transform_point(&origin);
+                    let ld = poses[*link].inverse_transform_vector(&d);
+                    for e in elements {
+                        let hit = e.cast_ray(
+                            [lo.x as f32, lo.y as f32, lo.z as f32],
+                            [ld.x as f32, ld.y as f32, ld.z as f32],
+                            params.max_range_m as f32,
+                        );
+                        take(hit.map(f64::from), true);
+                    }
+                }
+                best
+            })
+            .collect();
+        // Noise and holes, in pixel order from the one stream; then the points.
+        let mut points = vec![[f32::NAN; 3]; w * h];
+        let mut obstacle = Vec::new();
+        let mut robot_points = 0;
+        for (i, hit) in hits.iter().enumerate() {
+            let dropped = self.noise.uniform() < params.holes;
+            let n = self.noise.gaussian().clamp(-2.5, 2.5) * params.noise_m;
+            let Some((t, on_robot)) = *hit else { continue };
+            if dropped {
+                continue;
+            }
+            let p = self.ray(i) * (t + n);
+            points[i] = [p.x as f32, p.y as f32, p.z as f32];
+            if on_robot {
+                robot_points += 1;
+            } else {
+                obstacle.push(
+                    world_from_optical
+                        * Point3::new(p.x as f32 as f64, p.y as f32 as f64, p.z as f32 as f64),
+                );
+            }
+        }
+        // The truth: exact distance from every obstacle point to the robot's meshes.
+        let truth_m = if truth {
+            let best = obstacle
+                .par_iter()
+                .map(|p| {
+                    let mut best = f64::INFINITY;
+                    for (link, elements) in solids {
+                        let lp = poses[*link].inverse_transform_point(p);
+                        let lp = [lp.x as f32, lp.y as f32, lp.z as f32];
+                        for e in elements {
+                            let (lo, hi) = e.bounds();
+                            let gap: f32 = (0..3)
+                                .map(|a| (lo[a] - lp[a]).max(lp[a] - hi[a]).max(0.0).powi(2))
+                                .sum::<f32>()
+                                .sqrt();
+                            if f64::from(gap) < best {
+                                best = best.min(f64::from(e.distance(lp).0));
+                            }
+                        }
+                    }
+                    best
+                })
+                .reduce(|| f64::INFINITY, f64::min);
+            best.is_finite().then_some(best)
+        } else {
+            None
+        };
+        Ok(Frame {
+            joints: q,
+            link_poses: poses,
+            root_from_sensor: world_from_optical,
+            points,
+            truth_m,
+            obstacle_points: obstacle.len(),
+            robot_points,
+        })
+    }
+}
+
 /// Generates a bag at `out` (a rosbag2 folder, or a `.mcap` file).
 pub fn generate(
     model: &RobotModel,
@@ -235,31 +444,7 @@ pub fn generate(
     out: &Path,
 ) -> Result<Generated, ScenarioError> {
     let k = &model.kinematics;
-    let camera = k
-        .link_index(CAMERA_LINK)
-        .ok_or(ScenarioError::NoCameraLink)?;
-    let solids: Vec<(usize, Vec<Solid>)> = model
-        .links
-        .iter()
-        .map(|l| {
-            let index = k
-                .link_index(&l.name)
-                .ok_or_else(|| ScenarioError::NotInKinematics(l.name.clone()))?;
-            Ok((
-                index,
-                l.elements.iter().map(|e| Solid::new(&e.mesh)).collect(),
-            ))
-        })
-        .collect::<Result<_, ScenarioError>>()?;
-    let (w, h) = (params.width as usize, params.height as usize);
-    let fx = 0.5 * w as f64 / (0.5 * params.hfov_deg.to_radians()).tan();
-    let (cx, cy) = (0.5 * (w as f64 - 1.0), 0.5 * (h as f64 - 1.0));
-    // The unit ray of pixel `i` (row-major) in the optical frame.
-    let ray = |i: usize| {
-        let (u, v) = ((i % w) as f64, (i / w) as f64);
-        Vector3::new((u - cx) / fx, (v - cy) / fx, 1.0).normalize()
-    };
-    let mut noise = Noise(params.seed);
+    let mut renderer = Renderer::new(model, params, &Mount::fixed())?;
     let mut writer = BagWriter::create(out, params.compression)?;
     let stamp = |ns: i64| Header {
         stamp: Time::from_nanos(ns),
@@ -297,102 +482,20 @@ pub fn generate(
     };
     for j in 0..=joint_samples {
         let t_ns = START_NS + (j as f64 * 1e9 / JOINT_RATE_HZ).round() as i64;
-        let named = joints_at(params.scene, s_at(j));
-        let q = k.values_from_names(&named, Some(0.0))?;
         writer.write(
             "/joint_states",
             (t_ns + 1_000_000) as u64,
             &JointState {
                 header: stamp(t_ns),
                 name: k.variables().to_vec(),
-                position: q.clone(),
+                position: renderer.joints(s_at(j))?,
                 ..JointState::default()
             },
         )?;
         if j % per_cloud != 0 {
             continue;
         }
-        let poses = k.link_poses(&q);
-        let world_from_optical = poses[camera] * link_from_optical();
-        let origin = world_from_optical.translation.vector.into();
-        let scene = obstacles(params.scene, s_at(j));
-        // One ray per pixel: (range, on the robot), in row-major order.
-        let hits: Vec<Option<(f64, bool)>> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let d = world_from_optical.rotation * ray(i);
-                let mut best: Option<(f64, bool)> = None;
-                let mut take = |t: Option<f64>, robot: bool| {
-                    if let Some(t) = t.filter(|t| best.is_none_or(|b| *t < b.0)) {
-                        best = Some((t, robot));
-                    }
-                };
-                for (shape, pose) in &scene {
-                    take(
-                        ray_hit(shape.as_ref(), pose, &origin, &d, params.max_range_m),
-                        false,
-                    );
-                }
-                for (link, elements) in &solids {
-                    let lo = poses[*link].inverse_transform_point(&origin);
-                    let ld = poses[*link].inverse_transform_vector(&d);
-                    for e in elements {
-                        let hit = e.cast_ray(
-                            [lo.x as f32, lo.y as f32, lo.z as f32],
-                            [ld.x as f32, ld.y as f32, ld.z as f32],
-                            params.max_range_m as f32,
-                        );
-                        take(hit.map(f64::from), true);
-                    }
-                }
-                best
-            })
-            .collect();
-        // Noise and holes, in pixel order from the one stream; then the points.
-        let mut points = vec![[f32::NAN; 3]; w * h];
-        let mut obstacle = Vec::new();
-        let mut robot_points = 0;
-        for (i, hit) in hits.iter().enumerate() {
-            let dropped = noise.uniform() < params.holes;
-            let n = noise.gaussian().clamp(-2.5, 2.5) * params.noise_m;
-            let Some((t, on_robot)) = *hit else { continue };
-            if dropped {
-                continue;
-            }
-            let p = ray(i) * (t + n);
-            points[i] = [p.x as f32, p.y as f32, p.z as f32];
-            if on_robot {
-                robot_points += 1;
-            } else {
-                obstacle.push(
-                    world_from_optical
-                        * Point3::new(p.x as f32 as f64, p.y as f32 as f64, p.z as f32 as f64),
-                );
-            }
-        }
-        // The truth: exact distance from every obstacle point to the robot's meshes.
-        let truth = obstacle
-            .par_iter()
-            .map(|p| {
-                let mut best = f64::INFINITY;
-                for (link, elements) in &solids {
-                    let lp = poses[*link].inverse_transform_point(p);
-                    let lp = [lp.x as f32, lp.y as f32, lp.z as f32];
-                    for e in elements {
-                        let (lo, hi) = e.bounds();
-                        let gap: f32 = (0..3)
-                            .map(|a| (lo[a] - lp[a]).max(lp[a] - hi[a]).max(0.0).powi(2))
-                            .sum::<f32>()
-                            .sqrt();
-                        if f64::from(gap) < best {
-                            best = best.min(f64::from(e.distance(lp).0));
-                        }
-                    }
-                }
-                best
-            })
-            .reduce(|| f64::INFINITY, f64::min);
-        let t_ns = START_NS + (j as f64 * 1e9 / JOINT_RATE_HZ).round() as i64;
+        let frame = renderer.frame(s_at(j), true)?;
         let log_ns = (t_ns + 20_000_000) as u64;
         let header = Header {
             frame_id: OPTICAL_FRAME.into(),
@@ -401,8 +504,10 @@ pub fn generate(
         writer.write(
             CLOUD_TOPIC,
             log_ns,
-            &cloud_message(&header, params, &points)?,
+            &cloud_message(&header, params, &frame.points)?,
         )?;
+        let k = renderer.k();
+        let (fx, cx, cy) = (k[0], k[2], k[5]);
         writer.write(
             CAMERA_INFO_TOPIC,
             log_ns,
@@ -412,19 +517,18 @@ pub fn generate(
                 width: params.width,
                 distortion_model: "plumb_bob".into(),
                 d: vec![0.0; 5],
-                k: [fx, 0.0, cx, 0.0, fx, cy, 0.0, 0.0, 1.0],
+                k,
                 r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
                 p: [fx, 0.0, cx, 0.0, 0.0, fx, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
                 ..CameraInfo::default()
             },
         )?;
-        let truth = truth.is_finite().then_some(truth);
-        if let Some(d) = truth {
+        if let Some(d) = frame.truth_m {
             writer.write(GROUND_TRUTH_TOPIC, log_ns, &crate::msg::Float64 { data: d })?;
         }
-        result.truth_m.push(truth);
-        result.obstacle_points.push(obstacle.len());
-        result.robot_points.push(robot_points);
+        result.truth_m.push(frame.truth_m);
+        result.obstacle_points.push(frame.obstacle_points);
+        result.robot_points.push(frame.robot_points);
     }
     writer.finish()?;
     Ok(result)

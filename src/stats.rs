@@ -11,12 +11,13 @@ pub fn percentile(sorted: &[f64], q: f64) -> Option<f64> {
     Some(sorted[at])
 }
 
-/// Median and spread (10th and 90th percentiles) of timing samples.
+/// Median and spread (10th, 90th and 99th percentiles) of timing samples.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Spread {
     pub median: f64,
     pub p10: f64,
     pub p90: f64,
+    pub p99: f64,
 }
 
 impl Spread {
@@ -28,6 +29,7 @@ impl Spread {
             median: at(0.5),
             p10: at(0.1),
             p90: at(0.9),
+            p99: at(0.99),
         }
     }
 }

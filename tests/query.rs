@@ -259,6 +259,129 @@ proptest! {
         prop_assert_eq!(c.invalid, points.iter().filter(|p| !ist_monitor::query::is_valid_point(**p)).count() as u64);
     }
 
+    /// Per-link minima within `per_link_range_m`: every link is either measured, with the
+    /// brute-force minimum of its inner-sphere distance, or reported as farther than a bound
+    /// that the brute-force minimum does exceed, with a lower bound that holds for the exact
+    /// distance; the nearest link is always measured, and the global answer is the one without
+    /// per-link minima.
+    #[test]
+    fn per_link_range_against_brute_force(
+        seed in 1u64..,
+        links in 2usize..5,
+        range in prop::sample::select(vec![0.0f32, 0.05, 0.2, f32::INFINITY]),
+        mode in prop::sample::select(vec![Mode::Fast, Mode::Certified, Mode::Exact]),
+    ) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, links, 96);
+        let mut engine = scene.engine();
+        let points = cloud(&mut rng, 600, &Isometry3::identity());
+        let options = QueryOptions { mode, per_link: true, per_link_range_m: range, ..all_points() };
+        let r = scene.run(&mut engine, &points, &options);
+        let global = scene.run(&mut engine, &points, &QueryOptions { per_link: false, ..options.clone() });
+        prop_assert!((distance(&r) - distance(&global)).abs() < 1e-6);
+        let nearest = &r.nearest.as_ref().unwrap().link;
+        for (l, got) in r.links.iter().enumerate() {
+            let one = Scene {
+                geometry: vec![scene.geometry[l].clone()],
+                trees: vec![scene.trees[l].clone()],
+                link_poses: vec![scene.link_poses[l]],
+            };
+            let (exact, spheres) = one.brute_force(&points, &Isometry3::identity());
+            match (got.distance_m, got.farther_than_m) {
+                (Some(d), None) => prop_assert!((d - spheres).abs() < 1e-5,
+                    "{}: measured {d}, brute force {spheres}", got.link),
+                (None, Some(t)) => {
+                    prop_assert!(&got.link != nearest, "the nearest link {nearest} was not measured");
+                    prop_assert!(t <= spheres + 1e-5, "{}: farther than {t}, brute force {spheres}", got.link);
+                    if range.is_finite() {
+                        prop_assert!(spheres + 1e-5 >= f64::from(range).min(distance(&global)),
+                            "{}: not measured at {spheres} m, below the range {range}", got.link);
+                    }
+                }
+                other => prop_assert!(false, "{}: {other:?}", got.link),
+            }
+            if let Some(lower) = got.lower_m {
+                prop_assert!(lower <= exact + 1e-5, "{}: lower {lower} above exact {exact}", got.link);
+            }
+        }
+    }
+
+    /// A cloud whose points repeat (runs of one point over many blocks, and points repeated
+    /// inside blocks) gives the answer of the same cloud without the repeats, in every mode,
+    /// with the counts of every copy; exact mode refines each repeated point once.
+    #[test]
+    fn repeated_points_as_the_cloud_without_them(
+        seed in 1u64..,
+        copies in prop::sample::select(vec![2usize, 7, 40, 1000]),
+        per_link: bool,
+    ) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, 2, 64);
+        let mut engine = scene.engine();
+        let base = cloud(&mut rng, 50, &Isometry3::identity());
+        let repeated: Vec<[f32; 3]> = base.iter().flat_map(|&p| std::iter::repeat_n(p, copies)).collect();
+        for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
+            let options = QueryOptions { mode, per_link, ..all_points() };
+            let a = scene.run(&mut engine, &base, &options);
+            let b = scene.run(&mut engine, &repeated, &options);
+            prop_assert_eq!(distance(&a), distance(&b));
+            prop_assert_eq!(&a.nearest.as_ref().unwrap().link, &b.nearest.as_ref().unwrap().link);
+            // The copy reported is the first of the point's copies.
+            prop_assert_eq!(b.nearest.as_ref().unwrap().point_index as usize,
+                a.nearest.as_ref().unwrap().point_index as usize * copies);
+            let (ca, cb) = (a.counts, b.counts);
+            prop_assert_eq!(cb.total, ca.total * copies as u64);
+            prop_assert_eq!(cb.invalid, ca.invalid * copies as u64);
+            prop_assert_eq!(cb.invalid + cb.outside_roi + cb.self_filtered + cb.pruned + cb.evaluated, cb.total);
+            if mode == Mode::Exact {
+                prop_assert!(cb.exact_refined <= ca.exact_refined.max(1) * 2,
+                    "{} refinements for {} without repeats", cb.exact_refined, ca.exact_refined);
+            }
+        }
+    }
+
+    /// The self-filter on blocks (a block within the padding of one sphere is taken whole, a
+    /// point near the sphere that took the one before it is taken at once) filters exactly the
+    /// points that lie within the padding of an inner sphere: never one farther.
+    #[test]
+    fn self_filter_takes_exactly_the_points_within_the_padding(seed in 1u64.., padding in 0.005f32..0.05) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, 2, 64);
+        let mut engine = scene.engine();
+        // Runs of points along a line through the surface of every 7th inner sphere, 1 cm
+        // apart (coherent, like image rows), in the root frame (the sensor's).
+        let mut points = Vec::new();
+        for (t, pose) in scene.trees.iter().zip(&scene.link_poses) {
+            for s in t.spheres.iter().step_by(7) {
+                let c = pose * Point3::new(s.center[0] as f64, s.center[1] as f64, s.center[2] as f64);
+                let dir = Vector3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0))
+                    .try_normalize(1e-9).unwrap_or(Vector3::x());
+                for k in 0..12 {
+                    let q = c + dir * (f64::from(s.radius) + 0.005 * k as f64 - 0.01);
+                    points.push([q.x as f32, q.y as f32, q.z as f32]);
+                }
+            }
+        }
+        let options = QueryOptions { mode: Mode::Fast, self_filter_padding_m: Some(padding), ..all_points() };
+        let r = scene.run(&mut engine, &points, &options);
+        let (mut within, mut borderline) = (0u64, 0u64);
+        for p in &points {
+            let root = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let d = scene.trees.iter().zip(&scene.link_poses).map(|(t, pose)| {
+                let q = pose.inverse() * root;
+                sphere_distance(&t.spheres, [q.x, q.y, q.z])
+            }).fold(f64::INFINITY, f64::min);
+            // Within 1e-5 m of the padding a point may go either way (f32 transforms).
+            if (d - f64::from(padding)).abs() < 1e-5 {
+                borderline += 1;
+            } else if d < f64::from(padding) {
+                within += 1;
+            }
+        }
+        prop_assert!(r.counts.self_filtered >= within && r.counts.self_filtered <= within + borderline,
+            "{} self-filtered, {within} within the padding (+{borderline} borderline)", r.counts.self_filtered);
+    }
+
     /// The same scene 10 km and 1000 km from the map origin gives the same answer (1e-4 m):
     /// poses are composed in f64 before anything is rounded.
     #[test]

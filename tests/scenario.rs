@@ -48,8 +48,10 @@ fn kinect_panda_reference_distances() {
         mode: Mode::Exact,
         ..QueryOptions::default()
     };
+    // Every link measured (the node's default measures only links within per_link_range).
     let certified = QueryOptions {
         mode: Mode::Certified,
+        per_link_range_m: f32::INFINITY,
         ..QueryOptions::default()
     };
 
@@ -93,6 +95,21 @@ fn kinect_panda_reference_distances() {
             lo - 1e-3 <= reference && reference <= hi + 1e-3,
             "{link}: [{lo}, {hi}] does not hold {reference}"
         );
+        // With the default range, a link farther than it is bounded from below, correctly.
+        let d = engine
+            .query(&points, &sensor, &ready, &QueryOptions::default())
+            .unwrap();
+        let l = d.links.iter().find(|l| l.link == link).unwrap();
+        let lower = l.lower_m.unwrap();
+        assert!(
+            lower <= reference + 1e-3,
+            "{link}: lower {lower} above {reference}"
+        );
+        match (l.distance_m, l.farther_than_m) {
+            (Some(_), None) => assert!(reference <= 0.32 + 1e-3 || link == n.link),
+            (None, Some(t)) => assert!(t <= hi + 1e-6 && reference > 0.32 - 1e-3, "{link}: > {t}"),
+            other => panic!("{link}: {other:?}"),
+        }
     }
 
     let reach = pose("reach_table");

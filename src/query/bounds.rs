@@ -13,7 +13,7 @@ use std::sync::Mutex;
 use nalgebra::Isometry3;
 
 use super::layout::{Candidate, PosedLink, RobotBox};
-use super::{pose, QueryLink, QueryOptions};
+use super::{pose, Mode, QueryLink, QueryOptions};
 
 /// An empty per-link minimum.
 pub(crate) const EMPTY: u64 = u64::MAX;
@@ -43,6 +43,48 @@ pub(crate) fn load_distance(a: &AtomicU64) -> f32 {
 #[inline]
 pub(crate) fn load_f32(a: &AtomicU32) -> f32 {
     f32::from_bits(a.load(Relaxed))
+}
+
+/// The largest inner-sphere distance of a link that can still change the result: the pruning
+/// rule of both backends (the shader's `threshold` is the same), and, from the final values,
+/// the bound a link not measured is known to exceed.
+///
+/// `global` and `global_lower` are the smallest inner-sphere distance and certified lower bound
+/// found so far, `link_best` the link's own minimum so far, `gap` its surface gap h.
+/// - Without per-link minima a point matters to a link only if it can lower the global minimum
+///   (fast), the global lower bound `d − h` (certified), or be an exact candidate, `d − h ≤ U`
+///   (exact).
+/// - With per-link minima a point also matters while it can lower the link's own minimum, but
+///   only below `range` (`QueryOptions::per_link_range_m`): beyond it a link's minimum cannot
+///   change a decision, and the link is reported as "farther than" the final threshold.
+///
+/// Every input only decreases during a query, so the threshold only decreases: a point pruned
+/// at any time lies farther than the final threshold.
+#[inline(always)]
+pub(crate) fn threshold(
+    mode: Mode,
+    per_link: bool,
+    range: f32,
+    global: f32,
+    global_lower: f32,
+    link_best: f32,
+    gap: f32,
+) -> f32 {
+    let needed = match mode {
+        Mode::Fast => global,
+        Mode::Certified => global.max(global_lower + gap),
+        Mode::Exact => global + gap,
+    };
+    if !per_link {
+        return needed;
+    }
+    match mode {
+        // Exact candidates are needed whatever the link's own minimum.
+        Mode::Exact => needed.max(link_best.min(range)),
+        // A point farther than the link's minimum changes neither it nor the global bounds
+        // (the link's minimum is already in them).
+        _ => link_best.min(needed.max(range)),
+    }
 }
 
 /// Memory reused from query to query by both backends.

@@ -29,20 +29,47 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 use wide::{f32x8, CmpEq, CmpLt};
 
-use super::bounds::{load_distance, load_f32, pack_minimum, Bounds};
-use super::descent::{dist, dist2, lower_bounds, nearest_from, valid};
+use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
+use super::descent::{any_within, dist, dist2, lower_bounds, nearest_from, valid};
 use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts, MAX_LINKS};
 
 /// Sample points (and their blocks) that seed each link.
 const SEEDS: usize = 3;
 
+/// Points per sub-block: a block that survives its own tests is taken in runs of eight, each
+/// bounded by its own sphere (computed then, since most blocks never need them).
+const SUB: usize = 8;
+
+/// A block of `BLOCK` consecutive points: the bounding sphere of its valid points (the
+/// levels of the cloud-side hierarchy: run of blocks repeating one point, block, sub-block,
+/// point).
 #[derive(Clone, Copy, Default)]
 struct Block {
     center: [f32; 3],
     radius: f32,
     valid: u32,
     invalid: u32,
+    /// All valid points are the same point (a degenerate box).
+    uniform: bool,
+}
+
+/// Blocks per group of the main pass (a rayon task's unit of work).
+const GROUP: usize = 16;
+
+/// The sphere around a box `lo..hi` (radius < 0 for an empty box), rounded up so that every
+/// point lies inside despite f32 rounding.
+#[inline]
+fn sphere_of(l: [f32; 3], h: [f32; 3]) -> ([f32; 3], f32) {
+    if l[0] > h[0] {
+        return ([0.0; 3], -1.0);
+    }
+    let center = [
+        0.5 * (l[0] + h[0]),
+        0.5 * (l[1] + h[1]),
+        0.5 * (l[2] + h[2]),
+    ];
+    (center, 0.5 * dist(l, h) * (1.0 + 1e-6) + 1e-6)
 }
 
 /// Appends to `out` the frontier of a block (centre `c` in the link frame, radius `r`) in a
@@ -98,7 +125,10 @@ fn frontier(link: &QueryLink, c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32
 }
 
 /// Where one point of the main pass ended.
+#[derive(Clone, Copy, PartialEq)]
 enum PointStage {
+    /// Farther than `max_distance` from the robot's box.
+    OutsideRoi,
     /// Within the padding of this link's inner spheres.
     SelfFiltered(usize),
     Pruned,
@@ -118,6 +148,7 @@ struct Pass<'a> {
     points: &'a [[f32; 3]],
     mode: Mode,
     per_link: bool,
+    per_link_range: f32,
     /// Self-filter padding; −∞ when off.
     padding: f32,
     /// The robot's box, the region of interest (`max_distance`) with it.
@@ -128,20 +159,19 @@ impl Pass<'_> {
     /// The largest inner-sphere distance of link `l` that can still change the result.
     #[inline(always)]
     fn threshold(&self, l: usize) -> f32 {
-        let g = load_f32(self.global);
-        let mut t = if self.per_link {
-            load_distance(&self.best[l])
-        } else {
-            g
-        };
-        match self.mode {
-            Mode::Certified if !self.per_link => {
-                t = t.max(load_f32(self.global_lower) + self.posed[l].gap)
-            }
-            Mode::Exact => t = t.max(g + self.posed[l].gap),
-            _ => {}
-        }
-        t
+        threshold(
+            self.mode,
+            self.per_link,
+            self.per_link_range,
+            load_f32(self.global),
+            load_f32(self.global_lower),
+            if self.per_link {
+                load_distance(&self.best[l])
+            } else {
+                f32::INFINITY
+            },
+            self.posed[l].gap,
+        )
     }
 
     #[inline]
@@ -171,7 +201,9 @@ impl Pass<'_> {
     }
 
     /// One valid point inside the region of interest; `mask` holds the links whose frontier
-    /// (`frontier[spans[l]]`) is not empty. Returns where the point ended.
+    /// (`frontier[spans[l]]`) is not empty. `hint` is the (link, sphere) that took the block's
+    /// last self-filtered point: neighbouring points of the robot's surface lie near the same
+    /// sphere, so it is tried first. Returns where the point ended.
     #[inline]
     fn point(
         &self,
@@ -180,7 +212,15 @@ impl Pass<'_> {
         mask: u128,
         frontier: &[u32],
         spans: &[(u32, u32)],
+        hint: &mut Option<(usize, u32)>,
     ) -> PointStage {
+        if let Some((l, s)) = *hint {
+            let q = self.posed[l].in_link(p);
+            let sphere = &self.links[l].spheres[s as usize];
+            if dist(q, sphere.center) - sphere.radius <= self.padding {
+                return PointStage::SelfFiltered(l);
+            }
+        }
         // One look at the frontier nodes per link: which links may hold the point within the
         // padding (self-filter) and which within their bound (evaluation).
         let mut near = 0u128;
@@ -203,7 +243,8 @@ impl Pass<'_> {
             }
         }
         if near != 0 {
-            if let Some(l) = self.is_self(p, near, frontier, spans) {
+            if let Some((l, s)) = self.is_self(p, near, frontier, spans) {
+                *hint = Some((l, s));
                 return PointStage::SelfFiltered(l);
             }
         }
@@ -215,7 +256,8 @@ impl Pass<'_> {
         }
     }
 
-    /// The first link of `mask` with an inner sphere within the self-filter padding of `p`.
+    /// The first link of `mask` with an inner sphere within the self-filter padding of `p`,
+    /// and that sphere.
     #[inline]
     fn is_self(
         &self,
@@ -223,15 +265,23 @@ impl Pass<'_> {
         mask: u128,
         frontier: &[u32],
         spans: &[(u32, u32)],
-    ) -> Option<usize> {
+    ) -> Option<(usize, u32)> {
         if self.padding < 0.0 {
             return None;
         }
-        bits(mask).find(|&l| {
+        bits(mask).find_map(|l| {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
-            nearest_from(link, q, starts(frontier, spans, l), self.padding).is_some()
+            any_within(link, q, starts(frontier, spans, l), self.padding).map(|s| (l, s))
         })
+    }
+
+    /// Whether every point of a block (centre `c`, radius `r`, sensor frame) lies within the
+    /// padding of sphere `s` of link `l`: the block is then the robot, whole.
+    #[inline]
+    fn block_is_self(&self, c: [f32; 3], r: f32, (l, s): (usize, u32)) -> bool {
+        let sphere = &self.links[l].spheres[s as usize];
+        dist(self.posed[l].in_link(c), sphere.center) + r - sphere.radius <= self.padding
     }
 
     /// Descends the links of `mask` for an obstacle point and records its distances; returns
@@ -286,12 +336,47 @@ impl Pass<'_> {
         mask
     }
 
+    /// The links of `mask` with a frontier node within reach of the sphere (`c`, `r`): within
+    /// the link's threshold (evaluation) or the padding (self-filter).
+    #[inline]
+    fn sub_mask(
+        &self,
+        c: [f32; 3],
+        r: f32,
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+    ) -> u128 {
+        let mut out = 0u128;
+        for l in bits(mask) {
+            let link = &self.links[l];
+            let q = self.posed[l].in_link(c);
+            let reach = self.threshold(l).max(self.padding) + r;
+            for &n in starts(frontier, spans, l) {
+                let n = &link.nodes[n as usize];
+                let rr = reach + n.radius;
+                if rr >= 0.0 && dist2(q, n.center) <= rr * rr {
+                    out |= 1 << l;
+                    break;
+                }
+            }
+        }
+        out
+    }
+
+    /// One block: dropped whole (region of interest, robot box, frontiers), then sub-block by
+    /// sub-block (each tested against the block's frontier, which also narrows the links its
+    /// points descend), then point by point. A point equal to the one before it ends where
+    /// that one ended, with no work (same distance, larger index: it cannot change a minimum).
+    /// `last` is the last point measured in this run of blocks and where it ended: a block
+    /// that repeats it is not measured again.
     fn block(
         &self,
         b: usize,
         block: &Block,
         frontier: &mut Vec<u32>,
         spans: &mut [(u32, u32)],
+        last: &mut Option<([f32; 3], PointStage)>,
     ) -> StageCounts {
         let mut counts = StageCounts {
             total: (block.valid + block.invalid) as u64,
@@ -301,9 +386,19 @@ impl Pass<'_> {
         if block.valid == 0 {
             return counts;
         }
+        // A block that repeats the point before it (its sphere's centre is that point).
+        if let Some((q, stage)) = *last {
+            if block.uniform && q == block.center {
+                return counts + self.repeat(stage, u64::from(block.valid));
+            }
+        }
+        let whole = |stage: PointStage, last: &mut Option<([f32; 3], PointStage)>| {
+            *last = block.uniform.then_some((block.center, stage));
+        };
         let roi = self.robot_box.distance(block.center);
         if roi - block.radius > self.robot_box.max_distance {
             counts.outside_roi = block.valid as u64;
+            whole(PointStage::OutsideRoi, last);
             return counts;
         }
         let partial_roi = roi + block.radius > self.robot_box.max_distance;
@@ -314,26 +409,64 @@ impl Pass<'_> {
         }
         if roi - block.radius > reach && !partial_roi {
             counts.pruned = block.valid as u64;
+            whole(PointStage::Pruned, last);
             return counts;
         }
         let mask = self.frontiers(block.center, block.radius, frontier, spans);
         if mask == 0 && !partial_roi {
             counts.pruned = block.valid as u64;
+            whole(PointStage::Pruned, last);
             return counts;
         }
         let start = b * BLOCK;
         let end = (start + BLOCK).min(self.points.len());
         let mut self_by_link = [0u32; MAX_LINKS];
-        for (i, &p) in self.points[start..end].iter().enumerate() {
-            if !valid(p) {
+        let mut hint = None;
+        let mut whole_self = None;
+        for (k, chunk) in self.points[start..end].chunks(SUB).enumerate() {
+            let (c, r) = bound_sub(chunk);
+            if r < 0.0 {
                 continue;
             }
-            if partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance {
-                counts.outside_roi += 1;
-            } else if mask == 0 {
-                counts.pruned += 1;
+            let sub = if whole_self.is_some() {
+                0
             } else {
-                match self.point((start + i) as u32, p, mask, frontier, spans) {
+                self.sub_mask(c, r, mask, frontier, spans)
+            };
+            for (i, &p) in chunk.iter().enumerate() {
+                if !valid(p) {
+                    continue;
+                }
+                let stage = match *last {
+                    Some((q, stage)) if q == p => stage,
+                    _ => {
+                        let stage = if partial_roi
+                            && self.robot_box.distance(p) > self.robot_box.max_distance
+                        {
+                            PointStage::OutsideRoi
+                        } else if let Some(l) = whole_self {
+                            PointStage::SelfFiltered(l)
+                        } else if sub == 0 {
+                            PointStage::Pruned
+                        } else {
+                            let at = (start + SUB * k + i) as u32;
+                            let stage = self.point(at, p, sub, frontier, spans, &mut hint);
+                            // The first time a sphere takes a point, it may take the block.
+                            if let (PointStage::SelfFiltered(_), Some(h)) = (stage, hint) {
+                                if whole_self.is_none()
+                                    && self.block_is_self(block.center, block.radius, h)
+                                {
+                                    whole_self = Some(h.0);
+                                }
+                            }
+                            stage
+                        };
+                        *last = Some((p, stage));
+                        stage
+                    }
+                };
+                match stage {
+                    PointStage::OutsideRoi => counts.outside_roi += 1,
                     PointStage::SelfFiltered(l) => {
                         counts.self_filtered += 1;
                         self_by_link[l] += 1;
@@ -354,6 +487,25 @@ impl Pass<'_> {
             }
         }
         counts
+    }
+
+    /// The counts of `valid` more copies of a point that ended at `stage` (the rest of a run of
+    /// blocks that repeat one point).
+    fn repeat(&self, stage: PointStage, valid: u64) -> StageCounts {
+        let mut c = StageCounts::default();
+        match stage {
+            PointStage::OutsideRoi => c.outside_roi = valid,
+            PointStage::SelfFiltered(l) => {
+                c.self_filtered = valid;
+                self.self_filtered[l].fetch_add(valid, Relaxed);
+            }
+            PointStage::Pruned => c.pruned = valid,
+            PointStage::Evaluated { inside } => {
+                c.evaluated = valid;
+                c.inside = if inside { valid } else { 0 };
+            }
+        }
+        c
     }
 
     /// Seeds link `l`'s bound from the valid points of block `b` (the self-filter applies, so
@@ -496,23 +648,35 @@ fn bound_block(chunk: &[[f32; 3]]) -> Block {
             ..Block::default()
         };
     }
-    let center = [
-        0.5 * (l[0] + h[0]),
-        0.5 * (l[1] + h[1]),
-        0.5 * (l[2] + h[2]),
-    ];
-    // Rounded up so that every point lies inside despite f32 rounding.
-    let radius = 0.5 * dist(l, h) * (1.0 + 1e-6) + 1e-6;
+    let (center, radius) = sphere_of(l, h);
     Block {
         center,
         radius,
         valid: n - invalid,
         invalid,
+        uniform: l == h,
     }
 }
 
+/// The bounding sphere of the valid points of a sub-block (radius < 0: none).
+#[inline]
+fn bound_sub(chunk: &[[f32; 3]]) -> ([f32; 3], f32) {
+    let mut l = [f32::INFINITY; 3];
+    let mut h = [f32::NEG_INFINITY; 3];
+    for &p in chunk {
+        if valid(p) {
+            for k in 0..3 {
+                l[k] = l[k].min(p[k]);
+                h[k] = h[k].max(p[k]);
+            }
+        }
+    }
+    sphere_of(l, h)
+}
+
 /// A query on the CPU, once `bounds` holds the posed links (`Bounds::prepare`, which gave
-/// `robot_box`): seeds, main pass, then the shared refinement and assembly.
+/// `robot_box`): seeds, the blocks' bounds, the main pass, then the shared refinement and
+/// assembly.
 pub(super) fn run(
     links: &[QueryLink],
     bounds: &mut Bounds,
@@ -533,6 +697,7 @@ pub(super) fn run(
         points,
         mode: options.mode,
         per_link: options.per_link,
+        per_link_range: options.per_link_range_m,
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
         robot_box,
     };
@@ -560,14 +725,23 @@ pub(super) fn run(
         }
     });
 
-    // 3. Main pass, one sweep over the cloud: each block is bounded, then culled or descended.
+    // 3. Main pass, one sweep over the cloud in groups of `GROUP` blocks (parallel over the
+    // groups): each block is bounded, then culled or descended; within a group the last point
+    // measured is carried from block to block, so that a point repeated over many blocks is
+    // measured once per group.
     let counts = points
-        .par_chunks(BLOCK)
+        .par_chunks(BLOCK * GROUP)
         .enumerate()
-        .with_min_len(16)
-        .map(|(b, chunk)| {
-            let block = bound_block(chunk);
-            with_scratch(links.len(), |f, s| pass.block(b, &block, f, s))
+        .map(|(g, group)| {
+            with_scratch(links.len(), |f, s| {
+                let mut last = None;
+                let mut counts = StageCounts::default();
+                for (j, chunk) in group.chunks(BLOCK).enumerate() {
+                    let block = bound_block(chunk);
+                    counts = counts + pass.block(g * GROUP + j, &block, f, s, &mut last);
+                }
+                counts
+            })
         })
         .reduce(StageCounts::default, |a, b| a + b);
 

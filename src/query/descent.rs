@@ -137,6 +137,55 @@ pub fn nearest_from(
     (arg != u32::MAX).then_some((best.max(0.0), arg))
 }
 
+/// Any inner sphere of the subtrees rooted at `starts` whose signed distance to `p` (link frame)
+/// is at most `bound`: the first found, depth first, nearest child first (the self-filter's
+/// test, which needs one such sphere, not the nearest).
+#[inline]
+pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f32) -> Option<u32> {
+    let nodes = &link.nodes;
+    let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
+    let mut sp = 0;
+    for &s in starts {
+        let n = &nodes[s as usize];
+        let reach = bound + n.radius;
+        if reach >= 0.0 && dist2(p, n.center) <= reach * reach {
+            stack[sp].write(s);
+            sp += 1;
+        }
+    }
+    while sp > 0 {
+        sp -= 1;
+        // SAFETY: stack[..sp + 1] was written (sp only grows by the entries just written).
+        let index = unsafe { stack[sp].assume_init() };
+        let node = &nodes[index as usize];
+        let first = node.first_child as usize;
+        let count = node.child_count as usize;
+        if node.children_are_spheres != 0 {
+            let d = lower_bounds(&link.sphere_soa, p, first, count);
+            if let Some(k) = d.iter().position(|&d| d <= bound) {
+                return Some((first + k) as u32);
+            }
+        } else {
+            let lbs = lower_bounds(&link.node_soa, p, first, count);
+            // Within the bound, the nearest pushed last so that it is popped next.
+            let mut top = (f32::INFINITY, usize::MAX);
+            for (k, &lb) in lbs.iter().enumerate() {
+                if lb <= bound {
+                    stack[sp].write((first + k) as u32);
+                    if lb < top.0 {
+                        top = (lb, sp);
+                    }
+                    sp += 1;
+                }
+            }
+            if top.1 != usize::MAX {
+                stack.swap(top.1, sp - 1);
+            }
+        }
+    }
+    None
+}
+
 /// Depth of a tree (root = 1), for `layout::max_tree_depth`.
 pub fn tree_depth(nodes: &[IstNode]) -> usize {
     fn depth(nodes: &[IstNode], i: usize) -> usize {

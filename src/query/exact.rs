@@ -68,15 +68,28 @@ pub(crate) fn refine(
     if candidates.is_empty() {
         return None;
     }
-    candidates.sort_unstable_by(|a, b| a.lower.total_cmp(&b.lower));
+    // By lower bound, then link and coordinates, so that a point repeated in the cloud is
+    // refined once (the copy with the smallest index is kept: same distance, and the smaller
+    // index wins a tie), then index: the order, and the result, do not depend on the order
+    // the sweep found the candidates in.
+    let key = |c: &Candidate| {
+        let p = points[c.point as usize];
+        (c.lower.to_bits(), c.link, p.map(f32::to_bits), c.point)
+    };
+    candidates.sort_unstable_by_key(key);
+    candidates
+        .dedup_by(|b, a| a.link == b.link && points[a.point as usize] == points[b.point as usize]);
     let best = AtomicU64::new(EMPTY);
     let refined = AtomicU64::new(0);
     let inside = Mutex::new(Vec::new());
     let evaluate = |k: usize, c: &Candidate| {
-        let bound = load_distance(&best);
-        if c.lower > bound {
+        // Skipped when it cannot beat the best (distance, position): its exact distance is at
+        // least its lower bound, and a tie goes to the earlier candidate. Candidates with
+        // lower bound 0 are all refined: they may be inside the robot, which is counted.
+        if c.lower > 0.0 && pack_minimum(c.lower, k as u32) > best.load(Relaxed) {
             return;
         }
+        let bound = load_distance(&best);
         let l = c.link as usize;
         let q = posed[l].in_link(points[c.point as usize]);
         refined.fetch_add(1, Relaxed);

@@ -160,7 +160,8 @@ pub struct QueryParams {
     pub pass_kind: u32,
     /// Room for exact-mode candidates.
     pub capacity: u32,
-    pub pad0: u32,
+    /// `QueryOptions::per_link_range_m`.
+    pub per_link_range: f32,
     pub pad1: u32,
     pub pad2: u32,
 }
@@ -240,8 +241,19 @@ pub const MIRRORS: &[Mirror] = &[
         "Params",
         QueryParams,
         [
-            robot_box, n_points, n_links, mode, per_link, stride, offset, n_work, pass_kind,
-            capacity, pad0, pad1, pad2
+            robot_box,
+            n_points,
+            n_links,
+            mode,
+            per_link,
+            stride,
+            offset,
+            n_work,
+            pass_kind,
+            capacity,
+            per_link_range,
+            pad1,
+            pad2
         ]
     ),
     mirror!(

@@ -111,6 +111,10 @@ pub struct QueryOptions {
     pub self_filter_padding_m: Option<f32>,
     /// Per-link minima (one bound per link); off leaves one shared bound, which prunes more.
     pub per_link: bool,
+    /// With per-link minima: a link's minimum is measured up to this distance (and always for
+    /// the nearest link); a link farther away is reported as farther than a certified bound
+    /// ([`LinkDistance::farther_than_m`]), which costs far less. Infinity measures every link.
+    pub per_link_range_m: f32,
     pub backend: Backend,
     /// `Backend::Auto` uses the GPU from this many points on.
     pub gpu_min_points: usize,
@@ -144,6 +148,11 @@ impl QueryOptions {
                 "max_distance_m must be ≥ 0 (infinity allowed)",
             ));
         }
+        if self.per_link_range_m.is_nan() || self.per_link_range_m < 0.0 {
+            return Err(QueryError::BadOption(
+                "per_link_range_m must be ≥ 0 (infinity allowed)",
+            ));
+        }
         if self
             .self_filter_padding_m
             .is_some_and(|p| !(p.is_finite() && p >= 0.0))
@@ -165,6 +174,8 @@ impl Default for QueryOptions {
             max_distance_m: 2.0,
             self_filter_padding_m: Some(0.01),
             per_link: true,
+            // The node's warn_distance + hysteresis (0.3 + 0.02 m).
+            per_link_range_m: 0.32,
             backend: Backend::Auto,
             gpu_min_points: DEFAULT_GPU_MIN_POINTS,
         }
@@ -560,11 +571,16 @@ pub struct Nearest {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LinkDistance {
     pub link: String,
-    /// Inner-sphere distance (upper bound); `None` when no point lies within `max_distance_m`,
-    /// or per-link minima are off and the link was pruned.
+    /// Inner-sphere distance (upper bound); `None` when the link was not measured: no point
+    /// within `max_distance_m`, or the link lies beyond `per_link_range_m` (then
+    /// `farther_than_m` says how far at least).
     pub distance_m: Option<f64>,
-    /// Certified lower bound `max(0, d − h)`.
+    /// Certified lower bound `max(0, d − h)` of the link's true distance (certified and exact
+    /// modes); for a link not measured, `max(0, farther_than − h)`.
     pub lower_m: Option<f64>,
+    /// For a link not measured: every obstacle point's inner-sphere distance to it exceeds this
+    /// (at most `max_distance_m`).
+    pub farther_than_m: Option<f64>,
     /// Exact distance, for the nearest link in exact mode.
     pub exact_m: Option<f64>,
     pub point_index: Option<u32>,

@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering::Relaxed;
 
 use nalgebra::{Isometry3, Point3};
 
-use super::bounds::{load_f32, unpack_minimum, Bounds, EMPTY};
+use super::bounds::{load_f32, threshold, unpack_minimum, Bounds, EMPTY};
 use super::descent::{dist, nearest_sphere};
 use super::{
     exact, Backend, Input, LinkDistance, Mode, Nearest, Outcome, QueryLink, QueryOptions,
@@ -86,32 +86,40 @@ fn assemble(
             nearest_link = Some(l);
         }
     }
-    let global_lower = if options.per_link {
-        per_link
-            .iter()
-            .zip(links)
-            .filter(|((d, _), _)| d.is_finite())
-            .map(|((d, _), link)| (d - link.gap_m).max(0.0))
-            .fold(f32::INFINITY, f32::min)
-    } else {
-        load_f32(&bounds.global_lower)
-    };
+    // Recorded by both backends with or without per-link minima: the smallest `d − h` of any
+    // (point, link) pair, which is the minimum over the links (see `bounds::threshold`).
+    let global_lower = load_f32(&bounds.global_lower);
     let link_results = if options.per_link {
+        let (global, lower) = (load_f32(&bounds.global), load_f32(&bounds.global_lower));
         per_link
             .iter()
             .zip(links)
+            .zip(&bounds.posed)
             .enumerate()
-            .map(|(l, (&(d, p), link))| {
-                let ok = within(d);
+            .map(|(l, ((&(d, p), link), posed))| {
+                // The final threshold: a link whose minimum lies above it was not measured, and
+                // every point lies farther than it (the threshold only decreased).
+                let t = threshold(
+                    options.mode,
+                    true,
+                    options.per_link_range_m,
+                    global,
+                    lower,
+                    d,
+                    posed.gap,
+                );
+                let measured = d <= t && within(d);
+                let farther = (!measured).then(|| t.min(options.max_distance_m));
                 LinkDistance {
                     link: link.name.clone(),
-                    distance_m: ok.then_some(d as f64),
-                    lower_m: (ok && certified).then_some((d - link.gap_m).max(0.0) as f64),
+                    distance_m: measured.then_some(d as f64),
+                    lower_m: certified.then(|| (farther.unwrap_or(d) - link.gap_m).max(0.0) as f64),
+                    farther_than_m: farther.map(f64::from),
                     exact_m: refined
                         .as_ref()
                         .filter(|r| r.link == l)
                         .map(|r| r.distance as f64),
-                    point_index: ok.then_some(p),
+                    point_index: measured.then_some(p),
                 }
             })
             .collect()

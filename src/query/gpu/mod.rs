@@ -303,6 +303,7 @@ impl GpuEngine {
             n_work: n as u32,
             pass_kind: PassKind::Main as u32,
             capacity: GPU_CANDIDATES,
+            per_link_range: options.per_link_range_m,
             ..QueryParams::zeroed()
         };
         let seed = QueryParams {

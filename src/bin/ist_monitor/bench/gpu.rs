@@ -57,7 +57,7 @@ struct GpuRow {
 /// for several cloud sizes, and the crossover that `gpu_min_points` should be set to.
 pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     let shared = crate::demo::shared(&args.shared)?;
-    let scenario = load_scenario(&shared, ScenarioName::Kinect)?;
+    let scenario = load_scenario(&shared, &crate::demo::dir()?, ScenarioName::Kinect)?;
     let trees = cached_trees(
         &scenario.model,
         &BuildOptions::default(),
@@ -74,7 +74,8 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         gpu.adapter.backend,
         rayon::current_num_threads()
     );
-    let base = &scenario.clouds[0].1.points;
+    let case = &scenario.cases[0];
+    let base = &case.points;
     let cloud = |n: usize| -> Vec<[f32; 3]> {
         (0..n)
             .map(|i| {
@@ -84,10 +85,8 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             })
             .collect()
     };
-    let k = &scenario.model.kinematics;
-    let (_, joints) = &scenario.poses[0];
-    let poses = k.link_poses(&k.values_from_names(joints, Some(0.0))?);
-    let sensor = scenario.root_from_sensor;
+    let poses = &case.link_poses;
+    let sensor = case.root_from_sensor;
     let mut time = |points: &[[f32; 3]], backend: Backend| -> Result<(Vec<f64>, Vec<f64>, f64)> {
         let options = QueryOptions {
             mode: args.mode,
@@ -95,11 +94,11 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             ..QueryOptions::default()
         };
         // One untimed query: shader compilation, buffer growth, caches.
-        let first = engine.query(points, &sensor, &poses, &options)?;
+        let first = engine.query(points, &sensor, poses, &options)?;
         let (mut wall, mut kernel) = (Vec::new(), Vec::new());
         for _ in 0..args.runs {
             let start = Instant::now();
-            let r = engine.query(points, &sensor, &poses, &options)?;
+            let r = engine.query(points, &sensor, poses, &options)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             if backend == Backend::Gpu {
                 if let Some(s) = engine.gpu().and_then(|g| g.last_kernel_s) {

@@ -1,23 +1,25 @@
 //! `ist_monitor bench query`: error against run time of the query modes over sphere budgets,
-//! on the real scenes of `scenes.rs`, with the peers measured in the same run.
+//! on the scenes of `scenes.rs`, with the peers measured in the same run; then the settings
+//! the node runs (self-filter on, per-link minima within `per_link_range`) on every scene.
 //!
 //! For every budget the trees are built (or loaded from the cache) and every mode is timed
 //! (median of `runs` queries per pose, pooled over poses) with per-link minima on and off. The
 //! peers take every point as an obstacle, so the engine runs here without its self-filter (and
 //! with the default region of interest, 2 m, which holds every point of these scenes). The
 //! error is taken against the exact distance of peer (a) (parry3d, every point and link, no
-//! pruning): `upper − exact` for fast, `exact − lower` for certified (how conservative the
-//! certified bound is), `|exact mode − exact|` for exact. The table goes to stdout, the rows to
+//! pruning; peer (b) on the stress scenes, where (a) would take minutes, and the generator's
+//! truth on the generated scenes): `upper − exact` for fast, `exact − lower` for certified (how
+//! conservative the certified bound is), `|exact mode − exact|` for exact. Scenes that hold
+//! the robot's own points (`robot_in_view`, `wrist`) have no peers and no sweep (every point
+//! would be an obstacle at distance 0): only the node's settings, against the truth. The table goes to stdout, the rows to
 //! JSON (`--json`) and the plot to a PNG (`--plot`; nothing is written unless asked).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use nalgebra::Isometry3;
 use serde::Serialize;
 
-use ist_monitor::cloud::Cloud;
 use ist_monitor::ist::BuildOptions;
 use ist_monitor::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptions};
 use ist_monitor::stats::Spread;
@@ -30,7 +32,7 @@ pub struct BenchQueryArgs {
     /// The shared data folder (default: ../shared beside the demo folder, or $IST_MONITOR_SHARED).
     #[arg(long)]
     shared: Option<PathBuf>,
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ScenarioName::Kinect, ScenarioName::Grabber])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ScenarioName::Kinect, ScenarioName::Grabber, ScenarioName::RobotInView, ScenarioName::Wrist, ScenarioName::NearBlob, ScenarioName::Duplicates])]
     scenarios: Vec<ScenarioName>,
     /// Sphere budgets per link.
     #[arg(long, value_delimiter = ',', default_values_t = [64u32, 256, 1024, 4096, 8192, 16384])]
@@ -79,6 +81,7 @@ pub struct Row {
     pub median_ms: f64,
     pub p10_ms: f64,
     pub p90_ms: f64,
+    pub p99_ms: f64,
     /// Against the exact reference, over poses (None without peers).
     pub max_error_mm: Option<f64>,
     pub mean_error_mm: Option<f64>,
@@ -109,6 +112,7 @@ fn row(
         median: m,
         p10: lo,
         p90: hi,
+        p99,
     } = Spread::of(samples);
     Row {
         scenario,
@@ -118,11 +122,63 @@ fn row(
         median_ms: m,
         p10_ms: lo,
         p90_ms: hi,
+        p99_ms: p99,
         max_error_mm: (!errors.is_empty()).then(|| errors.iter().fold(0.0, |a: f64, &b| a.max(b))),
         mean_error_mm: (!errors.is_empty())
             .then(|| errors.iter().sum::<f64>() / errors.len() as f64),
         runs,
     }
+}
+
+/// Error of a result against the exact distance, mm: `upper − exact` (fast), `exact − lower`
+/// (certified), `|exact mode − exact|` (exact).
+fn error_mm(mode: Mode, n: &ist_monitor::query::Nearest, exact: f64) -> f64 {
+    1e3 * match mode {
+        Mode::Fast => n.distance_m - exact,
+        Mode::Certified => exact - n.lower_m.unwrap_or(0.0),
+        Mode::Exact => (n.distance_m - exact).abs(),
+    }
+}
+
+/// The node's settings, timed on every scene at the default budget: (label, options).
+fn node_settings(backend: Backend) -> Vec<(&'static str, QueryOptions)> {
+    let node = QueryOptions {
+        backend,
+        ..QueryOptions::default()
+    };
+    vec![
+        ("node defaults: certified, per-link ≤ 0.32 m", node.clone()),
+        (
+            "certified, every link measured",
+            QueryOptions {
+                per_link_range_m: f32::INFINITY,
+                ..node.clone()
+            },
+        ),
+        (
+            "fast, global",
+            QueryOptions {
+                mode: Mode::Fast,
+                per_link: false,
+                ..node.clone()
+            },
+        ),
+        (
+            "exact, global",
+            QueryOptions {
+                mode: Mode::Exact,
+                per_link: false,
+                ..node.clone()
+            },
+        ),
+        (
+            "exact, per-link ≤ 0.32 m",
+            QueryOptions {
+                mode: Mode::Exact,
+                ..node
+            },
+        ),
+    ]
 }
 
 pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
@@ -135,48 +191,37 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
         args.runs,
         args.peer_runs
     );
-    let shared = crate::demo::shared(&args.shared)?;
+    let demo = crate::demo::dir()?;
     let cache_dir = args.cache_dir.as_deref();
     let mut rows = Vec::new();
     for &name in &args.scenarios {
-        let scenario = load_scenario(&shared, name)?;
-        let k = &scenario.model.kinematics;
-        let poses: Vec<(String, Vec<_>)> = scenario
-            .poses
-            .iter()
-            .map(|(n, j)| Ok((n.clone(), k.link_poses(&k.values_from_names(j, Some(0.0))?))))
-            .collect::<Result<_>>()?;
-        let valid: usize = scenario.clouds[0]
-            .1
-            .points
+        let shared = if name.needs_shared() {
+            crate::demo::shared(&args.shared)?
+        } else {
+            PathBuf::new()
+        };
+        let scenario = load_scenario(&shared, &demo, name)?;
+        let cases = &scenario.cases;
+        let first = &cases[0].points;
+        let valid = first
             .iter()
             .filter(|p| ist_monitor::query::is_valid_point(**p))
             .count();
         println!(
-            "\n== {name:?}: {} ({} links), {} cloud(s) of {} points ({valid} valid in the first), {} poses",
+            "\n== {name:?}: {} ({} links), {} case(s) of {} points ({valid} valid in the first)",
             scenario.model.name,
             scenario.model.links.len(),
-            scenario.clouds.len(),
-            scenario.clouds[0].1.points.len(),
-            poses.len()
+            cases.len(),
+            first.len(),
         );
-        let cases: Vec<(&str, &Cloud, &str, &[Isometry3<f64>])> = scenario
-            .clouds
-            .iter()
-            .flat_map(|(cn, c)| {
-                poses
-                    .iter()
-                    .map(move |(pn, p)| (cn.as_str(), c, pn.as_str(), p.as_slice()))
-            })
-            .collect();
         let mut scenario_rows = Vec::new();
         // The floor and the exact peers do not depend on the budget: measured with the
         // default trees (peer (b) uses only the meshes).
         let default_trees = cached_trees(&scenario.model, &BuildOptions::default(), cache_dir)?;
-        let engine = Engine::new(&scenario.model, &default_trees, &LinkSelection::default())?;
+        let mut engine = Engine::new(&scenario.model, &default_trees, &LinkSelection::default())?;
         let mut floor = Vec::new();
-        for (_, cloud, _, _) in &cases {
-            floor.extend(time(args.runs, || peers::touch_every_point(&cloud.points)).0);
+        for case in cases {
+            floor.extend(time(args.runs, || peers::touch_every_point(&case.points)).0);
         }
         scenario_rows.push(row(
             name,
@@ -186,49 +231,57 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
             floor,
             &[],
         ));
-        let mut reference = Vec::new();
-        if !args.no_peers {
+        // The exact distance per case: the generator's truth, or peer (a) (peer (b) on the
+        // stress scenes).
+        let mut reference: Vec<f64> = cases.iter().filter_map(|c| c.truth_m).collect();
+        let peers = !args.no_peers && !scenario.robot_in_view;
+        if peers {
+            let slow = name.needs_shared();
             let (mut ta, mut tb) = (Vec::new(), Vec::new());
-            for (cn, cloud, pn, lp) in &cases {
-                let (s, a) = time(args.peer_runs, || {
-                    peers::exact_every_point(&engine, &cloud.points, &scenario.root_from_sensor, lp)
-                });
-                ta.extend(s);
+            for case in cases {
+                let (points, sensor, lp) = (&case.points, &case.root_from_sensor, &case.link_poses);
+                let a = if slow {
+                    let (s, a) = time(args.peer_runs, || {
+                        peers::exact_every_point(&engine, points, sensor, lp)
+                    });
+                    ta.extend(s);
+                    Some(a.context("no valid point")?)
+                } else {
+                    None
+                };
                 let (s, b) = time(args.runs, || {
-                    peers::exact_shared_bound(
-                        &engine,
-                        &cloud.points,
-                        &scenario.root_from_sensor,
-                        lp,
-                    )
+                    peers::exact_shared_bound(&engine, points, sensor, lp)
                 });
                 tb.extend(s);
-                let a = a.context("no valid point")?;
                 let b = b.context("no valid point")?;
+                let exact = a.as_ref().unwrap_or(&b);
                 println!(
-                    "  {cn} {pn}: exact {:.4} m on {} (point {}); peer (b) {:.4} m",
-                    a.distance,
-                    engine.links()[a.link].name,
-                    a.point,
+                    "  {}: exact {:.4} m on {} (point {}); peer (b) {:.4} m",
+                    case.name,
+                    exact.distance,
+                    engine.links()[exact.link].name,
+                    exact.point,
                     b.distance
                 );
-                if (a.distance - b.distance).abs() > 1e-5 {
+                if (exact.distance - b.distance).abs() > 1e-5 {
                     bail!(
                         "peer (b) {} differs from peer (a) {}",
                         b.distance,
-                        a.distance
+                        exact.distance
                     );
                 }
-                reference.push(a.distance as f64);
+                reference.push(exact.distance as f64);
             }
-            scenario_rows.push(row(
-                name,
-                "(a) parry exact, every point",
-                false,
-                None,
-                ta,
-                &[],
-            ));
+            if slow {
+                scenario_rows.push(row(
+                    name,
+                    "(a) parry exact, every point",
+                    false,
+                    None,
+                    ta,
+                    &[],
+                ));
+            }
             scenario_rows.push(row(
                 name,
                 "(b) parry exact, shared bound",
@@ -237,6 +290,39 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                 tb,
                 &[],
             ));
+        }
+        // The node's settings (self-filter on), at the default budget.
+        for (label, options) in node_settings(args.backend) {
+            let mut samples = Vec::new();
+            let mut errors = Vec::new();
+            for (c, case) in cases.iter().enumerate() {
+                let (s, r) = time(args.runs, || {
+                    engine.query(
+                        &case.points,
+                        &case.root_from_sensor,
+                        &case.link_poses,
+                        &options,
+                    )
+                });
+                samples.extend(s);
+                let r = r?;
+                if let (Some(n), Some(&exact)) = (&r.nearest, reference.get(c)) {
+                    errors.push(error_mm(options.mode, n, exact));
+                }
+            }
+            scenario_rows.push(row(
+                name,
+                &format!("{label}, self-filter"),
+                options.per_link,
+                Some(BuildOptions::default().packing.max_spheres),
+                samples,
+                &errors,
+            ));
+        }
+        if scenario.robot_in_view {
+            print_table(&scenario_rows);
+            rows.extend(scenario_rows);
+            continue;
         }
         for &budget in &args.budgets {
             let mut options = BuildOptions::default();
@@ -248,26 +334,27 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                     let options = QueryOptions {
                         mode,
                         per_link,
+                        per_link_range_m: f32::INFINITY,
                         self_filter_padding_m: None,
                         backend: args.backend,
                         ..QueryOptions::default()
                     };
                     let mut samples = Vec::new();
                     let mut errors = Vec::new();
-                    for (c, (_, cloud, _, lp)) in cases.iter().enumerate() {
+                    for (c, case) in cases.iter().enumerate() {
                         let (s, r) = time(args.runs, || {
-                            engine.query(&cloud.points, &scenario.root_from_sensor, lp, &options)
+                            engine.query(
+                                &case.points,
+                                &case.root_from_sensor,
+                                &case.link_poses,
+                                &options,
+                            )
                         });
                         samples.extend(s);
                         let r = r?;
                         let n = r.nearest.context("no nearest point")?;
                         if let Some(&exact) = reference.get(c) {
-                            let e = match mode {
-                                Mode::Fast => n.distance_m - exact,
-                                Mode::Certified => exact - n.lower_m.unwrap_or(0.0),
-                                Mode::Exact => (n.distance_m - exact).abs(),
-                            };
-                            errors.push(1e3 * e);
+                            errors.push(error_mm(mode, &n, exact));
                         }
                     }
                     scenario_rows.push(row(
@@ -280,16 +367,16 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                     ));
                 }
             }
-            if !args.no_peers && budget <= args.brute_force_max_budget {
+            if peers && budget <= args.brute_force_max_budget && name.needs_shared() {
                 let mut samples = Vec::new();
                 let mut errors = Vec::new();
-                for (c, (_, cloud, _, lp)) in cases.iter().enumerate() {
+                for (c, case) in cases.iter().enumerate() {
                     let (s, r) = time(args.peer_runs, || {
                         peers::brute_force_spheres(
                             &engine,
-                            &cloud.points,
-                            &scenario.root_from_sensor,
-                            lp,
+                            &case.points,
+                            &case.root_from_sensor,
+                            &case.link_poses,
                         )
                     });
                     samples.extend(s);
@@ -331,12 +418,13 @@ fn print_table(rows: &[Row]) {
         .find(|r| r.method.starts_with("floor"))
         .map(|r| r.median_ms);
     println!(
-        "{:<32} {:>8} {:>6} {:>10} {:>17} {:>8} {:>13} {:>13}",
+        "{:<52} {:>8} {:>6} {:>10} {:>17} {:>8} {:>8} {:>13} {:>13}",
         "method",
         "per-link",
         "budget",
         "median ms",
         "[p10, p90] ms",
+        "p99 ms",
         "× floor",
         "max err mm",
         "mean err mm"
@@ -344,7 +432,7 @@ fn print_table(rows: &[Row]) {
     for r in rows {
         let f = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
         println!(
-            "{:<32} {:>8} {:>6} {:>10.3} {:>17} {:>8.1} {:>13} {:>13}",
+            "{:<52} {:>8} {:>6} {:>10.3} {:>17} {:>8.3} {:>8.1} {:>13} {:>13}",
             r.method,
             if r.per_link { "yes" } else { "no" },
             r.budget
@@ -352,6 +440,7 @@ fn print_table(rows: &[Row]) {
                 .unwrap_or_else(|| "-".into()),
             r.median_ms,
             format!("[{:.3}, {:.3}]", r.p10_ms, r.p90_ms),
+            r.p99_ms,
             floor.map_or(f64::NAN, |f| r.median_ms / f),
             f(r.max_error_mm),
             f(r.mean_error_mm)

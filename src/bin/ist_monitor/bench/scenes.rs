@@ -1,9 +1,20 @@
-//! The real scenes the benchmarks and some tests run on, from `../shared` (read by path):
-//! - `kinect`: the Panda and the real Kinect cloud of the MoveIt perception tutorial, at the
-//!   joint configurations of its SCENARIO.md and five more reaching toward the table;
+//! The scenes the benchmarks and some tests run on:
+//! - `kinect`: the Panda and the real Kinect cloud of the MoveIt perception tutorial
+//!   (`../shared`), at the joint configurations of its SCENARIO.md and five more reaching toward
+//!   the table;
 //! - `grabber`: the UR5e placed 0.35 m in front of the camera of PCL's three grabber frames
 //!   (base 0.3 m below the optical axis, z up), at four configurations reaching toward the
-//!   scene (5 to 27 cm from it).
+//!   scene (5 to 27 cm from it);
+//! - `robot_in_view`: the demo arm seen by the scenario generator's fixed 640×480 camera while
+//!   the person walks up to it (10 frames along the scene, the arm's own points in view), with
+//!   the generator's exact truth per frame;
+//! - `wrist`: a 640×480 camera on the demo arm's gripper, the fingers in view, over the shelf
+//!   scene (10 frames, exact truth);
+//! - `near_blob`: the worst case a monitor exists for, something large right at the arm: 250,000
+//!   points on a 10 cm-radius ball 5 cm from the demo arm's forearm, in image order (a 500×500
+//!   grid of the ball's surface, as a depth camera would give it);
+//! - `duplicates`: one point 3 cm from the forearm repeated 10⁶ times (a driver that repeats a
+//!   reading).
 //!
 //! One definition for three targets: the `bench` subcommand (`mod scenes`), the criterion
 //! benches and the integration tests (`#[path = ...] mod scenes`). It uses only the library.
@@ -11,28 +22,57 @@
 
 use std::path::{Path, PathBuf};
 
+use std::sync::Arc;
+
 use anyhow::{Context, Result};
+use std::f64::consts::FRAC_PI_2;
+
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 use ist_monitor::cloud::{self, Cloud};
 use ist_monitor::robot::RobotModel;
+use ist_monitor::scenario::{Mount, Renderer, ScenarioParams, SceneKind};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ScenarioName {
     Kinect,
     Grabber,
+    RobotInView,
+    Wrist,
+    NearBlob,
+    Duplicates,
+}
+
+impl ScenarioName {
+    /// Whether the scene needs `../shared`.
+    pub fn needs_shared(self) -> bool {
+        matches!(self, ScenarioName::Kinect | ScenarioName::Grabber)
+    }
+}
+
+/// One query to time: a cloud, where its sensor is, how the robot is posed.
+pub struct Case {
+    pub name: String,
+    pub points: Arc<Vec<[f32; 3]>>,
+    pub root_from_sensor: Isometry3<f64>,
+    pub link_poses: Vec<Isometry3<f64>>,
+    /// The exact minimum distance over the obstacle points, when the scene knows it (the
+    /// generator's truth); the benchmark otherwise takes peer (a)'s.
+    pub truth_m: Option<f64>,
 }
 
 /// A robot, a cloud and the poses to query.
 pub struct Scenario {
     pub name: ScenarioName,
     pub model: RobotModel,
-    pub clouds: Vec<(String, Cloud)>,
-    pub root_from_sensor: Isometry3<f64>,
-    /// (name, joint values by name).
+    /// Joint configurations (name, joint values by name) of the real scenes, for the tests.
     pub poses: Vec<(String, Vec<(String, f64)>)>,
+    pub cases: Vec<Case>,
+    /// Whether the cloud holds the robot's own points (the peers, which take every point as an
+    /// obstacle, then do not apply).
+    pub robot_in_view: bool,
 }
 
 /// The Kinect camera of the perception tutorial: `static_transform_publisher 0.115 0.427 0.570
@@ -125,17 +165,93 @@ pub fn grabber_poses() -> Vec<(String, Vec<(String, f64)>)> {
     ]
 }
 
-pub fn load_scenario(shared: &Path, name: ScenarioName) -> Result<Scenario> {
+/// Cases of fixed clouds at named joint configurations.
+fn cases_of(
+    model: &RobotModel,
+    clouds: &[(String, Cloud)],
+    root_from_sensor: Isometry3<f64>,
+    poses: &[(String, Vec<(String, f64)>)],
+) -> Result<Vec<Case>> {
+    let k = &model.kinematics;
+    let mut cases = Vec::new();
+    for (cn, cloud) in clouds {
+        let points = Arc::new(cloud.points.clone());
+        for (pn, joints) in poses {
+            cases.push(Case {
+                name: format!("{cn} {pn}"),
+                points: points.clone(),
+                root_from_sensor,
+                link_poses: k.link_poses(&k.values_from_names(joints, Some(0.0))?),
+                truth_m: None,
+            });
+        }
+    }
+    Ok(cases)
+}
+
+/// The demo robot of this repository (`urdf/demo_arm.urdf` in the demo folder `demo`).
+pub fn demo_model(demo: &Path) -> Result<RobotModel> {
+    Ok(RobotModel::load(&demo.join("urdf/demo_arm.urdf"), &[])?)
+}
+
+/// 10 generated 640×480 frames along `scene` seen from `mount`, with their truth.
+fn generated(model: &RobotModel, scene: SceneKind, mount: &Mount) -> Result<Vec<Case>> {
+    let params = ScenarioParams {
+        scene,
+        width: 640,
+        height: 480,
+        ..ScenarioParams::default()
+    };
+    let mut renderer = Renderer::new(model, &params, mount)?;
+    (0..10)
+        .map(|i| {
+            let f = renderer.frame(i as f64 / 9.0, true)?;
+            Ok(Case {
+                name: format!("frame {i}"),
+                points: Arc::new(f.points),
+                root_from_sensor: f.root_from_sensor,
+                link_poses: f.link_poses,
+                truth_m: f.truth_m,
+            })
+        })
+        .collect()
+}
+
+/// The demo arm at the end of the person scene, and the forearm's pose: the stress scenes
+/// are built around its collision cylinder (radius 0.04 m, axis z, centred at z = 0.175 m).
+fn forearm_scene(model: &RobotModel) -> Result<(Vec<Isometry3<f64>>, Isometry3<f64>)> {
+    let renderer = Renderer::new(model, &ScenarioParams::default(), &Mount::fixed())?;
+    let link_poses = model.kinematics.link_poses(&renderer.joints(1.0)?);
+    let forearm = model
+        .kinematics
+        .link_index("forearm_link")
+        .context("the demo arm has a forearm_link")?;
+    let pose = link_poses[forearm];
+    Ok((link_poses, pose))
+}
+
+/// The scene `name`: from `shared` (`../shared`) for the real scenes, from the demo folder
+/// `demo` (this repository) for the others.
+pub fn load_scenario(shared: &Path, demo: &Path, name: ScenarioName) -> Result<Scenario> {
+    let fixed = |name, model, clouds: Vec<(String, Cloud)>, sensor, poses: Vec<_>| {
+        Ok::<_, anyhow::Error>(Scenario {
+            name,
+            cases: cases_of(&model, &clouds, sensor, &poses)?,
+            model,
+            poses,
+            robot_in_view: false,
+        })
+    };
     Ok(match name {
         ScenarioName::Kinect => {
             let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
-            Scenario {
+            fixed(
                 name,
-                model: RobotModel::load(&shared.join("robots/panda/robot.urdf"), &[])?,
-                clouds: vec![("kinect".into(), cloud::load(&bag, 0)?)],
-                root_from_sensor: kinect_root_from_sensor(),
-                poses: kinect_poses(),
-            }
+                RobotModel::load(&shared.join("robots/panda/robot.urdf"), &[])?,
+                vec![("kinect".into(), cloud::load(&bag, 0)?)],
+                kinect_root_from_sensor(),
+                kinect_poses(),
+            )?
         }
         ScenarioName::Grabber => {
             let dir = shared.join("clouds/pcl_test/grabber_sequences");
@@ -154,13 +270,91 @@ pub fn load_scenario(shared: &Path, name: ScenarioName) -> Result<Scenario> {
                     ))
                 })
                 .collect::<Result<Vec<_>>>()?;
+            fixed(
+                name,
+                RobotModel::load(&shared.join("robots/ur5e/robot.urdf"), &[])?,
+                clouds,
+                grabber_root_from_sensor(),
+                grabber_poses(),
+            )?
+        }
+        ScenarioName::RobotInView | ScenarioName::Wrist => {
+            let model = demo_model(demo)?;
+            let cases = if name == ScenarioName::RobotInView {
+                generated(&model, SceneKind::Person, &Mount::fixed())?
+            } else {
+                // 6 cm off the gripper's axis, looking along it, tilted 0.35 rad toward the
+                // fingers (optical z forward = the gripper's z).
+                let mount = Mount {
+                    link: "gripper_link".into(),
+                    link_from_optical: Isometry3::from_parts(
+                        Translation3::new(0.06, 0.0, 0.0),
+                        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -0.35)
+                            * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), FRAC_PI_2),
+                    ),
+                };
+                generated(&model, SceneKind::Shelf, &mount)?
+            };
             Scenario {
                 name,
-                model: RobotModel::load(&shared.join("robots/ur5e/robot.urdf"), &[])?,
-                clouds,
-                root_from_sensor: grabber_root_from_sensor(),
-                poses: grabber_poses(),
+                model,
+                poses: Vec::new(),
+                cases,
+                robot_in_view: true,
             }
         }
+        ScenarioName::NearBlob => {
+            let model = demo_model(demo)?;
+            let (link_poses, forearm) = forearm_scene(&model)?;
+            // The ball's centre 0.04 + 0.05 + 0.10 m from the axis: its surface is 5 cm from the
+            // cylinder. A 500×500 grid over the ball's surface, row by row.
+            let (r, n) = (0.10, 500);
+            let centre = Vector3::new(0.19, 0.0, 0.175);
+            let mut points = Vec::with_capacity(n * n);
+            for i in 0..n {
+                let theta = std::f64::consts::PI * (i as f64 + 0.5) / n as f64;
+                for j in 0..n {
+                    let phi = std::f64::consts::TAU * j as f64 / n as f64;
+                    let p = centre
+                        + r * Vector3::new(
+                            -theta.sin() * phi.cos(),
+                            theta.sin() * phi.sin(),
+                            theta.cos(),
+                        );
+                    let q = forearm * nalgebra::Point3::from(p);
+                    points.push([q.x as f32, q.y as f32, q.z as f32]);
+                }
+            }
+            stress(name, model, points, link_poses)
+        }
+        ScenarioName::Duplicates => {
+            let model = demo_model(demo)?;
+            let (link_poses, forearm) = forearm_scene(&model)?;
+            let q = forearm * nalgebra::Point3::new(0.07, 0.0, 0.175);
+            let points = vec![[q.x as f32, q.y as f32, q.z as f32]; 1_000_000];
+            stress(name, model, points, link_poses)
+        }
     })
+}
+
+/// A stress scene: one cloud in the root frame, one pose.
+fn stress(
+    name: ScenarioName,
+    model: RobotModel,
+    points: Vec<[f32; 3]>,
+    link_poses: Vec<Isometry3<f64>>,
+) -> Scenario {
+    Scenario {
+        name,
+        model,
+        poses: Vec::new(),
+        cases: vec![Case {
+            name: format!("{name:?}").to_lowercase(),
+            points: Arc::new(points),
+            root_from_sensor: Isometry3::identity(),
+            link_poses,
+            truth_m: None,
+        }],
+        robot_in_view: false,
+    }
 }

@@ -124,6 +124,10 @@ pub struct QueryParams {
     /// Only the global minimum (per_link: false; one shared bound, faster).
     #[arg(long)]
     pub no_per_link: bool,
+    /// Per-link minima are measured up to this distance, m; farther links are reported as
+    /// "farther than" a certified bound (default: warn_distance + hysteresis; .inf: all).
+    #[arg(long)]
+    pub per_link_range: Option<String>,
     /// Only these links (comma separated).
     #[arg(long, value_delimiter = ',')]
     pub links: Vec<String>,
@@ -142,6 +146,7 @@ impl QueryParams {
     /// The options as `-p NAME:=VALUE` overrides of the node's parameters.
     pub fn overrides(&self) -> Vec<(String, String)> {
         let list = |v: &[String]| format!("[{}]", v.join(", "));
+        let range = self.per_link_range.clone();
         [
             ("mode", enum_name(&self.mode)),
             ("max_distance", self.max_distance.clone()),
@@ -155,6 +160,7 @@ impl QueryParams {
         ]
         .into_iter()
         .map(|(k, v)| (k.to_owned(), v))
+        .chain(range.map(|r| ("per_link_range".to_owned(), r)))
         .collect()
     }
 

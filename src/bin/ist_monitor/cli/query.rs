@@ -126,7 +126,10 @@ pub fn query(args: QueryArgs) -> Result<()> {
             println!(
                 "{:<24} {:>12} {:>12} {:>10}",
                 l.link,
-                f(l.distance_m),
+                match (l.distance_m, l.farther_than_m) {
+                    (None, Some(t)) => format!("> {t:.4}"),
+                    (d, _) => f(d),
+                },
                 f(l.lower_m),
                 l.point_index
                     .map(|p| p.to_string())
