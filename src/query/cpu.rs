@@ -351,14 +351,22 @@ impl Pass<'_> {
         for l in bits(mask) {
             let link = &self.links[l];
             let q = self.posed[l].in_link(c);
-            let reach = self.threshold(l).max(self.padding) + r;
-            for &n in starts(frontier, spans, l) {
+            let st = starts(frontier, spans, l);
+            let (pad, reach) = (self.padding + r, self.threshold(l) + r);
+            let (mut near, mut within) = (false, false);
+            for &n in st {
                 let n = &link.nodes[n as usize];
-                let rr = reach + n.radius;
-                if rr >= 0.0 && dist2(q, n.center) <= rr * rr {
-                    out |= 1 << l;
-                    break;
-                }
+                let d2 = dist2(q, n.center);
+                let (p, e) = (pad + n.radius, reach + n.radius);
+                near |= p >= 0.0 && d2 <= p * p;
+                within |= e >= 0.0 && d2 <= e * e;
+            }
+            // A sub-block only within the link's bound by its frontier nodes, which are as
+            // large as the block, is confirmed by a descent of its centre that stops at the
+            // first inner sphere within the bound plus its radius: most are dropped here, not
+            // point by point.
+            if near || (within && any_within(link, q, st, reach).is_some()) {
+                out |= 1 << l;
             }
         }
         out
