@@ -306,6 +306,43 @@ proptest! {
         }
     }
 
+    /// An organized cloud taken in tiles of 8 × 4 pixels (any width, also ones that leave
+    /// partial tiles) gives the brute-force answer, the answer of the same points taken in runs,
+    /// and the same per-link minima and counts.
+    #[test]
+    fn tiles_as_runs_and_brute_force(
+        seed in 1u64..,
+        width in prop::sample::select(vec![8usize, 13, 40, 61]),
+        rows in 1usize..40,
+        per_link: bool,
+    ) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, 3, 64);
+        let mut engine = scene.engine();
+        let points = cloud(&mut rng, width * rows, &Isometry3::identity());
+        let (exact, spheres) = scene.brute_force(&points, &Isometry3::identity());
+        for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
+            let options = QueryOptions { mode, per_link, self_filter_padding_m: Some(0.01), ..all_points() };
+            let id = Isometry3::identity();
+            let tiles = engine.query_image(&points, Some(width), &id, &scene.link_poses, &options).unwrap();
+            let runs = engine.query(&points, &id, &scene.link_poses, &options).unwrap();
+            let (t, r) = (tiles.nearest.as_ref(), runs.nearest.as_ref());
+            prop_assert_eq!(t.map(|n| n.distance_m), r.map(|n| n.distance_m));
+            prop_assert_eq!(t.map(|n| n.point_index), r.map(|n| n.point_index));
+            prop_assert_eq!(&tiles.links, &runs.links);
+            let (ct, cr) = (tiles.counts, runs.counts);
+            prop_assert_eq!((ct.total, ct.invalid, ct.outside_roi, ct.self_filtered), (cr.total, cr.invalid, cr.outside_roi, cr.self_filtered));
+            prop_assert_eq!(ct.invalid + ct.outside_roi + ct.self_filtered + ct.pruned + ct.evaluated, ct.total);
+            if ct.self_filtered == 0 {
+                let d = t.unwrap().distance_m;
+                match mode {
+                    Mode::Exact => prop_assert!((d - exact).abs() < 1e-5, "{d} against {exact}"),
+                    _ => prop_assert!((d - spheres).abs() < 1e-5, "{d} against {spheres}"),
+                }
+            }
+        }
+    }
+
     /// A cloud whose points repeat (runs of one point over many blocks, and points repeated
     /// inside blocks) gives the answer of the same cloud without the repeats, in every mode,
     /// with the counts of every copy; exact mode refines each repeated point once.

@@ -460,9 +460,14 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
-        let result =
-            self.engine
-                .query(&cloud.points, &root_from_sensor, &poses, &self.config.query)?;
+        let width = (cloud.height > 1).then_some(cloud.width as usize);
+        let result = self.engine.query_image(
+            &cloud.points,
+            width,
+            &root_from_sensor,
+            &poses,
+            &self.config.query,
+        )?;
         if result.outcome == Outcome::NoPoints {
             return Err(Fault::NoValidPoints {
                 total: result.counts.total,

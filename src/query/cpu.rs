@@ -41,7 +41,75 @@ const SEEDS: usize = 3;
 /// bounded by its own sphere (computed then, since most blocks never need them).
 const SUB: usize = 8;
 
-/// A block of `BLOCK` consecutive points: the bounding sphere of its valid points (the
+/// How the points are grouped into blocks of `BLOCK`: runs of consecutive points, or, for an
+/// organized cloud (a depth image, `width` > 0), tiles of `SUB` × `BLOCK / SUB` pixels, whose
+/// rows are the sub-blocks. A tile's points lie closer together than a run of a row's (its
+/// bounding sphere is about a third as large), so that blocks are culled, and their frontiers
+/// cut, more tightly.
+#[derive(Clone, Copy)]
+pub(super) struct Tiling {
+    points: usize,
+    /// Width and height of an organized cloud.
+    image: Option<(usize, usize)>,
+}
+
+/// Rows of a tile.
+const TILE_ROWS: usize = BLOCK / SUB;
+
+impl Tiling {
+    /// Tiles for a `width`-wide image of `points` points (runs when the width does not divide
+    /// the point count, or the cloud is one row).
+    pub(super) fn new(points: usize, width: Option<usize>) -> Self {
+        let image = width
+            .filter(|&w| w > 0 && w < points && points.is_multiple_of(w))
+            .map(|w| (w, points / w));
+        Self { points, image }
+    }
+
+    fn blocks(&self) -> usize {
+        match self.image {
+            None => self.points.div_ceil(BLOCK),
+            Some((w, h)) => w.div_ceil(SUB) * h.div_ceil(TILE_ROWS),
+        }
+    }
+
+    /// The sub-blocks of block `b`: (first point, length), at most `TILE_ROWS`, the rest
+    /// (0, 0).
+    #[inline]
+    fn subs(&self, b: usize) -> [(usize, usize); TILE_ROWS] {
+        let mut out = [(0, 0); TILE_ROWS];
+        match self.image {
+            None => {
+                for (k, o) in out.iter_mut().enumerate() {
+                    let start = b * BLOCK + k * SUB;
+                    if start < self.points {
+                        *o = (start, SUB.min(self.points - start));
+                    }
+                }
+            }
+            Some((w, h)) => {
+                let per_row = w.div_ceil(SUB);
+                let (row, col) = ((b / per_row) * TILE_ROWS, (b % per_row) * SUB);
+                for (k, o) in out.iter_mut().enumerate() {
+                    if row + k < h {
+                        *o = ((row + k) * w + col, SUB.min(w - col));
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The block that holds point `i`.
+    fn block_of(&self, i: usize) -> usize {
+        match self.image {
+            None => i / BLOCK,
+            Some((w, _)) => (i / w / TILE_ROWS) * w.div_ceil(SUB) + (i % w) / SUB,
+        }
+    }
+}
+
+/// A block of `BLOCK` points: the bounding sphere of its valid points (the
 /// levels of the cloud-side hierarchy: run of blocks repeating one point, block, sub-block,
 /// point).
 #[derive(Clone, Copy, Default)]
@@ -146,6 +214,7 @@ struct Pass<'a> {
     candidates: &'a Mutex<Vec<Candidate>>,
     self_filtered: &'a [AtomicU64],
     points: &'a [[f32; 3]],
+    tiling: Tiling,
     mode: Mode,
     per_link: bool,
     per_link_range: f32,
@@ -426,12 +495,11 @@ impl Pass<'_> {
             whole(PointStage::Pruned, last);
             return counts;
         }
-        let start = b * BLOCK;
-        let end = (start + BLOCK).min(self.points.len());
         let mut self_by_link = [0u32; MAX_LINKS];
         let mut hint = None;
         let mut whole_self = None;
-        for (k, chunk) in self.points[start..end].chunks(SUB).enumerate() {
+        for (start, len) in self.tiling.subs(b) {
+            let chunk = &self.points[start..start + len];
             let (c, r) = bound_sub(chunk);
             if r < 0.0 {
                 continue;
@@ -457,7 +525,7 @@ impl Pass<'_> {
                         } else if sub == 0 {
                             PointStage::Pruned
                         } else {
-                            let at = (start + SUB * k + i) as u32;
+                            let at = (start + i) as u32;
                             let stage = self.point(at, p, sub, frontier, spans, &mut hint);
                             // The first time a sphere takes a point, it may take the block.
                             if let (PointStage::SelfFiltered(_), Some(h)) = (stage, hint) {
@@ -521,14 +589,14 @@ impl Pass<'_> {
     fn seed(&self, l: usize, b: usize, block: &Block) {
         with_scratch(self.links.len(), |frontier, spans| {
             let mask = self.frontiers(block.center, block.radius, frontier, spans);
-            let start = b * BLOCK;
-            let end = (start + BLOCK).min(self.points.len());
-            for (i, &p) in self.points[start..end].iter().enumerate() {
-                if valid(p)
-                    && self.robot_box.distance(p) <= self.robot_box.max_distance
-                    && self.is_self(p, mask, frontier, spans).is_none()
-                {
-                    self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
+            for (start, len) in self.tiling.subs(b) {
+                for (i, &p) in self.points[start..start + len].iter().enumerate() {
+                    if valid(p)
+                        && self.robot_box.distance(p) <= self.robot_box.max_distance
+                        && self.is_self(p, mask, frontier, spans).is_none()
+                    {
+                        self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
+                    }
                 }
             }
         });
@@ -598,39 +666,55 @@ const POINT_BITS: u32 = 0x0024_9249;
 /// finite? zero? As bit masks (bit 3k + axis for point k), a point is invalid when any of its
 /// three bits is non-finite or all three are zero; its lanes then take ±∞ in the box.
 #[inline]
-fn bound_block(chunk: &[[f32; 3]]) -> Block {
-    let flat: &[f32] = bytemuck::cast_slice(chunk);
+fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block {
     let inf = f32x8::splat(f32::INFINITY);
     let mut lo = [inf; 3];
     let mut hi = [-inf; 3];
     let mut invalid = 0u32;
-    let groups = chunk.len() / 8;
-    for g in 0..groups {
-        let v: [f32x8; 3] = std::array::from_fn(|k| {
-            let at = 24 * g + 8 * k;
-            f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
-        });
-        let mut nonfinite = 0u32;
-        let mut zero = 0u32;
-        for (k, v) in v.iter().enumerate() {
-            nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
-            zero |= (v.cmp_eq(f32x8::ZERO).move_mask() as u32 & 0xff) << (8 * k);
+    let mut n = 0u32;
+    let mut l = [f32::INFINITY; 3];
+    let mut h = [f32::NEG_INFINITY; 3];
+    for (start, len) in subs {
+        let chunk = &points[start..start + len];
+        n += len as u32;
+        let flat: &[f32] = bytemuck::cast_slice(chunk);
+        let groups = chunk.len() / 8;
+        for g in 0..groups {
+            let v: [f32x8; 3] = std::array::from_fn(|k| {
+                let at = 24 * g + 8 * k;
+                f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
+            });
+            let mut nonfinite = 0u32;
+            let mut zero = 0u32;
+            for (k, v) in v.iter().enumerate() {
+                nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
+                zero |= (v.cmp_eq(f32x8::ZERO).move_mask() as u32 & 0xff) << (8 * k);
+            }
+            let bad = ((nonfinite | nonfinite >> 1 | nonfinite >> 2)
+                | (zero & zero >> 1 & zero >> 2))
+                & POINT_BITS;
+            invalid += bad.count_ones();
+            let lanes = bad | bad << 1 | bad << 2;
+            for k in 0..3 {
+                let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
+                let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
+                lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
+                hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
+            }
         }
-        let bad = ((nonfinite | nonfinite >> 1 | nonfinite >> 2) | (zero & zero >> 1 & zero >> 2))
-            & POINT_BITS;
-        invalid += bad.count_ones();
-        let lanes = bad | bad << 1 | bad << 2;
-        for k in 0..3 {
-            let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
-            let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
-            lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
-            hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
+        for &p in &chunk[8 * groups..] {
+            if valid(p) {
+                for k in 0..3 {
+                    l[k] = l[k].min(p[k]);
+                    h[k] = h[k].max(p[k]);
+                }
+            } else {
+                invalid += 1;
+            }
         }
     }
     // Lane j of vector k holds axis (8k + j) mod 3; the values are finite or ±∞, so plain
     // comparisons do.
-    let mut l = [f32::INFINITY; 3];
-    let mut h = [f32::NEG_INFINITY; 3];
     for k in 0..3 {
         let (a, b) = (lo[k].to_array(), hi[k].to_array());
         for j in 0..8 {
@@ -639,17 +723,6 @@ fn bound_block(chunk: &[[f32; 3]]) -> Block {
             h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
         }
     }
-    for &p in &chunk[8 * groups..] {
-        if valid(p) {
-            for k in 0..3 {
-                l[k] = l[k].min(p[k]);
-                h[k] = h[k].max(p[k]);
-            }
-        } else {
-            invalid += 1;
-        }
-    }
-    let n = chunk.len() as u32;
     if invalid == n {
         return Block {
             invalid,
@@ -694,8 +767,10 @@ pub(super) fn run(
     let Input {
         points, options, ..
     } = input;
+    let tiling = Tiling::new(points.len(), input.width);
     let pass = Pass {
         links,
+        tiling,
         posed: &bounds.posed,
         best: &bounds.best,
         global: &bounds.global,
@@ -720,16 +795,17 @@ pub(super) fn run(
             let d = dist2(p, c);
             if d < nearest[SEEDS - 1].0
                 && valid(p)
-                && !nearest.iter().any(|n| n.1 / BLOCK == i / BLOCK)
+                && !nearest
+                    .iter()
+                    .any(|n| n.1 != usize::MAX && tiling.block_of(n.1) == tiling.block_of(i))
             {
                 nearest[SEEDS - 1] = (d, i);
                 nearest.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
             }
         }
         for &(_, i) in nearest.iter().filter(|n| n.1 != usize::MAX) {
-            let b = i / BLOCK;
-            let chunk = &points[b * BLOCK..((b + 1) * BLOCK).min(points.len())];
-            pass.seed(l, b, &bound_block(chunk));
+            let b = tiling.block_of(i);
+            pass.seed(l, b, &bound_block(points, tiling.subs(b)));
         }
     });
 
@@ -737,16 +813,16 @@ pub(super) fn run(
     // groups): each block is bounded, then culled or descended; within a group the last point
     // measured is carried from block to block, so that a point repeated over many blocks is
     // measured once per group.
-    let counts = points
-        .par_chunks(BLOCK * GROUP)
-        .enumerate()
-        .map(|(g, group)| {
+    let groups = tiling.blocks().div_ceil(GROUP);
+    let counts = (0..groups)
+        .into_par_iter()
+        .map(|g| {
             with_scratch(links.len(), |f, s| {
                 let mut last = None;
                 let mut counts = StageCounts::default();
-                for (j, chunk) in group.chunks(BLOCK).enumerate() {
-                    let block = bound_block(chunk);
-                    counts = counts + pass.block(g * GROUP + j, &block, f, s, &mut last);
+                for b in g * GROUP..((g + 1) * GROUP).min(tiling.blocks()) {
+                    let block = bound_block(points, tiling.subs(b));
+                    counts = counts + pass.block(b, &block, f, s, &mut last);
                 }
                 counts
             })

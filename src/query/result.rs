@@ -28,6 +28,7 @@ pub(super) fn finish(
         root_from_sensor,
         link_poses,
         options,
+        ..
     } = input;
     // 4. Exact refinement.
     let refined = if options.mode == Mode::Exact {

@@ -297,19 +297,16 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
             let mut errors = Vec::new();
             for (c, case) in cases.iter().enumerate() {
                 let (s, r) = time(args.runs, || {
-                    engine.query(
+                    engine.query_image(
                         &case.points,
+                        case.width,
                         &case.root_from_sensor,
                         &case.link_poses,
                         &options,
                     )
                 });
-                samples.extend(s.iter().copied());
+                samples.extend(s);
                 let r = r?;
-                if std::env::var_os("IST_BENCH_COUNTS").is_some() {
-                    let t = Spread::of(s.clone()).median;
-                    eprintln!("{label} {}: {t:.3} ms {:?} links {:?}", case.name, r.counts, r.links.iter().map(|l| (l.distance_m.map(|d| (d*1000.0).round()/1000.0), l.farther_than_m.map(|d| (d*1000.0).round()/1000.0))).collect::<Vec<_>>());
-                }
                 if let (Some(n), Some(&exact)) = (&r.nearest, reference.get(c)) {
                     errors.push(error_mm(options.mode, n, exact));
                 }
@@ -347,8 +344,9 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                     let mut errors = Vec::new();
                     for (c, case) in cases.iter().enumerate() {
                         let (s, r) = time(args.runs, || {
-                            engine.query(
+                            engine.query_image(
                                 &case.points,
+                                case.width,
                                 &case.root_from_sensor,
                                 &case.link_poses,
                                 &options,

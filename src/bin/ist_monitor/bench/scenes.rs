@@ -56,6 +56,8 @@ impl ScenarioName {
 pub struct Case {
     pub name: String,
     pub points: Arc<Vec<[f32; 3]>>,
+    /// Points per row of an organized cloud.
+    pub width: Option<usize>,
     pub root_from_sensor: Isometry3<f64>,
     pub link_poses: Vec<Isometry3<f64>>,
     /// The exact minimum distance over the obstacle points, when the scene knows it (the
@@ -180,6 +182,7 @@ fn cases_of(
             cases.push(Case {
                 name: format!("{cn} {pn}"),
                 points: points.clone(),
+                width: (cloud.height > 1).then_some(cloud.width as usize),
                 root_from_sensor,
                 link_poses: k.link_poses(&k.values_from_names(joints, Some(0.0))?),
                 truth_m: None,
@@ -209,6 +212,7 @@ fn generated(model: &RobotModel, scene: SceneKind, mount: &Mount) -> Result<Vec<
             Ok(Case {
                 name: format!("frame {i}"),
                 points: Arc::new(f.points),
+                width: Some(640),
                 root_from_sensor: f.root_from_sensor,
                 link_poses: f.link_poses,
                 truth_m: f.truth_m,
@@ -351,6 +355,7 @@ fn stress(
         cases: vec![Case {
             name: format!("{name:?}").to_lowercase(),
             points: Arc::new(points),
+            width: (name == ScenarioName::NearBlob).then_some(500),
             root_from_sensor: Isometry3::identity(),
             link_poses,
             truth_m: None,

@@ -57,7 +57,8 @@ pub fn query(args: QueryArgs) -> Result<()> {
         engine.gpu();
     }
     let start = Instant::now();
-    let result = engine.query(&cloud.points, &args.sensor_pose, &poses, &options)?;
+    let width = (cloud.height > 1).then_some(cloud.width as usize);
+    let result = engine.query_image(&cloud.points, width, &args.sensor_pose, &poses, &options)?;
     let elapsed = start.elapsed().as_secs_f64();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&result)?);
