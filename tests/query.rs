@@ -441,6 +441,34 @@ proptest! {
     }
 }
 
+/// Every point on the robot with an unbounded region of interest: nothing within
+/// max_distance, in every mode and with and without per-link minima (an empty per-link minimum
+/// is +∞, which an infinite max_distance once let through to an index past the cloud: a panic).
+#[test]
+fn every_point_self_filtered_with_an_infinite_max_distance() {
+    let scene = box_scene();
+    let mut engine = scene.engine();
+    let inside = vec![[0.0, 0.0, 0.01], [0.05, -0.03, 0.02]];
+    for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
+        for per_link in [false, true] {
+            let options = QueryOptions {
+                mode,
+                per_link,
+                self_filter_padding_m: Some(0.01),
+                max_distance_m: f32::INFINITY,
+                ..QueryOptions::default()
+            };
+            let r = scene.run(&mut engine, &inside, &options);
+            assert_eq!(r.outcome, Outcome::NothingWithinMaxDistance, "{mode:?}");
+            assert!(r.nearest.is_none());
+            assert_eq!(r.counts.self_filtered, 2);
+            for l in &r.links {
+                assert_eq!(l.distance_m, None);
+            }
+        }
+    }
+}
+
 /// One box link 0.2 m × 0.2 m × 0.2 m at the origin, 256 spheres.
 fn box_scene() -> Scene {
     let t = tessellate_box([0.2, 0.2, 0.2]);

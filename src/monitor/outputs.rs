@@ -348,9 +348,11 @@ impl Outputs {
                     r.links
                         .iter()
                         .map(|l| {
+                            // A link beyond per_link_range: the bound it is known to exceed.
                             l.exact_m
                                 .or(l.lower_m)
                                 .or(l.distance_m)
+                                .or(l.farther_than_m)
                                 .unwrap_or(max_distance)
                         })
                         .collect()

@@ -218,6 +218,8 @@ struct Pass<'a> {
     mode: Mode,
     per_link: bool,
     per_link_range: f32,
+    /// The largest surface gap of the links.
+    max_gap: f32,
     /// Self-filter padding; −∞ when off.
     padding: f32,
     /// The robot's box, the region of interest (`max_distance`) with it.
@@ -241,6 +243,32 @@ impl Pass<'_> {
             },
             self.posed[l].gap,
         )
+    }
+
+    /// An upper bound of every link's threshold (the rule of [`threshold`] with the largest
+    /// surface gap; with per-link minima, the range), without a look at each link.
+    #[inline]
+    fn largest_threshold(&self) -> f32 {
+        let needed = threshold(
+            self.mode,
+            false,
+            self.per_link_range,
+            load_f32(self.global),
+            load_f32(self.global_lower),
+            f32::INFINITY,
+            self.max_gap,
+        );
+        if self.per_link {
+            // The links' own minima bound it more tightly once they are known.
+            let own = self
+                .best
+                .iter()
+                .map(load_distance)
+                .fold(f32::NEG_INFINITY, f32::max);
+            needed.max(self.per_link_range.min(own))
+        } else {
+            needed
+        }
     }
 
     #[inline]
@@ -480,10 +508,7 @@ impl Pass<'_> {
         }
         let partial_roi = roi + block.radius > self.robot_box.max_distance;
         // The robot's bounding box is also a cheap lower bound for every link at once.
-        let mut reach = self.padding;
-        for l in 0..self.links.len() {
-            reach = reach.max(self.threshold(l));
-        }
+        let reach = self.padding.max(self.largest_threshold());
         if roi - block.radius > reach && !partial_roi {
             counts.pruned = block.valid as u64;
             whole(PointStage::Pruned, last);
@@ -781,6 +806,7 @@ pub(super) fn run(
         mode: options.mode,
         per_link: options.per_link,
         per_link_range: options.per_link_range_m,
+        max_gap: bounds.posed.iter().map(|p| p.gap).fold(0.0, f32::max),
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
         robot_box,
     };

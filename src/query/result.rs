@@ -68,7 +68,8 @@ fn assemble(
     backend: Backend,
 ) -> QueryResult {
     let certified = options.mode != Mode::Fast;
-    let within = |d: f32| d <= options.max_distance_m;
+    // Finite: an empty minimum is +∞, which an infinite max_distance would let through.
+    let within = |d: f32| d.is_finite() && d <= options.max_distance_m;
     let per_link: Vec<(f32, u32)> = bounds
         .best
         .iter()
