@@ -5,18 +5,27 @@
 //! 2. **Seeds** (parallel over links): a sample of the cloud (every `SEED_STRIDE`-th point)
 //!    gives each link the point nearest to its root sphere; the block around it is descended for
 //!    that link, so that the shared bounds are tight before the main pass.
-//! 3. **Main pass** (parallel over blocks of `BLOCK` consecutive points, rayon; the one sweep
-//!    over the whole cloud). Each block gets its valid count and the bounding sphere of its valid
-//!    points (eight lanes at a time, SIMD). Consecutive points of a scan or depth image lie close
-//!    together, so these spheres are small. A block is dropped whole when its sphere lies outside
-//!    the region of interest or farther from the robot's box than every link's bound; otherwise
-//!    each link's tree is cut at the block: the **frontier**, the nodes no larger than the block
-//!    whose lower bound over the block does not exceed the link's bound (a block × tree descent;
-//!    most links end with an empty frontier and cost the block nothing more). Each point of the
-//!    block is then tested against the frontier nodes (self-filter first), and descends from
-//!    them, depth first, nearest child first, four children tested at once, pruning nodes whose
-//!    lower bound `|p − c| − r` exceeds the bound. Minima go into the shared atomics with
-//!    `fetch_min`, so every thread prunes with the best bound found by any.
+//! 3. **Main pass** (parallel over groups of blocks, rayon; the one sweep over the whole
+//!    cloud). The cloud's hierarchy, bottom up: points; **sub-blocks** of `SUB` = 8 points;
+//!    **blocks** of `BLOCK` = 32 points, runs of consecutive points or, for an organized cloud,
+//!    tiles of 8 × 4 pixels ([`Tiling`]; a tile's sphere is about a third of a row run's);
+//!    groups of 16 blocks, a rayon task. Each block gets its valid count and the bounding
+//!    sphere of its valid points (eight lanes at a time, SIMD). A block is dropped whole when
+//!    its sphere lies outside the region of interest or farther from the robot's box than
+//!    every link's bound; otherwise each link's tree is cut at the block: the **frontier**, the
+//!    nodes no larger than the block whose lower bound over the block does not exceed the
+//!    link's bound (a block × tree descent; most links end with an empty frontier and cost the
+//!    block nothing more). Each sub-block is then tested against the frontier nodes, and a link
+//!    it reaches only through them is confirmed by a descent of its centre that stops at the
+//!    first inner sphere within the bound plus its radius: the links that remain are the only
+//!    ones its points look at. Each point is then tested against those links' frontier nodes
+//!    (self-filter first: the sphere that took the previous point is tried before any
+//!    descent, and a block within the padding of that sphere is the robot whole), and
+//!    descends from them, depth first, nearest child first, four children tested at once,
+//!    pruning nodes whose lower bound `|p − c| − r` exceeds the bound. A point equal to the
+//!    one before it (within a group, across blocks too) takes its result with no work. Minima
+//!    go into the shared atomics with `fetch_min`, so every thread prunes with the best bound
+//!    found by any.
 //!
 //! The pruning rule ([`Pass::threshold`]) and the recording rule ([`Pass::record`]) are the
 //! ones the GPU shader implements per point; the blocks, frontiers and SIMD are the CPU's own.

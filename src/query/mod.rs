@@ -40,13 +40,21 @@
 //!    are dropped; whole blocks of 32 consecutive points are dropped at once by their bounding
 //!    sphere;
 //! 3. links are included or excluded by name when the engine is made;
-//! 4. the shared bound: a block, then a point, then a node is skipped when its lower bound
-//!    exceeds the current minimum; per-link minima can be switched off
-//!    (`QueryOptions::per_link`), which leaves one shared bound and prunes far more;
-//! 5. self-filtering: points whose inner-sphere distance is within `self_filter_padding_m` of a
+//! 4. the shared bound: a block, then a sub-block, then a point, then a node is skipped when
+//!    its lower bound exceeds the current minimum; organized clouds are taken in tiles of
+//!    8 × 4 pixels, whose small spheres prune more ([`Engine::query_image`]);
+//! 5. per-link minima (`QueryOptions::per_link`) only where they can change a decision: a
+//!    link's own minimum is measured up to `per_link_range_m` (the node's warn distance plus
+//!    hysteresis) and for the nearest link; a link farther away is pruned with the global
+//!    bound and reported as farther than the final threshold (`bounds::threshold`), with the
+//!    certified lower bound that follows. Switching per-link minima off leaves one shared
+//!    bound;
+//! 6. self-filtering: points whose inner-sphere distance is within `self_filter_padding_m` of a
 //!    link are the robot seen by its own sensor; they are counted, not taken as obstacles.
 //!    Because the inner-sphere distance is an upper bound, every point filtered is truly within
-//!    the padding of the collision mesh: the filter never hides an obstacle farther than that.
+//!    the padding of the collision mesh: the filter never hides an obstacle farther than that;
+//! 7. repeats: a point equal to the one before it takes its result with no work, and exact
+//!    mode refines a repeated point once.
 //!
 //! Every stage's count is reported in [`StageCounts`].
 
