@@ -12,20 +12,26 @@
 //!    groups of 16 blocks, a rayon task. Each block gets its valid count and the bounding
 //!    sphere of its valid points (eight lanes at a time, SIMD). A block is dropped whole when
 //!    its sphere lies outside the region of interest or farther from the robot's box than
-//!    every link's bound; otherwise each link's tree is cut at the block: the **frontier**, the
-//!    nodes no larger than the block whose lower bound over the block does not exceed the
-//!    link's bound (a block × tree descent; most links end with an empty frontier and cost the
-//!    block nothing more). Each sub-block is then tested against the frontier nodes, and a link
-//!    it reaches only through them is confirmed by a descent of its centre that stops at the
-//!    first inner sphere within the bound plus its radius: the links that remain are the only
-//!    ones its points look at. Each point is then tested against those links' frontier nodes
-//!    (self-filter first: the sphere that took the previous point is tried before any
-//!    descent, and a block within the padding of that sphere is the robot whole), and
-//!    descends from them, depth first, nearest child first, four children tested at once,
-//!    pruning nodes whose lower bound `|p − c| − r` exceeds the bound. A point equal to the
-//!    one before it (within a group, across blocks too) takes its result with no work. Minima
-//!    go into the shared atomics with `fetch_min`, so every thread prunes with the best bound
-//!    found by any.
+//!    every link's bound. Otherwise it is taken in two phases:
+//!    - **the robot** (self-filter), only for a block that some link's inner sphere comes
+//!      within the padding of: each link's tree is cut at the block with the padding as the
+//!      limit (the **frontier**: the nodes no larger than the block whose lower bound over the
+//!      block is within the limit), and each point is tested first against the sphere that
+//!      took the point before it, then by a descent from the frontier that stops at the first
+//!      sphere within the padding; a block within the padding of one sphere is the robot
+//!      whole. A block that is all robot ends here.
+//!    - **the obstacles**: the frontier again, cut at each link's bound (most links end with
+//!      an empty frontier and cost the block nothing more); each sub-block is tested against
+//!      the frontier nodes, and a link it reaches only through them is confirmed by a descent
+//!      of its centre that stops at the first inner sphere within the bound plus its radius:
+//!      the links that remain are the only ones its points look at. Each point is tested
+//!      against their frontier nodes and descends from them, depth first, nearest child
+//!      first, four children tested at once, pruning nodes whose lower bound `|p − c| − r`
+//!      exceeds the bound.
+//!
+//!    A point equal to the one before it (within a group, across blocks too) takes its result
+//!    with no work. Minima go into the shared atomics with `fetch_min`, so every thread prunes
+//!    with the best bound found by any.
 //!
 //! The pruning rule ([`Pass::threshold`]) and the recording rule ([`Pass::record`]) are the
 //! ones the GPU shader implements per point; the blocks, frontiers and SIMD are the CPU's own.
@@ -306,10 +312,9 @@ impl Pass<'_> {
         }
     }
 
-    /// One valid point inside the region of interest; `mask` holds the links whose frontier
-    /// (`frontier[spans[l]]`) is not empty. `hint` is the (link, sphere) that took the block's
-    /// last self-filtered point: neighbouring points of the robot's surface lie near the same
-    /// sphere, so it is tried first. Returns where the point ended.
+    /// One valid point inside the region of interest and not the robot; `mask` holds the links
+    /// its sub-block may reach within their bound, with their frontiers in
+    /// `frontier[spans[l]]`. Returns where the point ended.
     #[inline]
     fn point(
         &self,
@@ -318,40 +323,21 @@ impl Pass<'_> {
         mask: u128,
         frontier: &[u32],
         spans: &[(u32, u32)],
-        hint: &mut Option<(usize, u32)>,
     ) -> PointStage {
-        if let Some((l, s)) = *hint {
-            let q = self.posed[l].in_link(p);
-            let sphere = &self.links[l].spheres[s as usize];
-            if dist(q, sphere.center) - sphere.radius <= self.padding {
-                return PointStage::SelfFiltered(l);
-            }
-        }
-        // One look at the frontier nodes per link: which links may hold the point within the
-        // padding (self-filter) and which within their bound (evaluation).
-        let mut near = 0u128;
+        // One look at the frontier nodes per link: which links may hold the point within
+        // their bound.
         let mut eval = 0u128;
         for l in bits(mask) {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
             let t = self.threshold(l);
             // |q − c| − r ≤ b  ⇔  |q − c|² ≤ (b + r)²  for b + r ≥ 0: no square root.
-            for &n in starts(frontier, spans, l) {
+            if starts(frontier, spans, l).iter().any(|&n| {
                 let n = &link.nodes[n as usize];
-                let d2 = dist2(q, n.center);
-                let (pad, reach) = (self.padding + n.radius, t + n.radius);
-                if pad >= 0.0 && d2 <= pad * pad {
-                    near |= 1 << l;
-                }
-                if d2 <= reach * reach {
-                    eval |= 1 << l;
-                }
-            }
-        }
-        if near != 0 {
-            if let Some((l, s)) = self.is_self(p, near, frontier, spans) {
-                *hint = Some((l, s));
-                return PointStage::SelfFiltered(l);
+                let reach = t + n.radius;
+                reach >= 0.0 && dist2(q, n.center) <= reach * reach
+            }) {
+                eval |= 1 << l;
             }
         }
         if eval == 0 {
@@ -360,6 +346,31 @@ impl Pass<'_> {
         PointStage::Evaluated {
             inside: self.evaluate(i, p, eval, frontier, spans),
         }
+    }
+
+    /// Whether `p` is the robot: within the padding of the sphere `hint` that took the point
+    /// before it (neighbouring points of the robot's surface lie near the same sphere), or of
+    /// any sphere of the links of `mask` (a descent from their frontiers that stops at the
+    /// first). Returns the link, and keeps the sphere as the next hint.
+    #[inline]
+    fn self_link(
+        &self,
+        p: [f32; 3],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+        hint: &mut Option<(usize, u32)>,
+    ) -> Option<usize> {
+        if let Some((l, s)) = *hint {
+            let q = self.posed[l].in_link(p);
+            let sphere = &self.links[l].spheres[s as usize];
+            if dist(q, sphere.center) - sphere.radius <= self.padding {
+                return Some(l);
+            }
+        }
+        let (l, s) = self.is_self(p, mask, frontier, spans)?;
+        *hint = Some((l, s));
+        Some(l)
     }
 
     /// The first link of `mask` with an inner sphere within the self-filter padding of `p`,
@@ -379,6 +390,20 @@ impl Pass<'_> {
             let link = &self.links[l];
             let q = self.posed[l].in_link(p);
             any_within(link, q, starts(frontier, spans, l), self.padding).map(|s| (l, s))
+        })
+    }
+
+    /// Whether a block may hold points of the robot: some link has an inner sphere within the
+    /// padding plus the block's radius of its centre (a root test, then a descent that stops at
+    /// the first such sphere). Most blocks of a scene are not near the robot and skip the
+    /// self-filter's frontiers.
+    #[inline]
+    fn may_be_robot(&self, block: &Block) -> bool {
+        let limit = self.padding + block.radius;
+        self.posed.iter().zip(self.links).any(|(pl, link)| {
+            let reach = limit + pl.radius;
+            dist2(block.center, pl.center) <= reach * reach
+                && any_within(link, pl.in_link(block.center), &[0], limit).is_some()
         })
     }
 
@@ -420,13 +445,18 @@ impl Pass<'_> {
         &self,
         center: [f32; 3],
         radius: f32,
+        self_filter: bool,
         frontier: &mut Vec<u32>,
         spans: &mut [(u32, u32)],
     ) -> u128 {
         frontier.clear();
         let mut mask = 0u128;
         for (l, pl) in self.posed.iter().enumerate() {
-            let limit = self.threshold(l).max(self.padding);
+            let limit = if self_filter {
+                self.padding
+            } else {
+                self.threshold(l)
+            };
             // Root sphere first, in the sensor frame (no transform, no square root).
             let reach = limit + radius + pl.radius;
             if dist2(center, pl.center) > reach * reach {
@@ -458,20 +488,17 @@ impl Pass<'_> {
             let link = &self.links[l];
             let q = self.posed[l].in_link(c);
             let st = starts(frontier, spans, l);
-            let (pad, reach) = (self.padding + r, self.threshold(l) + r);
-            let (mut near, mut within) = (false, false);
-            for &n in st {
+            let reach = self.threshold(l) + r;
+            let within = st.iter().any(|&n| {
                 let n = &link.nodes[n as usize];
-                let d2 = dist2(q, n.center);
-                let (p, e) = (pad + n.radius, reach + n.radius);
-                near |= p >= 0.0 && d2 <= p * p;
-                within |= e >= 0.0 && d2 <= e * e;
-            }
+                let e = reach + n.radius;
+                e >= 0.0 && dist2(q, n.center) <= e * e
+            });
             // A sub-block only within the link's bound by its frontier nodes, which are as
             // large as the block, is confirmed by a descent of its centre that stops at the
             // first inner sphere within the bound plus its radius: most are dropped here, not
             // point by point.
-            if near || (within && any_within(link, q, st, reach).is_some()) {
+            if within && any_within(link, q, st, reach).is_some() {
                 out |= 1 << l;
             }
         }
@@ -523,70 +550,74 @@ impl Pass<'_> {
             whole(PointStage::Pruned, last);
             return counts;
         }
-        let mask = self.frontiers(block.center, block.radius, frontier, spans);
-        if mask == 0 && !partial_roi {
-            counts.pruned = block.valid as u64;
-            whole(PointStage::Pruned, last);
-            return counts;
-        }
+        let subs = self.tiling.subs(b);
+        let outside =
+            |p: [f32; 3]| partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance;
+        // Phase 1, the self-filter, with frontiers cut at the padding (small, cheap): which
+        // points are the robot. A block all robot ends here.
         let mut self_by_link = [0u32; MAX_LINKS];
-        let mut hint = None;
-        let mut whole_self = None;
-        for (start, len) in self.tiling.subs(b) {
-            let chunk = &self.points[start..start + len];
-            let (c, r) = bound_sub(chunk);
-            if r < 0.0 {
-                continue;
-            }
-            let sub = if whole_self.is_some() {
-                0
-            } else {
-                self.sub_mask(c, r, mask, frontier, spans)
-            };
-            for (i, &p) in chunk.iter().enumerate() {
-                if !valid(p) {
-                    continue;
-                }
-                let stage = match *last {
-                    Some((q, stage)) if q == p => stage,
-                    _ => {
-                        let stage = if partial_roi
-                            && self.robot_box.distance(p) > self.robot_box.max_distance
-                        {
-                            PointStage::OutsideRoi
-                        } else if let Some(l) = whole_self {
-                            PointStage::SelfFiltered(l)
-                        } else if sub == 0 {
-                            PointStage::Pruned
-                        } else {
-                            let at = (start + i) as u32;
-                            let stage = self.point(at, p, sub, frontier, spans, &mut hint);
-                            // The first time a sphere takes a point, it may take the block.
-                            if let (PointStage::SelfFiltered(_), Some(h)) = (stage, hint) {
-                                if whole_self.is_none()
-                                    && self.block_is_self(block.center, block.radius, h)
-                                {
-                                    whole_self = Some(h.0);
+        let mut robot = 0u32;
+        if self.padding >= 0.0 && self.may_be_robot(block) {
+            let near = self.frontiers(block.center, block.radius, true, frontier, spans);
+            if near != 0 {
+                let mut hint = None;
+                let mut whole_self = None;
+                for (k, &(start, len)) in subs.iter().enumerate() {
+                    for (i, &p) in self.points[start..start + len].iter().enumerate() {
+                        if !valid(p) || outside(p) {
+                            continue;
+                        }
+                        let l = match (*last, whole_self) {
+                            (_, Some(l)) => Some(l),
+                            (Some((q, stage)), _) if q == p => match stage {
+                                PointStage::SelfFiltered(l) => Some(l),
+                                _ => None,
+                            },
+                            _ => {
+                                let l = self.self_link(p, near, frontier, spans, &mut hint);
+                                if let Some(l) = l {
+                                    *last = Some((p, PointStage::SelfFiltered(l)));
+                                    // The first time a sphere takes a point, it may take the
+                                    // whole block.
+                                    if let Some(h) = hint {
+                                        if self.block_is_self(block.center, block.radius, h) {
+                                            whole_self = Some(h.0);
+                                        }
+                                    }
                                 }
+                                l
                             }
-                            stage
                         };
-                        *last = Some((p, stage));
-                        stage
-                    }
-                };
-                match stage {
-                    PointStage::OutsideRoi => counts.outside_roi += 1,
-                    PointStage::SelfFiltered(l) => {
-                        counts.self_filtered += 1;
-                        self_by_link[l] += 1;
-                    }
-                    PointStage::Pruned => counts.pruned += 1,
-                    PointStage::Evaluated { inside } => {
-                        counts.evaluated += 1;
-                        counts.inside += inside as u64;
+                        if let Some(l) = l {
+                            robot |= 1 << (SUB * k + i);
+                            counts.self_filtered += 1;
+                            self_by_link[l] += 1;
+                        }
                     }
                 }
+            }
+        }
+        // Phase 2, the obstacle points: frontiers cut at each link's threshold, then
+        // sub-block by sub-block, point by point.
+        if counts.self_filtered < u64::from(block.valid) {
+            let mask = self.frontiers(block.center, block.radius, false, frontier, spans);
+            if mask == 0 && !partial_roi {
+                // No link within reach: the rest of the block is pruned whole.
+                counts.pruned = u64::from(block.valid) - counts.self_filtered;
+                if counts.self_filtered == 0 {
+                    whole(PointStage::Pruned, last);
+                }
+            } else {
+                self.obstacles(
+                    subs,
+                    mask,
+                    robot,
+                    partial_roi,
+                    frontier,
+                    spans,
+                    last,
+                    &mut counts,
+                );
             }
         }
         if counts.self_filtered > 0 {
@@ -597,6 +628,74 @@ impl Pass<'_> {
             }
         }
         counts
+    }
+
+    /// Phase 2 of a block: its points that are not the robot (bits of `robot`), sub-block by
+    /// sub-block, point by point, against the links of `mask`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn obstacles(
+        &self,
+        subs: [(usize, usize); TILE_ROWS],
+        mask: u128,
+        robot: u32,
+        partial_roi: bool,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+        last: &mut Option<([f32; 3], PointStage)>,
+        counts: &mut StageCounts,
+    ) {
+        let outside =
+            |p: [f32; 3]| partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance;
+        {
+            for (k, &(start, len)) in subs.iter().enumerate() {
+                let chunk = &self.points[start..start + len];
+                let mut sub = None;
+                for (i, &p) in chunk.iter().enumerate() {
+                    if !valid(p) || robot & (1 << (SUB * k + i)) != 0 {
+                        continue;
+                    }
+                    let stage = match *last {
+                        Some((q, stage)) if q == p => stage,
+                        _ => {
+                            let stage = if outside(p) {
+                                PointStage::OutsideRoi
+                            } else {
+                                let sub = *sub.get_or_insert_with(|| {
+                                    let (c, r) = bound_sub(chunk);
+                                    if mask == 0 || r < 0.0 {
+                                        0
+                                    } else {
+                                        self.sub_mask(c, r, mask, frontier, spans)
+                                    }
+                                });
+                                if sub == 0 {
+                                    PointStage::Pruned
+                                } else {
+                                    self.point((start + i) as u32, p, sub, frontier, spans)
+                                }
+                            };
+                            *last = Some((p, stage));
+                            stage
+                        }
+                    };
+                    match stage {
+                        PointStage::OutsideRoi => counts.outside_roi += 1,
+                        // A copy of a robot point of an earlier block, in a block whose phase
+                        // 1 did not run.
+                        PointStage::SelfFiltered(l) => {
+                            counts.self_filtered += 1;
+                            self.self_filtered[l].fetch_add(1, Relaxed);
+                        }
+                        PointStage::Pruned => counts.pruned += 1,
+                        PointStage::Evaluated { inside } => {
+                            counts.evaluated += 1;
+                            counts.inside += inside as u64;
+                        }
+                    }
+                }
+            }
+        }
     }
 
     /// The counts of `valid` more copies of a point that ended at `stage` (the rest of a run of
@@ -622,15 +721,31 @@ impl Pass<'_> {
     /// that the robot's own points never become a bound; nothing is counted).
     fn seed(&self, l: usize, b: usize, block: &Block) {
         with_scratch(self.links.len(), |frontier, spans| {
-            let mask = self.frontiers(block.center, block.radius, frontier, spans);
+            let near = self.frontiers(block.center, block.radius, true, frontier, spans);
+            // The robot's points (bit k: the k-th point of the block's sub-blocks), which
+            // never become a bound.
+            let mut robot = 0u32;
+            let points = self
+                .tiling
+                .subs(b)
+                .into_iter()
+                .flat_map(|(start, len)| &self.points[start..start + len]);
+            for (k, &p) in points.enumerate() {
+                if valid(p) && near != 0 && self.is_self(p, near, frontier, spans).is_some() {
+                    robot |= 1 << k;
+                }
+            }
+            let mask = self.frontiers(block.center, block.radius, false, frontier, spans);
+            let mut k = 0;
             for (start, len) in self.tiling.subs(b) {
                 for (i, &p) in self.points[start..start + len].iter().enumerate() {
                     if valid(p)
+                        && robot & (1 << k) == 0
                         && self.robot_box.distance(p) <= self.robot_box.max_distance
-                        && self.is_self(p, mask, frontier, spans).is_none()
                     {
                         self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
                     }
+                    k += 1;
                 }
             }
         });
