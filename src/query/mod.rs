@@ -80,8 +80,9 @@ use crate::robot::{LinkGeometry, RobotModel};
 /// Most links with collision geometry one engine handles (a bit mask per point).
 pub const MAX_LINKS: usize = 128;
 
-/// Default crossover of `Backend::Auto`, in points. Not yet measured on a hardware GPU (none was
-/// available): `ist_monitor bench gpu` measures it; set `gpu_min_points` from its figure.
+/// Default crossover of `Backend::Auto`, in points. On the one hardware GPU measured (an H100
+/// beside 16 CPU cores, README) the GPU never won end to end on the Kinect scene, at any size:
+/// `ist_monitor bench gpu` measures it; set `gpu_min_points` (or `backend: cpu`) from its figure.
 pub const DEFAULT_GPU_MIN_POINTS: usize = 100_000;
 
 /// What the query computes.
