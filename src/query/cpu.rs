@@ -557,7 +557,9 @@ impl Pass<'_> {
         // points are the robot. A block all robot ends here.
         let mut self_by_link = [0u32; MAX_LINKS];
         let mut robot = 0u32;
-        if self.padding >= 0.0 && self.may_be_robot(block) {
+        // The robot box bounds every link from below: a block beyond the padding of it holds no
+        // robot point.
+        if self.padding >= 0.0 && roi - block.radius <= self.padding && self.may_be_robot(block) {
             let near = self.frontiers(block.center, block.radius, true, frontier, spans);
             if near != 0 {
                 let mut hint = None;
