@@ -328,15 +328,13 @@ impl Pass<'_> {
         // their bound.
         let mut eval = 0u128;
         for l in bits(mask) {
-            let link = &self.links[l];
             let q = self.posed[l].in_link(p);
-            let t = self.threshold(l);
-            // |q − c| − r ≤ b  ⇔  |q − c|² ≤ (b + r)²  for b + r ≥ 0: no square root.
-            if starts(frontier, spans, l).iter().any(|&n| {
-                let n = &link.nodes[n as usize];
-                let reach = t + n.radius;
-                reach >= 0.0 && dist2(q, n.center) <= reach * reach
-            }) {
+            if reaches(
+                &self.links[l],
+                q,
+                starts(frontier, spans, l),
+                self.threshold(l),
+            ) {
                 eval |= 1 << l;
             }
         }
@@ -391,6 +389,12 @@ impl Pass<'_> {
             let q = self.posed[l].in_link(p);
             any_within(link, q, starts(frontier, spans, l), self.padding).map(|s| (l, s))
         })
+    }
+
+    /// Whether point `p` of a block that straddles the region of interest lies outside it.
+    #[inline(always)]
+    fn outside(&self, p: [f32; 3], partial_roi: bool) -> bool {
+        partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance
     }
 
     /// Whether a block may hold points of the robot: some link has an inner sphere within the
@@ -472,8 +476,8 @@ impl Pass<'_> {
         mask
     }
 
-    /// The links of `mask` with a frontier node within reach of the sphere (`c`, `r`): within
-    /// the link's threshold (evaluation) or the padding (self-filter).
+    /// The links of `mask` that may hold a point of the sphere (`c`, `r`) within their
+    /// threshold.
     #[inline]
     fn sub_mask(
         &self,
@@ -489,11 +493,7 @@ impl Pass<'_> {
             let q = self.posed[l].in_link(c);
             let st = starts(frontier, spans, l);
             let reach = self.threshold(l) + r;
-            let within = st.iter().any(|&n| {
-                let n = &link.nodes[n as usize];
-                let e = reach + n.radius;
-                e >= 0.0 && dist2(q, n.center) <= e * e
-            });
+            let within = reaches(link, q, st, reach);
             // A sub-block only within the link's bound by its frontier nodes, which are as
             // large as the block, is confirmed by a descent of its centre that stops at the
             // first inner sphere within the bound plus its radius: most are dropped here, not
@@ -551,8 +551,6 @@ impl Pass<'_> {
             return counts;
         }
         let subs = self.tiling.subs(b);
-        let outside =
-            |p: [f32; 3]| partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance;
         // Phase 1, the self-filter, with frontiers cut at the padding (small, cheap): which
         // points are the robot. A block all robot ends here.
         let mut self_by_link = [0u32; MAX_LINKS];
@@ -566,7 +564,7 @@ impl Pass<'_> {
                 let mut whole_self = None;
                 for (k, &(start, len)) in subs.iter().enumerate() {
                     for (i, &p) in self.points[start..start + len].iter().enumerate() {
-                        if !valid(p) || outside(p) {
+                        if !valid(p) || self.outside(p, partial_roi) {
                             continue;
                         }
                         let l = match (*last, whole_self) {
@@ -647,8 +645,6 @@ impl Pass<'_> {
         last: &mut Option<([f32; 3], PointStage)>,
         counts: &mut StageCounts,
     ) {
-        let outside =
-            |p: [f32; 3]| partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance;
         {
             for (k, &(start, len)) in subs.iter().enumerate() {
                 let chunk = &self.points[start..start + len];
@@ -660,7 +656,7 @@ impl Pass<'_> {
                     let stage = match *last {
                         Some((q, stage)) if q == p => stage,
                         _ => {
-                            let stage = if outside(p) {
+                            let stage = if self.outside(p, partial_roi) {
                                 PointStage::OutsideRoi
                             } else {
                                 let sub = *sub.get_or_insert_with(|| {
@@ -752,6 +748,17 @@ impl Pass<'_> {
             }
         });
     }
+}
+
+/// Whether a node of `starts` lies within `bound` of `q` (link frame): `|q − c| − r ≤ bound`,
+/// tested as `|q − c|² ≤ (bound + r)²` (no square root).
+#[inline(always)]
+fn reaches(link: &QueryLink, q: [f32; 3], starts: &[u32], bound: f32) -> bool {
+    starts.iter().any(|&n| {
+        let n = &link.nodes[n as usize];
+        let reach = bound + n.radius;
+        reach >= 0.0 && dist2(q, n.center) <= reach * reach
+    })
 }
 
 /// The links of a mask, lowest first.

@@ -21,10 +21,10 @@ use anyhow::{bail, Context, Result};
 use serde::Serialize;
 
 use ist_monitor::ist::BuildOptions;
-use ist_monitor::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptions};
+use ist_monitor::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptions, QueryResult};
 use ist_monitor::stats::Spread;
 
-use super::scenes::{load_scenario, ScenarioName};
+use super::scenes::{load_scenario, Case, ScenarioName};
 use crate::cli::cached_trees;
 
 #[derive(clap::Args)]
@@ -130,6 +130,32 @@ fn row(
     }
 }
 
+/// Every case timed `runs` times with `options` (one untimed query first): the samples of all
+/// cases, and each case's result.
+fn time_cases(
+    engine: &mut Engine,
+    cases: &[Case],
+    runs: usize,
+    options: &QueryOptions,
+) -> Result<(Vec<f64>, Vec<QueryResult>)> {
+    let mut samples = Vec::new();
+    let mut results = Vec::new();
+    for case in cases {
+        let (s, r) = time(runs, || {
+            engine.query_image(
+                &case.points,
+                case.width,
+                &case.root_from_sensor,
+                &case.link_poses,
+                options,
+            )
+        });
+        samples.extend(s);
+        results.push(r?);
+    }
+    Ok((samples, results))
+}
+
 /// Error of a result against the exact distance, mm: `upper − exact` (fast), `exact − lower`
 /// (certified), `|exact mode − exact|` (exact).
 fn error_mm(mode: Mode, n: &ist_monitor::query::Nearest, exact: f64) -> f64 {
@@ -233,7 +259,12 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
         ));
         // The exact distance per case: the generator's truth, or peer (a) (peer (b) on the
         // stress scenes).
-        let mut reference: Vec<f64> = cases.iter().filter_map(|c| c.truth_m).collect();
+        // (all cases or none, so that reference[c] is case c's).
+        let mut reference: Vec<f64> = cases
+            .iter()
+            .map(|c| c.truth_m)
+            .collect::<Option<_>>()
+            .unwrap_or_default();
         let peers = !args.no_peers && !scenario.robot_in_view;
         if peers {
             let slow = name.needs_shared();
@@ -293,21 +324,10 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
         }
         // The node's settings (self-filter on), at the default budget.
         for (label, options) in node_settings(args.backend) {
-            let mut samples = Vec::new();
+            let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
             let mut errors = Vec::new();
-            for (c, case) in cases.iter().enumerate() {
-                let (s, r) = time(args.runs, || {
-                    engine.query_image(
-                        &case.points,
-                        case.width,
-                        &case.root_from_sensor,
-                        &case.link_poses,
-                        &options,
-                    )
-                });
-                samples.extend(s);
-                let r = r?;
-                if let (Some(n), Some(&exact)) = (&r.nearest, reference.get(c)) {
+            for (r, &exact) in results.iter().zip(&reference) {
+                if let Some(n) = &r.nearest {
                     errors.push(error_mm(options.mode, n, exact));
                 }
             }
@@ -340,23 +360,12 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                         backend: args.backend,
                         ..QueryOptions::default()
                     };
-                    let mut samples = Vec::new();
+                    let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
                     let mut errors = Vec::new();
-                    for (c, case) in cases.iter().enumerate() {
-                        let (s, r) = time(args.runs, || {
-                            engine.query_image(
-                                &case.points,
-                                case.width,
-                                &case.root_from_sensor,
-                                &case.link_poses,
-                                &options,
-                            )
-                        });
-                        samples.extend(s);
-                        let r = r?;
-                        let n = r.nearest.context("no nearest point")?;
+                    for (c, r) in results.iter().enumerate() {
+                        let n = r.nearest.as_ref().context("no nearest point")?;
                         if let Some(&exact) = reference.get(c) {
-                            errors.push(error_mm(mode, &n, exact));
+                            errors.push(error_mm(mode, n, exact));
                         }
                     }
                     scenario_rows.push(row(
