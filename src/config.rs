@@ -18,6 +18,7 @@ use crate::ist::BuildOptions;
 use crate::msg::{Header, Quaternion, Time, Transform, TransformStamped, Vector3};
 use crate::query::{Backend, LinkSelection, Mode, QueryOptions};
 use crate::robot::{urdf::resolve_uri, PackagePath};
+use crate::separation::{SsmParams, StoppingTable};
 
 /// One declared parameter. `default` is YAML text; `~` means "no value" (optional).
 #[derive(Debug, Clone, Copy)]
@@ -82,6 +83,18 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("<transform>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "parent_from_child rotation as a quaternion x y z w"),
     p("fixed_joint_state.names", "[]", "", "joints held at fixed values (for bags without /joint_states)"),
     p("fixed_joint_state.positions", "[]", "rad or m", "their values, in the same order"),
+    p("speed_scaling.enabled", "true", "", "publish ~/speed_scaling (control_msgs/SpeedScalingFactor) from speed and separation monitoring (ISO/TS 15066); needs joint velocities"),
+    p("speed_scaling.human_speed", "1.6", "m/s", "v_h: the speed a person approaches at (ISO 13855 walking speed)"),
+    p("speed_scaling.reaction_time", "0.1", "s", "T_r without the cloud's age, which is measured and added per cloud"),
+    p("speed_scaling.stopping.speeds", "[0.0, 1.0]", "m/s", "speeds of the stopping table (from 0, increasing); replace the defaults by the robot's stopping measurements"),
+    p("speed_scaling.stopping.times", "[0.0, 0.3]", "s", "T_s: stopping time at each speed (linear between, extrapolated beyond)"),
+    p("speed_scaling.stopping.distances", "[0.0, 0.15]", "m", "S_s: stopping distance at each speed"),
+    p("speed_scaling.intrusion_distance", "0.0", "m", "C: intrusion distance from the sensor's detection capability (ISO 13855)"),
+    p("speed_scaling.sensor_uncertainty", "0.02", "m", "Z_d without the surface gap h (added where the distance is the inner-sphere one)"),
+    p("speed_scaling.robot_uncertainty", "0.01", "m", "Z_r: robot position uncertainty"),
+    p("speed_scaling.hysteresis", "0.05", "", "the factor rises only when the allowed factor exceeds it by this"),
+    p("speed_scaling.max_increase_rate", "0.5", "1/s", "largest rise of the factor per second (decreases are immediate)"),
+    p("speed_scaling.velocities_scaled", "true", "", "the measured joint velocities already carry the factor in effect (a controller obeying ~/speed_scaling): they are divided by it to get the nominal motion"),
 ];
 
 #[derive(Debug, thiserror::Error)]
@@ -148,6 +161,10 @@ pub struct Config {
     pub sources: Vec<SourceConfig>,
     pub static_transforms: Vec<TransformStamped>,
     pub fixed_joint_state: Vec<(String, f64)>,
+    /// Speed and separation monitoring.
+    pub ssm: SsmParams,
+    /// Output topic remappings of the live node (`--ros-args -r FROM:=TO`; not a parameter).
+    pub remaps: Vec<(String, String)>,
 }
 
 impl Default for Config {
@@ -631,6 +648,51 @@ impl Config {
             sources,
             static_transforms,
             fixed_joint_state: names.into_iter().zip(positions).collect(),
+            ssm: Self::ssm(&v)?,
+            remaps: Vec::new(),
+        })
+    }
+
+    fn ssm(v: &Values) -> Result<SsmParams, ConfigError> {
+        let d = |name: &str| v.distance(name, name);
+        let stopping = StoppingTable {
+            speeds_mps: v.numbers(
+                "speed_scaling.stopping.speeds",
+                "speed_scaling.stopping.speeds",
+            )?,
+            times_s: v.numbers(
+                "speed_scaling.stopping.times",
+                "speed_scaling.stopping.times",
+            )?,
+            distances_m: v.numbers(
+                "speed_scaling.stopping.distances",
+                "speed_scaling.stopping.distances",
+            )?,
+        };
+        stopping.validate().map_err(|(list, message)| {
+            Values::bad(&format!("speed_scaling.stopping.{list}"), message)
+        })?;
+        let hysteresis = d("speed_scaling.hysteresis")?;
+        if hysteresis > 1.0 {
+            return Err(Values::bad(
+                "speed_scaling.hysteresis",
+                format!("{hysteresis} is above 1 (the factor's range)"),
+            ));
+        }
+        Ok(SsmParams {
+            enabled: v.bool("speed_scaling.enabled", "speed_scaling.enabled")?,
+            human_speed_mps: d("speed_scaling.human_speed")?,
+            reaction_time_s: d("speed_scaling.reaction_time")?,
+            stopping,
+            intrusion_distance_m: d("speed_scaling.intrusion_distance")?,
+            sensor_uncertainty_m: d("speed_scaling.sensor_uncertainty")?,
+            robot_uncertainty_m: d("speed_scaling.robot_uncertainty")?,
+            hysteresis,
+            max_increase_rate_per_s: d("speed_scaling.max_increase_rate")?,
+            velocities_scaled: v.bool(
+                "speed_scaling.velocities_scaled",
+                "speed_scaling.velocities_scaled",
+            )?,
         })
     }
 
@@ -724,6 +786,7 @@ mod tests {
         // One default per parameter: the typed defaults of the library equal the table's.
         let c = Config::default();
         assert_eq!(c.query, QueryOptions::default());
+        assert_eq!(c.ssm, SsmParams::default());
         assert_eq!(c.selection, LinkSelection::default());
         assert_eq!(
             c.build.packing.max_spheres,
@@ -764,6 +827,10 @@ mod tests {
             ("    fixed_joint_state:\n      names: [a, b]\n      positions: [1.0]\n", "fixed_joint_state.positions"),
             ("    stop_distance: 0.5\n", "stop_distance"),
             ("    per_link: 3\n", "per_link"),
+            ("    speed_scaling:\n      stopping:\n        times: [0.3, 0.1]\n", "speed_scaling.stopping.times"),
+            ("    speed_scaling.stopping.speeds: [0.5, 1.0]\n", "speed_scaling.stopping.speeds"),
+            ("    speed_scaling.hysteresis: 2\n", "speed_scaling.hysteresis"),
+            ("    speed_scaling.human_speed: -1\n", "speed_scaling.human_speed"),
         ] {
             let e = load(&format!("{base}{body}"), &[]).unwrap_err().to_string();
             assert!(e.contains(name), "{body}: {e}");

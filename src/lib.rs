@@ -3,20 +3,22 @@
 //! The library's modules follow the data, and each depends only on the ones before it:
 //!
 //! ```text
-//! robot ─▶ packing ─▶ ist ─▶ query ─▶ config ─▶ monitor ─▶ node
-//! (URDF,   (inner     (tree,  (CPU and  (params)  (pipeline,  (ROS 2 node,
-//!  meshes,  spheres,   cache)  GPU over           outputs,    play, record)
-//!  FK)      gap h)             one layout)        replay)
-//!                                                   ▲
-//! msg ─▶ bag (MCAP in/out) ─▶ cloud (PCD, PLY, ─────┤
-//!  │                           PointCloud2)         │
-//!  └───▶ tf (TF buffer, joint states) ──────────────┘
+//! robot ─▶ packing ─▶ ist ─▶ query ─▶ separation ─▶ config ─▶ monitor ─▶ node
+//! (URDF,   (inner     (tree,  (CPU and  (SSM: speed   (params)  (pipeline,  (ROS 2 node,
+//!  meshes,  spheres,   cache)  GPU over   scaling)              outputs,    play, record)
+//!  FK)      gap h)             one layout)                      replay)
+//!                                                                 ▲
+//! msg ─▶ bag (MCAP in/out) ─▶ cloud (PCD, PLY, PointCloud2) ──────┤
+//!  │                                                              │
+//!  └───▶ tf (TF buffer, joint states and their velocities) ───────┘
 //! ```
 //!
 //! - `robot` (URDF, collision meshes, kinematics) → `packing` (Protosphere inner spheres, the
 //!   certified surface gap) → `ist` (tree, quality, cache, validation)
 //!   → `query` (the layout shared with the GPU, posing, the CPU traversal, the GPU host, exact
-//!   refinement and one result assembly for both) → `config` (the parameters, each declared
+//!   refinement and one result assembly for both) → `separation` (speed and separation
+//!   monitoring: the speed-scaling factor from the per-link distances and the link velocities)
+//!   → `config` (the parameters, each declared
 //!   once) → `monitor` (the per-cloud pipeline, faults and levels, the output table, replay) →
 //!   `node` (the live ROS 2 node, and the `play` and `record` tools);
 //! - `msg` (the ROS 2 messages) → `bag` (rosbag2 MCAP in and out) → `cloud` (PCD, PLY,
@@ -40,5 +42,6 @@ pub mod packing;
 pub mod query;
 pub mod robot;
 pub mod scenario;
+pub mod separation;
 pub mod stats;
 pub mod tf;

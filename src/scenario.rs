@@ -2,7 +2,8 @@
 //!
 //! A simulated depth camera — pinhole model, range noise, dropped pixels — looks at the demo
 //! robot moving along a joint trajectory and at an obstacle: a person-sized capsule that walks
-//! up to the arm (`person`), or a box the arm reaches over (`shelf`). Every frame is ray cast
+//! up to the arm (`person`; `approach`: up to the swinging arm and back), or a box the arm
+//! reaches over (`shelf`). Every frame is ray cast
 //! against the robot's collision meshes (the same tessellated meshes the monitor uses), the
 //! obstacle and a back wall; rays that hit nothing within the camera's range give NaN, like a
 //! real depth camera.
@@ -13,6 +14,13 @@
 //! [`GROUND_TRUTH_TOPIC`] the exact minimum distance between the robot's collision meshes and
 //! the cloud's obstacle points of each frame, at the cloud's log time. Clouds are stamped at
 //! joint-state sample times, so the monitor's interpolated joint values are the rendered ones.
+//! Joint states carry their velocities (the central difference of the trajectory). For the
+//! speed and separation monitor, each frame also records on [`APPROACH_TRUTH_TOPIC`] the
+//! robot's approach speed at its closest mesh point — that point moved with its link by the
+//! forward kinematics along the trajectory (central difference), projected on the direction
+//! to the obstacle point — and on [`MARGIN_TRUTH_TOPIC`] the separation margin: the exact
+//! distance minus the protective separation distance with the default parameters
+//! (`SsmParams::default`, the cloud taken as seen at once).
 //!
 //! The truth is taken over the points that hit the obstacle or the wall; points on the robot
 //! itself are what the monitor's self-filter removes. So that the two agree, the range noise is
@@ -32,15 +40,18 @@ use parry3d::query::{Ray, RayCast};
 use parry3d::shape::{Capsule, Cuboid};
 use rayon::prelude::*;
 
-use crate::bag::{writer::Compression, BagWriter, GROUND_TRUTH_TOPIC};
+use crate::bag::{
+    writer::Compression, BagWriter, APPROACH_TRUTH_TOPIC, GROUND_TRUTH_TOPIC, MARGIN_TRUTH_TOPIC,
+};
 use crate::cloud::pointcloud2::{encode, Colour, Layout};
 use crate::cloud::CloudError;
 use crate::msg::{
-    CameraInfo, Header, JointState, PointCloud2, PointField, TfMessage, Time, Transform,
+    CameraInfo, Float64, Header, JointState, PointCloud2, PointField, TfMessage, Time, Transform,
     TransformStamped,
 };
 use crate::packing::Solid;
 use crate::robot::RobotModel;
+use crate::separation::SsmParams;
 
 /// The scenes the generator knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -49,6 +60,20 @@ pub enum SceneKind {
     Person,
     /// The arm reaches over a box standing in front of it.
     Shelf,
+    /// The person walks up to the arm while it swings toward them, and both go back: the
+    /// approach and the recovery of the speed and separation monitor.
+    Approach,
+}
+
+impl SceneKind {
+    /// Where along the walk-up the scene is at `s` ∈ [0, 1]: the approach scene goes out and
+    /// back.
+    fn progress(self, s: f64) -> f64 {
+        match self {
+            SceneKind::Approach => 1.0 - (2.0 * s - 1.0).abs(),
+            _ => s,
+        }
+    }
 }
 
 /// Generator settings.
@@ -96,6 +121,8 @@ pub const CAMERA_INFO_TOPIC: &str = "/camera/depth/camera_info";
 pub const CAMERA_LINK: &str = "camera_link";
 pub const OPTICAL_FRAME: &str = "camera_optical_frame";
 const CLOUD_RATE_HZ: f64 = 10.0;
+/// Step in `s` of the central differences.
+const DS: f64 = 1e-6;
 const JOINT_RATE_HZ: f64 = 50.0;
 /// Stamp of the first frame, ns (2023-11-14).
 const START_NS: i64 = 1_700_000_000_000_000_000;
@@ -106,6 +133,9 @@ pub struct Generated {
     pub frames: usize,
     /// Exact minimum distance per frame, m (`None`: no obstacle point).
     pub truth_m: Vec<Option<f64>>,
+    /// The truth of the separation monitor per frame: the robot's approach speed at its
+    /// closest point (m/s) and the separation margin with the default SSM parameters (m).
+    pub separation: Vec<Option<(f64, f64)>>,
     /// Obstacle and robot points per frame.
     pub obstacle_points: Vec<usize>,
     pub robot_points: Vec<usize>,
@@ -134,10 +164,10 @@ impl Noise {
 
 /// The joint trajectory of a scene at `s` ∈ [0, 1] (eased), as `name = value` pairs.
 fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
-    let ease = 0.5 - 0.5 * (std::f64::consts::PI * s).cos();
+    let ease = 0.5 - 0.5 * (std::f64::consts::PI * scene.progress(s)).cos();
     let (from, to): ([f64; 7], [f64; 7]) = match scene {
         // pan, lift, elbow, wrist_1, wrist_2, wrist_3, finger
-        SceneKind::Person => (
+        SceneKind::Person | SceneKind::Approach => (
             [0.9, 0.2, 1.1, 0.6, 0.0, 0.0, 0.015],
             [-0.95, 0.55, 0.95, 0.5, 0.8, 0.3, 0.005],
         ),
@@ -168,10 +198,14 @@ fn obstacles(scene: SceneKind, s: f64) -> Vec<(Box<dyn RayCast + Send + Sync>, I
     let wall: Box<dyn RayCast + Send + Sync> = Box::new(Cuboid::new(Vector::new(0.05, 2.0, 1.2)));
     let wall_pose = Isometry3::translation(-1.4, 0.0, 1.2);
     let obstacle: (Box<dyn RayCast + Send + Sync>, Isometry3<f64>) = match scene {
-        SceneKind::Person => {
-            // Radius 0.18 m, 1.7 m tall, walking from 1.1 m to 0.58 m beside the base.
-            let walk = (s * 1.2).min(1.0);
-            let y = -1.1 + walk * (1.1 - 0.58);
+        SceneKind::Person | SceneKind::Approach => {
+            // Radius 0.18 m, 1.7 m tall, walking from 1.1 m to 0.58 m beside the base (the
+            // approach scene: from 1.2 m, and back).
+            let (walk, from) = match scene {
+                SceneKind::Approach => (scene.progress(s), -1.2),
+                _ => ((s * 1.2).min(1.0), -1.1),
+            };
+            let y = from + walk * (-from - 0.58);
             (
                 Box::new(Capsule::new_z(0.67, 0.18)),
                 Isometry3::translation(0.1, y, 0.85),
@@ -258,8 +292,21 @@ pub struct Frame {
     /// Exact minimum distance between the robot's meshes and the obstacle points (`None`: no
     /// obstacle point, or not asked for).
     pub truth_m: Option<f64>,
+    /// Where the truth is taken: the robot's closest mesh point and the obstacle point.
+    pub truth_witness: Option<Witness>,
     pub obstacle_points: usize,
     pub robot_points: usize,
+}
+
+/// The two points of a frame's exact minimum.
+#[derive(Debug, Clone, Copy)]
+pub struct Witness {
+    /// Index of the robot link (the kinematics' order).
+    pub link: usize,
+    /// The closest point of its mesh, in the link's frame.
+    pub robot_in_link: Point3<f64>,
+    /// The obstacle point, in the root frame.
+    pub obstacle_root: Point3<f64>,
 }
 
 /// The simulated camera and scene: renders frames along the scene's trajectory, drawing noise
@@ -333,6 +380,34 @@ impl<'a> Renderer<'a> {
         Ok(self.model.kinematics.values_from_names(&named, Some(0.0))?)
     }
 
+    /// The scene's joint velocities at `s`, for a trajectory run at `ds_dt` (1/s): the central
+    /// difference of the joint values.
+    pub fn joint_velocities(&self, s: f64, ds_dt: f64) -> Result<Vec<f64>, ScenarioError> {
+        let (a, b) = (self.joints(s - DS)?, self.joints(s + DS)?);
+        Ok(a.iter()
+            .zip(&b)
+            .map(|(a, b)| (b - a) / (2.0 * DS) * ds_dt)
+            .collect())
+    }
+
+    /// The truth of the separation monitor at `s`: the velocity of the robot's closest mesh
+    /// point (moved with its link along the trajectory, central difference of the forward
+    /// kinematics) projected on the direction to the obstacle point, m/s, and the point's
+    /// speed.
+    pub fn approach(&self, s: f64, ds_dt: f64, w: &Witness) -> Result<(f64, f64), ScenarioError> {
+        let k = &self.model.kinematics;
+        let at = |s: f64| -> Result<Point3<f64>, ScenarioError> {
+            Ok(k.link_poses(&self.joints(s)?)[w.link] * w.robot_in_link)
+        };
+        let (a, b, r) = (at(s - DS)?, at(s + DS)?, at(s)?);
+        let v = (b - a) / (2.0 * DS) * ds_dt;
+        let approach = match (w.obstacle_root - r).try_normalize(1e-9) {
+            Some(n) => v.dot(&n),
+            None => v.norm(),
+        };
+        Ok((approach, v.norm()))
+    }
+
     /// Renders the frame at `s` ∈ [0, 1]; the exact truth only when `truth` is asked (it costs
     /// one exact distance per obstacle point).
     pub fn frame(&mut self, s: f64, truth: bool) -> Result<Frame, ScenarioError> {
@@ -398,12 +473,13 @@ impl<'a> Renderer<'a> {
                 );
             }
         }
-        // The truth: exact distance from every obstacle point to the robot's meshes.
-        let truth_m = if truth {
-            let best = obstacle
+        // The truth: exact distance from every obstacle point to the robot's meshes, and where.
+        let (truth_m, truth_witness) = if truth {
+            let none = (f64::INFINITY, None);
+            let (best, witness) = obstacle
                 .par_iter()
                 .map(|p| {
-                    let mut best = f64::INFINITY;
+                    let mut best = none;
                     for (link, elements) in solids {
                         let lp = poses[*link].inverse_transform_point(p);
                         let lp = [lp.x as f32, lp.y as f32, lp.z as f32];
@@ -413,17 +489,28 @@ impl<'a> Renderer<'a> {
                                 .map(|a| (lo[a] - lp[a]).max(lp[a] - hi[a]).max(0.0).powi(2))
                                 .sum::<f32>()
                                 .sqrt();
-                            if f64::from(gap) < best {
-                                best = best.min(f64::from(e.distance(lp).0));
+                            if f64::from(gap) < best.0 {
+                                let (d, q) = e.distance(lp);
+                                if f64::from(d) < best.0 {
+                                    let q = Point3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+                                    best = (
+                                        f64::from(d),
+                                        Some(Witness {
+                                            link: *link,
+                                            robot_in_link: q,
+                                            obstacle_root: *p,
+                                        }),
+                                    );
+                                }
                             }
                         }
                     }
                     best
                 })
-                .reduce(|| f64::INFINITY, f64::min);
-            best.is_finite().then_some(best)
+                .reduce(|| none, |a, b| if b.0 < a.0 { b } else { a });
+            (best.is_finite().then_some(best), witness)
         } else {
-            None
+            (None, None)
         };
         Ok(Frame {
             joints: q,
@@ -431,6 +518,7 @@ impl<'a> Renderer<'a> {
             root_from_sensor: world_from_optical,
             points,
             truth_m,
+            truth_witness,
             obstacle_points: obstacle.len(),
             robot_points,
         })
@@ -470,6 +558,7 @@ pub fn generate(
     let mut result = Generated {
         frames: params.frames,
         truth_m: Vec::new(),
+        separation: Vec::new(),
         obstacle_points: Vec::new(),
         robot_points: Vec::new(),
     };
@@ -480,6 +569,12 @@ pub fn generate(
             i as f64 / joint_samples as f64
         }
     };
+    let ds_dt = if duration_s > 0.0 {
+        1.0 / duration_s
+    } else {
+        0.0
+    };
+    let ssm = SsmParams::default();
     for j in 0..=joint_samples {
         let t_ns = START_NS + (j as f64 * 1e9 / JOINT_RATE_HZ).round() as i64;
         writer.write(
@@ -489,6 +584,7 @@ pub fn generate(
                 header: stamp(t_ns),
                 name: k.variables().to_vec(),
                 position: renderer.joints(s_at(j))?,
+                velocity: renderer.joint_velocities(s_at(j), ds_dt)?,
                 ..JointState::default()
             },
         )?;
@@ -523,10 +619,24 @@ pub fn generate(
                 ..CameraInfo::default()
             },
         )?;
-        if let Some(d) = frame.truth_m {
-            writer.write(GROUND_TRUTH_TOPIC, log_ns, &crate::msg::Float64 { data: d })?;
+        let mut separation = None;
+        if let (Some(d), Some(w)) = (frame.truth_m, frame.truth_witness) {
+            writer.write(GROUND_TRUTH_TOPIC, log_ns, &Float64 { data: d })?;
+            // The separation margin with the default SSM parameters, the cloud seen at once
+            // (T_r = reaction_time) and the exact distance (Z_d = the sensor's uncertainty).
+            let (approach, speed) = renderer.approach(s_at(j), ds_dt, &w)?;
+            let margin = d - ssm.protective_distance(
+                ssm.reaction_time_s,
+                approach,
+                speed,
+                ssm.sensor_uncertainty_m,
+            );
+            writer.write(APPROACH_TRUTH_TOPIC, log_ns, &Float64 { data: approach })?;
+            writer.write(MARGIN_TRUTH_TOPIC, log_ns, &Float64 { data: margin })?;
+            separation = Some((approach, margin));
         }
         result.truth_m.push(frame.truth_m);
+        result.separation.push(separation);
         result.obstacle_points.push(frame.obstacle_points);
         result.robot_points.push(frame.robot_points);
     }

@@ -150,6 +150,8 @@ fn write_samples(w: &mut BagWriter) {
     w.write("/header", t, &header("base_link")).unwrap();
     w.write("/float64", t, &Float64 { data: 0.0979 }).unwrap();
     w.write("/bool", t, &Bool { data: true }).unwrap();
+    w.write("/speed_scaling", t, &SpeedScalingFactor { factor: 0.35 })
+        .unwrap();
     w.write("/cloud", t, &cloud(false)).unwrap();
     w.write(
         "/joint_states",
@@ -240,7 +242,7 @@ fn rosbags_fixture_is_read_value_for_value_and_byte_for_byte() {
         .unwrap();
     assert!(status.success());
     let theirs = read_messages(&bag, &|_, _| true).unwrap();
-    assert_eq!(theirs.len(), 14);
+    assert_eq!(theirs.len(), 15);
     let ours = our_payloads(dir.path());
     for m in &theirs {
         assert_eq!(&*m.encoding, "cdr");
@@ -261,6 +263,7 @@ fn rosbags_fixture_is_read_value_for_value_and_byte_for_byte() {
         );
         match &*m.topic {
             "/float64" => check(&m.data, &Float64 { data: 0.0979 }),
+            "/speed_scaling" => check(&m.data, &SpeedScalingFactor { factor: 0.35 }),
             "/tf" => check(
                 &m.data,
                 &TfMessage {
@@ -299,7 +302,7 @@ fn rosbags_reads_what_we_write() {
         w.finish().unwrap();
         let v = common::json_output(Command::new(&python).args([SCRIPT, "read"]).arg(&path));
         let topics = v.as_object().unwrap();
-        assert_eq!(topics.len(), 13, "{name}");
+        assert_eq!(topics.len(), 14, "{name}");
         for (topic, entry) in topics {
             assert_eq!(
                 entry["definition_matches"], true,
@@ -309,6 +312,7 @@ fn rosbags_reads_what_we_write() {
         assert_eq!(v["/float64"]["count"], 2);
         assert_eq!(v["/float64"]["first"]["data"], 0.0979);
         assert_eq!(v["/time"]["first"]["sec"], -3);
+        assert_eq!(v["/speed_scaling"]["first"]["factor"], 0.35);
         let tf = &v["/tf"]["first"]["transforms"][0];
         assert_eq!(tf["child_frame_id"], "camera_link");
         assert_eq!(tf["transform"]["translation"]["z"], 0.8);

@@ -310,7 +310,8 @@ fn a_node_building_its_trees_says_so_and_stops_at_once() {
 /// robot description on `/robot_description` (the node waits for it) and a
 /// sensor_msgs/PointCloud2 under the ROS 2 naming (`rt/…`, `sensor_msgs::msg::dds_::PointCloud2_`)
 /// and reads the node's `~/min_distance`, which must be the distance the library computes for
-/// the same points.
+/// the same points, and its `~/speed_scaling`, remapped to `joint_trajectory_controller`'s input
+/// and read with the QoS that controller asks.
 #[test]
 fn cyclonedds_feeds_the_node_and_reads_its_output() {
     if !in_private_network("cyclonedds_feeds_the_node_and_reads_its_output") {
@@ -336,6 +337,8 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
         &format!("fixed_joint_state.names:={joints}"),
         "-p",
         "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
+        "-r",
+        "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
     ]);
     std::thread::sleep(Duration::from_millis(1500));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
@@ -367,4 +370,11 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
         (received - expected).abs() < 1e-6,
         "{received} vs {expected}"
     );
+    // The speed-scaling factor, remapped to joint_trajectory_controller's input, reached a reader
+    // with that controller's QoS (reliable, transient local); the arm stands still (fixed joints) and the patch is beyond what a
+    // stopped arm needs, so the factor rises from 0.
+    let factor = out["speed_scaling"]
+        .as_f64()
+        .expect("a speed_scaling factor from the node");
+    assert!((0.2..=1.0).contains(&factor), "{factor}");
 }

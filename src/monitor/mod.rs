@@ -3,13 +3,16 @@
 //! PointCloud2 — and every cloud gives a [`Frame`]: the query result or the fault that stopped
 //! it, and the node's output messages (`outputs`).
 //!
-//! Per cloud: decode → the stamp against the clock (0, older than the source's `source_timeout`
-//! or ahead by more than `future_stamp_tolerance` is a fault) → drop points outside the source's `min_range`/`max_range` (they become
-//! invalid points) → the joint values at the cloud's stamp (`tf::JointStateBuffer`) → forward
-//! kinematics → the sensor frame in the robot's root frame at the stamp (`tf::root_from_sensor`)
-//! → the query (`query::Engine`) → outputs. A decode error, a missing or stale transform or
-//! joint, and a failed query are faults of that frame: reported with their reason and an ERROR
-//! level, never as a distance. The next message is processed as usual.
+//! Per cloud: decode → the stamp against the clock (0, older than the source's
+//! `source_timeout` or ahead by more than `future_stamp_tolerance` is a fault) → drop points
+//! outside the source's `min_range`/`max_range` (they become invalid points) → the joint values
+//! at the cloud's stamp (`tf::JointStateBuffer`) → forward kinematics → the sensor frame in the
+//! robot's root frame at the stamp (`tf::root_from_sensor`) → the query (`query::Engine`) → the
+//! separation stage (`crate::separation`: joint velocities at the stamp, link twists, the
+//! speed-scaling factor through [`SpeedScaler`]) → outputs. A decode error, a missing or stale
+//! transform or joint, and a failed query are faults of that frame: reported with their reason
+//! and an ERROR level, never as a distance (and a speed-scaling factor of 0). The next message is
+//! processed as usual.
 //!
 //! `replay` feeds a bag through this pipeline in log-time order, as the node (`crate::node`)
 //! feeds it from DDS.
@@ -29,6 +32,7 @@ use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::msg::{self, JointState, MsgError, PointCloud2, TfMessage};
 use crate::query::{Backend, Engine, Outcome, QueryError, QueryResult};
 use crate::robot::RobotModel;
+use crate::separation::{self, SpeedScaler, SpeedScaling};
 use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
 
 /// Why a frame has no distance.
@@ -110,7 +114,17 @@ pub struct Frame {
     pub result: Result<QueryResult, Fault>,
     /// Decode, poses and query, s.
     pub processing_s: f64,
+    /// Speed and separation monitoring (`None` when `speed_scaling.enabled` is off).
+    pub speed: Option<SpeedScaling>,
     pub outputs: Outputs,
+}
+
+/// What a processed cloud leaves for the separation stage.
+struct Motion {
+    poses: Vec<Isometry3<f64>>,
+    stamp_ns: i64,
+    /// Clock minus stamp, s (0 without a clock).
+    age_s: f64,
 }
 
 pub struct Monitor {
@@ -120,6 +134,7 @@ pub struct Monitor {
     tf: TfBuffer,
     joints: JointStateBuffer,
     level: LevelTracker,
+    scaler: SpeedScaler,
 }
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
@@ -206,6 +221,7 @@ impl Monitor {
         let engine = Engine::new(&model, trees, &config.selection)?;
         let (tf, joints) = Self::inputs(&config, &model)?;
         let level = LevelTracker::new(&config);
+        let scaler = SpeedScaler::new(&config.ssm, config.sources.len());
         Ok(Self {
             config,
             model,
@@ -213,6 +229,7 @@ impl Monitor {
             tf,
             joints,
             level,
+            scaler,
         })
     }
 
@@ -258,6 +275,7 @@ impl Monitor {
     pub fn reset(&mut self) -> Result<(), MonitorError> {
         (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
         self.level = LevelTracker::new(&self.config);
+        self.scaler = SpeedScaler::new(&self.config.ssm, self.config.sources.len());
         Ok(())
     }
 
@@ -373,10 +391,18 @@ impl Monitor {
         source: usize,
         start: Instant,
         stamp_ns: i64,
-        process: impl FnOnce(&mut Self) -> Result<QueryResult, Fault>,
+        process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion), Fault>,
     ) -> Frame {
-        let result = process(self);
+        let (result, motion) = match process(self) {
+            Ok((r, m)) => (Ok(r), Some(m)),
+            Err(f) => (Err(f), None),
+        };
         let processing_s = start.elapsed().as_secs_f64();
+        let speed = self
+            .config
+            .ssm
+            .enabled
+            .then(|| self.speed_scaling(source, stamp_ns, &result, motion, processing_s));
         let name = self.config.sources[source].name.clone();
         let outputs = Outputs::new(
             &self.config,
@@ -386,6 +412,7 @@ impl Monitor {
             stamp_ns,
             &result,
             processing_s,
+            speed.as_ref(),
             &mut self.level,
         );
         Frame {
@@ -393,7 +420,57 @@ impl Monitor {
             stamp_ns,
             result,
             processing_s,
+            speed,
             outputs,
+        }
+    }
+
+    /// The separation stage (`crate::separation`): the factor this frame allows, through the
+    /// scaler. A frame without a distance, or without joint velocities, allows 0.
+    fn speed_scaling(
+        &mut self,
+        source: usize,
+        stamp_ns: i64,
+        result: &Result<QueryResult, Fault>,
+        motion: Option<Motion>,
+        processing_s: f64,
+    ) -> SpeedScaling {
+        let start = Instant::now();
+        let ssm = &self.config.ssm;
+        let separation = match (result, motion) {
+            (Err(fault), _) => Err(format!("no distance: {fault}")),
+            (Ok(r), _) if outputs::published_distance(r).is_none() => {
+                Err("no distance: no valid points, or every valid point self-filtered".into())
+            }
+            (Ok(_), None) => Err("no joint velocities".into()),
+            (Ok(r), Some(m)) => match self
+                .joints
+                .velocities_at(Some(m.stamp_ns), self.config.joint_state_tolerance_s)
+            {
+                Err(e) => Err(format!("no joint velocity: {e}")),
+                Ok((q_dot, velocity_source)) => {
+                    let twists = self.model.kinematics.link_velocities(&q_dot, &m.poses);
+                    let scale = separation::nominal_scale(ssm, self.scaler.factor());
+                    let constraints = separation::constraints(
+                        ssm,
+                        r,
+                        self.engine.links(),
+                        &m.poses,
+                        &twists,
+                        scale,
+                    );
+                    let reaction_s = ssm.reaction_time_s + m.age_s + processing_s;
+                    separation::separation(ssm, &constraints, reaction_s, scale, velocity_source)
+                        .ok_or_else(|| "no link".to_string())
+                }
+            },
+        };
+        let allowed = separation.as_ref().ok().map(|s| s.allowed);
+        let factor = self.scaler.update(source, stamp_ns, allowed);
+        SpeedScaling {
+            factor,
+            separation,
+            stage_s: start.elapsed().as_secs_f64(),
         }
     }
 
@@ -426,7 +503,7 @@ impl Monitor {
         source: usize,
         message: &PointCloud2,
         now_ns: Option<i64>,
-    ) -> Result<QueryResult, Fault> {
+    ) -> Result<(QueryResult, Motion), Fault> {
         let stamp_ns = message.header.stamp.as_nanos();
         self.check_stamp(source, stamp_ns, now_ns)?;
         let mut cloud = message.to_cloud()?;
@@ -473,6 +550,11 @@ impl Monitor {
                 total: result.counts.total,
             });
         }
-        Ok(result)
+        let motion = Motion {
+            poses,
+            stamp_ns,
+            age_s: now_ns.map_or(0.0, |n| ((n - stamp_ns) as f64 * 1e-9).max(0.0)),
+        };
+        Ok((result, motion))
     }
 }

@@ -7,19 +7,24 @@
 //! | `~/closest_points` | `visualization_msgs/MarkerArray` | a line from the robot to the nearest obstacle point and a text with the distance, coloured by level; DELETEALL on a fault |
 //! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source: level, reason, figures |
 //! | `~/safety_stop` | `std_msgs/Bool` | true at level ERROR (below `stop_distance`, or any fault) |
+//! | `~/speed_scaling` | `control_msgs/SpeedScalingFactor` | the speed and separation monitor's factor (`crate::separation`): 0 on every fault; reliable and transient local, as `joint_trajectory_controller`'s `~/speed_scaling_input` subscribes; not published with `speed_scaling.enabled: false` |
 //!
 //! Levels: OK above `warn_distance`, WARN below it, ERROR below `stop_distance` or on a fault. A
 //! level is left upward only once the distance exceeds its threshold by `hysteresis`, so a
 //! distance hovering at a threshold does not flicker. A fault, a cloud without valid points
 //! among them (a blinded or covered camera), is ERROR and never lowers the level; a frame over
-//! the latency budget is at least WARN.
+//! the latency budget is at least WARN. The diagnostics carry the separation monitor's figures:
+//! the factor, the separation margin, the protective distance, the approach speed v_r and the
+//! time to collision of the link that limits the factor, and where the joint velocities came
+//! from.
 
 use crate::config::Config;
 use crate::msg::{
     Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
-    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, Time, Vector3,
+    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, SpeedScalingFactor, Time, Vector3,
 };
 use crate::query::{Outcome, QueryResult};
+use crate::separation::SpeedScaling;
 
 use super::Fault;
 
@@ -111,6 +116,8 @@ pub struct Outputs {
     pub closest_points: MarkerArray<'static>,
     pub diagnostics: DiagnosticArray,
     pub safety_stop: Bool,
+    /// `None` with the separation monitor off.
+    pub speed_scaling: Option<SpeedScalingFactor>,
 }
 
 /// The node's output topics: the one table that the node publishes, `replay --out` writes and
@@ -122,6 +129,7 @@ pub enum OutputTopic {
     ClosestPoints,
     Diagnostics,
     SafetyStop,
+    SpeedScaling,
 }
 
 impl OutputTopic {
@@ -133,7 +141,15 @@ impl OutputTopic {
             OutputTopic::ClosestPoints => "~/closest_points",
             OutputTopic::Diagnostics => "/diagnostics",
             OutputTopic::SafetyStop => "~/safety_stop",
+            OutputTopic::SpeedScaling => "~/speed_scaling",
         }
+    }
+
+    /// Whether the topic keeps its last message for late subscribers (transient local): the
+    /// speed-scaling factor, which `joint_trajectory_controller` subscribes to that way (a
+    /// volatile publisher would not match it).
+    pub fn transient_local(self) -> bool {
+        self == OutputTopic::SpeedScaling
     }
 
     /// The fully qualified topic of the node at `node_path` (`/ns/name`).
@@ -159,21 +175,23 @@ pub trait OutputVisitor {
 
 /// The table: every output topic, in publication order, with its type and the frame's message.
 fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V::Error> {
-    let (min, links, markers, diagnostics, stop) = match o {
+    let (min, links, markers, diagnostics, stop, speed) = match o {
         Some(o) => (
             o.min_distance,
             Some(o.link_distances),
             Some(o.closest_points),
             Some(o.diagnostics),
             Some(o.safety_stop),
+            o.speed_scaling,
         ),
-        None => (None, None, None, None, None),
+        None => (None, None, None, None, None, None),
     };
     v.visit::<Float64>(OutputTopic::MinDistance, min)?;
     v.visit::<JointState>(OutputTopic::LinkDistances, links)?;
     v.visit::<MarkerArray<'static>>(OutputTopic::ClosestPoints, markers)?;
     v.visit::<DiagnosticArray>(OutputTopic::Diagnostics, diagnostics)?;
-    v.visit::<Bool>(OutputTopic::SafetyStop, stop)
+    v.visit::<Bool>(OutputTopic::SafetyStop, stop)?;
+    v.visit::<SpeedScalingFactor>(OutputTopic::SpeedScaling, speed)
 }
 
 /// Walks every output topic with its type and no message (to create publishers or
@@ -189,6 +207,19 @@ pub fn conservative_distance(r: &QueryResult) -> Option<f64> {
         (Outcome::NothingWithinMaxDistance, _) => Some(f64::from(r.max_distance_m)),
         _ => None,
     }
+}
+
+/// Every valid point within the self-filter padding of the robot: the camera sees only the
+/// robot, or an obstacle touching it, which the padding cannot tell apart.
+fn all_self_filtered(r: &QueryResult) -> bool {
+    let c = &r.counts;
+    c.self_filtered > 0 && c.self_filtered == c.total - c.invalid
+}
+
+/// What `~/min_distance` carries for a result: its conservative distance, unless the
+/// self-filter removed every valid point (then nothing is known).
+pub fn published_distance(r: &QueryResult) -> Option<f64> {
+    conservative_distance(r).filter(|_| !all_self_filtered(r))
 }
 
 fn point(p: [f64; 3]) -> Point {
@@ -235,6 +266,10 @@ impl Outputs {
                 }],
             },
             safety_stop: Bool { data: true },
+            speed_scaling: config
+                .ssm
+                .enabled
+                .then_some(SpeedScalingFactor { factor: 0.0 }),
         }
     }
 
@@ -252,6 +287,7 @@ impl Outputs {
         stamp_ns: i64,
         result: &Result<QueryResult, Fault>,
         processing_s: f64,
+        speed: Option<&SpeedScaling>,
         tracker: &mut LevelTracker,
     ) -> Self {
         let header = Header {
@@ -267,13 +303,9 @@ impl Outputs {
             kv("latency_ms", format!("{:.3}", processing_s * 1e3)),
         ];
         let over_budget = processing_s > config.latency_budget_s;
-        // Every valid point within the self-filter padding of the robot: the camera sees only the
-        // robot, or an obstacle touching it, which the padding cannot tell apart. No distance,
-        // WARN at least, and the level held (a stop is never released by this).
-        let all_self = result.as_ref().is_ok_and(|r| {
-            let c = &r.counts;
-            c.self_filtered > 0 && c.self_filtered == c.total - c.invalid
-        });
+        // Every valid point self-filtered: no distance, WARN at least, and the level held (a
+        // stop is never released by this).
+        let all_self = result.as_ref().is_ok_and(all_self_filtered);
         let (distance, mut message) = match result {
             Err(fault) => {
                 values.push(kv("fault", fault.kind().into()));
@@ -304,7 +336,7 @@ impl Outputs {
                         values.push(kv("lower_m", format!("{l:.6}")));
                     }
                 }
-                let d = conservative_distance(r).filter(|_| !all_self);
+                let d = published_distance(r);
                 let message = match d {
                     _ if all_self => format!(
                         "the self-filter removed every valid point ({} within \
@@ -334,6 +366,29 @@ impl Outputs {
                 processing_s * 1e3,
                 config.latency_budget_s * 1e3
             ));
+        }
+        if let Some(speed) = speed {
+            values.push(kv("speed_scaling", format!("{:.3}", speed.factor)));
+            match &speed.separation {
+                Ok(s) => values.extend([
+                    kv("ssm_link", s.link.clone()),
+                    kv("separation_margin_m", format!("{:.4}", s.margin_m)),
+                    kv("protective_distance_m", format!("{:.4}", s.protective_m)),
+                    kv("approach_speed_mps", format!("{:.4}", s.approach_mps)),
+                    kv(
+                        "nearest_approach_speed_mps",
+                        s.nearest_approach_mps
+                            .map_or_else(|| "-".into(), |v| format!("{v:.4}")),
+                    ),
+                    kv(
+                        "time_to_collision_s",
+                        format!("{:.3}", s.time_to_collision_s),
+                    ),
+                    kv("ssm_allowed_factor", format!("{:.3}", s.allowed)),
+                    kv("joint_velocities", s.velocity_source.name().into()),
+                ]),
+                Err(reason) => values.push(kv("ssm_fault", reason.clone())),
+            }
         }
         let max_distance = f64::from(config.query.max_distance_m);
         let link_distances = JointState {
@@ -429,6 +484,7 @@ impl Outputs {
             safety_stop: Bool {
                 data: level == Level::Error,
             },
+            speed_scaling: speed.map(|s| SpeedScalingFactor { factor: s.factor }),
         }
     }
 }
@@ -462,7 +518,7 @@ mod tests {
         }
         let mut names = Names(Vec::new());
         visit_output_topics(&mut names).unwrap();
-        assert_eq!(names.0.len(), 5);
+        assert_eq!(names.0.len(), 6);
         assert!(names.0.iter().all(|(_, m)| !m));
     }
 

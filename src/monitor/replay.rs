@@ -5,7 +5,9 @@
 //! log time plus its processing time.
 //!
 //! Bags made by the scenario generator carry the exact minimum distance of every frame on
-//! [`GROUND_TRUTH_TOPIC`] at the cloud's log time; replay reports it beside the result.
+//! [`GROUND_TRUTH_TOPIC`] at the cloud's log time, and the separation monitor's truth (approach
+//! speed, margin) on [`APPROACH_TRUTH_TOPIC`] and [`MARGIN_TRUTH_TOPIC`]; replay reports them
+//! beside the result, with the speed-scaling factor and the margin the monitor found.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -21,7 +23,7 @@ use super::{Level, Monitor};
 use crate::bag::{read_messages, writer::Compression, BagError, BagWriter};
 
 /// Where generated bags record the exact minimum distance of each cloud (`std_msgs/Float64`).
-pub use crate::bag::GROUND_TRUTH_TOPIC;
+pub use crate::bag::{APPROACH_TRUTH_TOPIC, GROUND_TRUTH_TOPIC, MARGIN_TRUTH_TOPIC};
 
 /// One cloud of the replay.
 #[derive(Debug, Clone, Serialize)]
@@ -43,6 +45,26 @@ pub struct ReplayFrame {
     pub fault: Option<String>,
     /// The recorded exact minimum distance, when the bag has one.
     pub truth_m: Option<f64>,
+    /// What `~/speed_scaling` carries (`None` with the separation monitor off).
+    pub speed_scaling: Option<f64>,
+    /// The factor this frame allowed before hysteresis and rate limit.
+    pub allowed_factor: Option<f64>,
+    /// Separation margin, distance, protective separation distance and approach speed of the
+    /// link that limits the factor, and which link.
+    pub separation_margin_m: Option<f64>,
+    pub ssm_distance_m: Option<f64>,
+    pub protective_m: Option<f64>,
+    pub approach_mps: Option<f64>,
+    /// The approach speed at the nearest link's closest point.
+    pub nearest_approach_mps: Option<f64>,
+    pub ssm_link: Option<String>,
+    /// Time of the separation stage, ms.
+    pub ssm_ms: Option<f64>,
+    /// Why the separation monitor gave 0, when it did.
+    pub ssm_fault: Option<String>,
+    /// The recorded approach speed and separation margin, when the bag has them.
+    pub truth_approach_mps: Option<f64>,
+    pub truth_margin_m: Option<f64>,
 }
 
 #[derive(Debug, Clone, Default, Serialize)]
@@ -136,6 +158,8 @@ pub fn replay(
             || t == "/tf_static"
             || t == joint_topic
             || t == GROUND_TRUTH_TOPIC
+            || t == APPROACH_TRUTH_TOPIC
+            || t == MARGIN_TRUTH_TOPIC
             || source_topics.iter().any(|s| s == t)
     };
     let messages = read_messages(bag, &keep)?;
@@ -163,15 +187,21 @@ pub fn replay(
             },
         });
     }
-    let truth: HashMap<u64, f64> = messages
-        .iter()
-        .filter(|m| &*m.topic == GROUND_TRUTH_TOPIC)
-        .filter_map(|m| {
-            msg::decode::<Float64>(&m.data)
-                .ok()
-                .map(|f| (m.log_time_ns, f.data))
-        })
-        .collect();
+    // The truth topics, each by log time.
+    let truth_of = |topic: &str| -> HashMap<u64, f64> {
+        messages
+            .iter()
+            .filter(|m| &*m.topic == topic)
+            .filter_map(|m| {
+                msg::decode::<Float64>(&m.data)
+                    .ok()
+                    .map(|f| (m.log_time_ns, f.data))
+            })
+            .collect()
+    };
+    let truth = truth_of(GROUND_TRUTH_TOPIC);
+    let truth_approach = truth_of(APPROACH_TRUTH_TOPIC);
+    let truth_margin = truth_of(MARGIN_TRUTH_TOPIC);
     let mut writer = out
         .map(|(path, compression)| BagWriter::create(path, compression))
         .transpose()?;
@@ -212,6 +242,10 @@ pub fn replay(
                 r.nearest.as_ref(),
             ),
         };
+        let separation = frame
+            .speed
+            .as_ref()
+            .and_then(|s| s.separation.as_ref().ok());
         let row = ReplayFrame {
             index,
             source: frame.source.clone(),
@@ -225,6 +259,21 @@ pub fn replay(
             processing_ms: frame.processing_s * 1e3,
             fault: frame.result.as_ref().err().map(|f| f.to_string()),
             truth_m: truth.get(&m.log_time_ns).copied(),
+            speed_scaling: frame.speed.as_ref().map(|s| s.factor),
+            allowed_factor: separation.map(|s| s.allowed),
+            separation_margin_m: separation.map(|s| s.margin_m),
+            ssm_distance_m: separation.map(|s| s.distance_m),
+            protective_m: separation.map(|s| s.protective_m),
+            approach_mps: separation.map(|s| s.approach_mps),
+            nearest_approach_mps: separation.and_then(|s| s.nearest_approach_mps),
+            ssm_link: separation.map(|s| s.link.clone()),
+            ssm_ms: frame.speed.as_ref().map(|s| s.stage_s * 1e3),
+            ssm_fault: frame
+                .speed
+                .as_ref()
+                .and_then(|s| s.separation.as_ref().err().cloned()),
+            truth_approach_mps: truth_approach.get(&m.log_time_ns).copied(),
+            truth_margin_m: truth_margin.get(&m.log_time_ns).copied(),
         };
         if let (Some(d), Some(t)) = (row.min_distance_m, row.truth_m) {
             let e = summary

@@ -3,7 +3,7 @@
 //!
 //! ros2-client ships no `sensor_msgs` and friends, so the messages the node reads and writes are
 //! written here: `builtin_interfaces`, `std_msgs`, `geometry_msgs`, `tf2_msgs`, `sensor_msgs`,
-//! `visualization_msgs` and `diagnostic_msgs`.
+//! `visualization_msgs`, `diagnostic_msgs` and `control_msgs`.
 //!
 //! - **CDR.** A payload (rosbag2, DDS) is a 4-byte encapsulation header — `00 01` little endian,
 //!   `00 00` big endian, then two option bytes — followed by the message in plain CDR, encoded and
@@ -15,12 +15,14 @@
 //!   channel. Tests check the bytes and the definitions against the Python `rosbags` package.
 
 mod builtin;
+mod control;
 mod diagnostic;
 mod geometry;
 mod sensor;
 mod visualization;
 
 pub use builtin::*;
+pub use control::*;
 pub use diagnostic::*;
 pub use geometry::*;
 pub use sensor::*;
@@ -119,6 +121,7 @@ const OWN_DEFINITIONS: &[(&str, &str)] = &[
     (KeyValue::TYPE, KeyValue::OWN_DEFINITION),
     (DiagnosticStatus::TYPE, DiagnosticStatus::OWN_DEFINITION),
     (DiagnosticArray::TYPE, DiagnosticArray::OWN_DEFINITION),
+    (SpeedScalingFactor::TYPE, SpeedScalingFactor::OWN_DEFINITION),
 ];
 
 /// Every message type this module defines, by ROS 2 name.
@@ -205,7 +208,14 @@ macro_rules! owned_as_is {
         }
     )*};
 }
-owned_as_is!(Float64, Bool, JointState, DiagnosticArray, TfMessage);
+owned_as_is!(
+    Float64,
+    Bool,
+    JointState,
+    DiagnosticArray,
+    TfMessage,
+    SpeedScalingFactor
+);
 
 /// `data` copied out of the sample.
 fn owned_bytes(data: std::borrow::Cow<'_, [u8]>) -> std::borrow::Cow<'static, [u8]> {

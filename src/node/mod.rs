@@ -241,12 +241,38 @@ pub fn granted_receive_buffer(requested: usize) -> Option<usize> {
     Some(requested.min(max.trim().parse().ok()?))
 }
 
-/// The node's command-line remappings (`--ros-args -r __node:=… -r __ns:=… -p name:=value`).
+/// The node's command-line remappings (`--ros-args -r __node:=… -r __ns:=… -r FROM:=TO -p
+/// name:=value`).
 #[derive(Debug, Default, Clone)]
 pub struct RosArgs {
     pub node: Option<String>,
     pub namespace: Option<String>,
+    /// Topic remappings, `FROM` as given (`~/x`, `x` or `/x`); they apply to the node's output
+    /// topics (its inputs are parameters).
+    pub remaps: Vec<(String, String)>,
     pub params: Vec<(String, String)>,
+}
+
+/// A topic name as ROS 2 expands it for the node at `node_path` (`/ns/name`): `~/x` is private
+/// to the node, `x` lies in its namespace, `/x` is absolute.
+pub fn expand_topic(name: &str, node_path: &str) -> String {
+    let node_path = node_path.trim_end_matches('/');
+    if let Some(rest) = name.strip_prefix("~/") {
+        return format!("{node_path}/{rest}");
+    }
+    if name.starts_with('/') {
+        return name.to_owned();
+    }
+    let ns = node_path.rsplit_once('/').map_or("", |(ns, _)| ns);
+    format!("{ns}/{name}")
+}
+
+/// The topic `full` (fully qualified) after the first remapping whose `FROM` expands to it.
+pub fn remap_topic(full: &str, remaps: &[(String, String)], node_path: &str) -> String {
+    remaps
+        .iter()
+        .find(|(from, _)| expand_topic(from, node_path) == full)
+        .map_or_else(|| full.to_owned(), |(_, to)| expand_topic(to, node_path))
 }
 
 /// Parses the arguments after `--ros-args`.
@@ -266,11 +292,12 @@ pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
                 match from {
                     "__node" | "__name" => out.node = Some(to.to_owned()),
                     "__ns" => out.namespace = Some(to.to_owned()),
-                    other => {
+                    _ if from.is_empty() || to.is_empty() || from.starts_with("__") => {
                         return Err(NodeError::RosArgs(format!(
-                            "remapping of {other} is not supported (only __node and __ns)"
+                            "remapping '{r}': only __node, __ns and topic names FROM:=TO"
                         )))
                     }
+                    _ => out.remaps.push((from.to_owned(), to.to_owned())),
                 }
             }
             "-p" | "--param" => {
@@ -336,17 +363,33 @@ struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
 
 impl Publishers {
     /// A publisher for every output topic of the node at `node_path`.
-    fn new(node: &mut Node, node_path: &str, qos: QosProfile) -> Result<Self> {
+    fn new(
+        node: &mut Node,
+        node_path: &str,
+        remaps: &[(String, String)],
+        qos: QosProfile,
+    ) -> Result<Self> {
         struct Create<'a> {
             node: &'a mut Node,
             node_path: &'a str,
+            remaps: &'a [(String, String)],
             qos: QosProfile,
             made: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
         }
         impl OutputVisitor for Create<'_> {
             type Error = NodeError;
             fn visit<T: OwnedMessage>(&mut self, topic: OutputTopic, _: Option<T>) -> Result<()> {
-                let p = publisher::<T>(self.node, &topic.topic(self.node_path), self.qos.clone())?;
+                let qos = if topic.transient_local() {
+                    // Reliable, keep the last: what a late-joining controller reads first.
+                    self.qos
+                        .clone()
+                        .durability(Durability::TransientLocal)
+                        .history(History::KeepLast { depth: 1 })
+                } else {
+                    self.qos.clone()
+                };
+                let name = remap_topic(&topic.topic(self.node_path), self.remaps, self.node_path);
+                let p = publisher::<T>(self.node, &name, qos)?;
                 self.made.push((topic, Box::new(p)));
                 Ok(())
             }
@@ -354,6 +397,7 @@ impl Publishers {
         let mut create = Create {
             node,
             node_path,
+            remaps,
             qos,
             made: Vec::new(),
         };
@@ -541,7 +585,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });
-    let outputs = Publishers::new(&mut node, &config.node_path(), out_qos)?;
+    let outputs = Publishers::new(&mut node, &config.node_path(), &config.remaps, out_qos)?;
     let ex = executor.clone();
     // The executor outlives the node: dropping the node tells its spinner to stop.
     let stop_ex = Arc::new(AtomicBool::new(false));
@@ -771,6 +815,8 @@ mod tests {
             "__node:=watch",
             "-r",
             "__ns:=/robot1",
+            "-r",
+            "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
             "-p",
             "mode:=exact",
         ]
@@ -781,8 +827,23 @@ mod tests {
         assert_eq!(r.node.as_deref(), Some("watch"));
         assert_eq!(r.namespace.as_deref(), Some("/robot1"));
         assert_eq!(r.params, vec![("mode".to_string(), "exact".to_string())]);
+        let to = "/joint_trajectory_controller/speed_scaling_input";
+        assert_eq!(
+            remap_topic("/robot1/watch/speed_scaling", &r.remaps, "/robot1/watch"),
+            to
+        );
+        assert_eq!(
+            remap_topic("/robot1/watch/min_distance", &r.remaps, "/robot1/watch"),
+            "/robot1/watch/min_distance"
+        );
+        let relative = vec![("min_distance".to_string(), "d".to_string())];
+        assert_eq!(
+            remap_topic("/robot1/min_distance", &relative, "/robot1/watch"),
+            "/robot1/d"
+        );
         for bad in [
-            &["-r", "foo:=bar"][..],
+            &["-r", "__foo:=bar"][..],
+            &["-r", ":=bar"],
             &["-p", "mode"],
             &["--enclave", "x"],
             &["-r"],

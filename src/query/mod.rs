@@ -609,6 +609,9 @@ pub struct LinkDistance {
     /// Exact distance, for the nearest link in exact mode.
     pub exact_m: Option<f64>,
     pub point_index: Option<u32>,
+    /// For a measured link: the cloud point of its minimum and the closest point of its inner
+    /// spheres to it, both in the root frame.
+    pub witness: Option<([f64; 3], [f64; 3])>,
 }
 
 /// The result of one query.

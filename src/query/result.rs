@@ -91,6 +91,33 @@ fn assemble(
     // Recorded by both backends with or without per-link minima: the smallest `d − h` of any
     // (point, link) pair, which is the minimum over the links (see `bounds::threshold`).
     let global_lower = load_f32(&bounds.global_lower);
+    let to_root = |p: [f32; 3]| {
+        let q = root_from_sensor * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        [q.x, q.y, q.z]
+    };
+    // The closest point of link `l`'s inner spheres to cloud point `p`, in the root frame.
+    let sphere_point = |l: usize, p: [f32; 3]| {
+        let link = &links[l];
+        let q = bounds.posed[l].in_link(p);
+        // A tree has at least one sphere (checked when the engine is made), so an unbounded
+        // descent always finds one; the sphere point is the fallback anyway.
+        let s = nearest_sphere(link, q, f32::INFINITY)
+            .map_or(link.spheres[0], |(_, s)| link.spheres[s as usize]);
+        let v = [q[0] - s.center[0], q[1] - s.center[1], q[2] - s.center[2]];
+        let n = dist(q, s.center);
+        let on = if n <= s.radius {
+            q
+        } else {
+            let f = s.radius / n;
+            [
+                s.center[0] + f * v[0],
+                s.center[1] + f * v[1],
+                s.center[2] + f * v[2],
+            ]
+        };
+        let r = link_poses[link.pose_index] * Point3::new(on[0] as f64, on[1] as f64, on[2] as f64);
+        [r.x, r.y, r.z]
+    };
     let link_results = if options.per_link {
         let (global, lower) = (load_f32(&bounds.global), load_f32(&bounds.global_lower));
         per_link
@@ -122,15 +149,17 @@ fn assemble(
                         .filter(|r| r.link == l)
                         .map(|r| r.distance as f64),
                     point_index: measured.then_some(p),
+                    // Both points of the link's minimum (where the separation monitor takes
+                    // the link's approach speed).
+                    witness: measured.then(|| {
+                        let q = points[p as usize];
+                        (to_root(q), sphere_point(l, q))
+                    }),
                 }
             })
             .collect()
     } else {
         Vec::new()
-    };
-    let to_root = |p: [f32; 3]| {
-        let q = root_from_sensor * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-        [q.x, q.y, q.z]
     };
     let nearest = match (&refined, nearest_link) {
         (Some(r), _) if within(r.distance) => {
@@ -156,25 +185,6 @@ fn assemble(
             let (d, i) = per_link[l];
             let link = &links[l];
             let p = points[i as usize];
-            let q = bounds.posed[l].in_link(p);
-            // A tree has at least one sphere (checked when the engine is made), so an
-            // unbounded descent always finds one; the sphere point is the fallback anyway.
-            let s = nearest_sphere(link, q, f32::INFINITY)
-                .map_or(link.spheres[0], |(_, s)| link.spheres[s as usize]);
-            let v = [q[0] - s.center[0], q[1] - s.center[1], q[2] - s.center[2]];
-            let n = dist(q, s.center);
-            let on = if n <= s.radius {
-                q
-            } else {
-                let f = s.radius / n;
-                [
-                    s.center[0] + f * v[0],
-                    s.center[1] + f * v[1],
-                    s.center[2] + f * v[2],
-                ]
-            };
-            let r =
-                link_poses[link.pose_index] * Point3::new(on[0] as f64, on[1] as f64, on[2] as f64);
             Some(Nearest {
                 distance_m: d as f64,
                 lower_m: certified.then_some(global_lower as f64),
@@ -182,7 +192,7 @@ fn assemble(
                 point_index: i,
                 point_sensor: p,
                 point_root: to_root(p),
-                robot_point_root: [r.x, r.y, r.z],
+                robot_point_root: sphere_point(l, p),
             })
         }
         _ => None,

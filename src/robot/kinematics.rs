@@ -7,6 +7,13 @@
 //! rotate about their axis, prismatic ones translate along it, fixed ones do not move. Floating,
 //! planar and spherical joints are held at their origin (a warning says so). A mimic joint
 //! follows `multiplier · q_master + offset`.
+//!
+//! Velocities ([`Kinematics::link_velocities`]) go through the same pass: a link's motion is a
+//! twist — its angular velocity ω and the velocity `v₀` of the body point at the root's origin,
+//! so that a point `p` of the link moves at `v₀ + ω × p` (root frame). A revolute joint with
+//! unit axis `a` through `o` (both in the root frame) adds `q̇·a` to ω and `q̇·(o × a)` to `v₀`;
+//! a prismatic one adds `q̇·a` to `v₀`. Summed from the root outwards this is the link's
+//! geometric Jacobian times q̇, without forming the Jacobian.
 
 use std::collections::HashMap;
 
@@ -269,15 +276,7 @@ impl Kinematics {
     pub fn link_poses(&self, q: &[f64]) -> Vec<Isometry3<f64>> {
         let mut poses = vec![Isometry3::identity(); self.link_names.len()];
         for joint in &self.joints {
-            let value = match joint.source {
-                JointSource::None => 0.0,
-                JointSource::Variable(i) => q[i],
-                JointSource::Mimic {
-                    variable,
-                    multiplier,
-                    offset,
-                } => multiplier * q[variable] + offset,
-            };
+            let value = joint.source.value(q);
             let motion = match joint.motion {
                 JointMotion::Fixed => Isometry3::identity(),
                 JointMotion::Revolute(axis) => Isometry3::from_parts(
@@ -292,6 +291,76 @@ impl Kinematics {
             poses[joint.child] = poses[joint.parent] * joint.parent_from_joint * motion;
         }
         poses
+    }
+
+    /// The twist of every link, indexed like [`Self::link_names`], for joint values `q`, joint
+    /// velocities `q_dot` (same order, rad/s or m/s) and the link poses `poses` of `q`.
+    pub fn link_velocities(&self, q_dot: &[f64], poses: &[Isometry3<f64>]) -> Vec<LinkVelocity> {
+        let mut twists = vec![LinkVelocity::default(); self.link_names.len()];
+        for joint in &self.joints {
+            let rate = joint.source.rate(q_dot);
+            let root_from_joint = poses[joint.parent] * joint.parent_from_joint;
+            let mut t = twists[joint.parent];
+            match joint.motion {
+                JointMotion::Fixed => {}
+                JointMotion::Revolute(axis) => {
+                    let a = root_from_joint.rotation * axis.into_inner();
+                    let o = root_from_joint.translation.vector;
+                    t.angular += rate * a;
+                    t.linear += rate * o.cross(&a);
+                }
+                JointMotion::Prismatic(axis) => {
+                    t.linear += rate * (root_from_joint.rotation * axis.into_inner());
+                }
+            }
+            twists[joint.child] = t;
+        }
+        twists
+    }
+}
+
+/// The motion of a link in the root frame: its angular velocity and the velocity of the body
+/// point at the root's origin.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LinkVelocity {
+    /// rad/s.
+    pub angular: Vector3<f64>,
+    /// m/s.
+    pub linear: Vector3<f64>,
+}
+
+impl LinkVelocity {
+    /// The velocity of the link's point at `p` (root frame), m/s.
+    pub fn at(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.linear + self.angular.cross(p)
+    }
+}
+
+impl JointSource {
+    /// The joint's value from the variables `q` (0 for a joint without one).
+    fn value(&self, q: &[f64]) -> f64 {
+        match *self {
+            JointSource::None => 0.0,
+            JointSource::Variable(i) => q[i],
+            JointSource::Mimic {
+                variable,
+                multiplier,
+                offset,
+            } => multiplier * q[variable] + offset,
+        }
+    }
+
+    /// The joint's rate from the variables' rates `q_dot` (a mimic joint's offset is constant).
+    fn rate(&self, q_dot: &[f64]) -> f64 {
+        match *self {
+            JointSource::None => 0.0,
+            JointSource::Variable(i) => q_dot[i],
+            JointSource::Mimic {
+                variable,
+                multiplier,
+                ..
+            } => multiplier * q_dot[variable],
+        }
     }
 }
 
@@ -321,6 +390,37 @@ mod tests {
         let c = poses[2].translation.vector;
         // b at (1,0,0) rotated 90° about z; c slides 2q+0.5 along b's x, which is the root's y.
         assert!((c - Vector3::new(1.0, 2.0 * q + 0.5, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn link_velocities_are_the_derivative_of_the_poses() {
+        // A three-joint chain with a mimic prismatic joint: every link point's velocity equals
+        // the central difference of its position along q + t·q̇.
+        let xml = r#"<robot name="r"><link name="a"/><link name="b"/><link name="c"/><link name="d"/>
+            <joint name="j1" type="revolute"><parent link="a"/><child link="b"/>
+              <origin xyz="0.1 0.2 0.3" rpy="0.3 -0.2 0.1"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+            <joint name="j2" type="revolute"><parent link="b"/><child link="c"/>
+              <origin xyz="0.5 0 0.1" rpy="0 0.4 0"/><axis xyz="0 0.6 0.8"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+            <joint name="j3" type="prismatic"><parent link="c"/><child link="d"/>
+              <origin xyz="0 0.3 0"/><axis xyz="1 0 0"/><limit lower="0" upper="1" effort="1" velocity="1"/>
+              <mimic joint="j1" multiplier="-0.5" offset="0.2"/></joint></robot>"#;
+        let k = Kinematics::from_urdf(&urdf_rs::read_from_string(xml).expect("xml"), "t")
+            .expect("tree");
+        let q = [0.7, -1.1];
+        let q_dot = [0.9, 1.7];
+        let poses = k.link_poses(&q);
+        let twists = k.link_velocities(&q_dot, &poses);
+        let h = 1e-6;
+        let at = |t: f64| k.link_poses(&[q[0] + t * q_dot[0], q[1] + t * q_dot[1]]);
+        let (plus, minus) = (at(h), at(-h));
+        let local = nalgebra::Point3::new(0.2, -0.1, 0.4);
+        for link in 0..4 {
+            let p = (poses[link] * local).coords;
+            let numeric = ((plus[link] * local) - (minus[link] * local)) / (2.0 * h);
+            let v = twists[link].at(&p);
+            assert!((v - numeric).norm() < 1e-6, "link {link}: {v} vs {numeric}");
+        }
+        assert_eq!(twists[0], LinkVelocity::default(), "the root does not move");
     }
 
     #[test]

@@ -6,7 +6,7 @@ pub mod kinematics;
 pub mod mesh;
 pub mod urdf;
 
-pub use kinematics::Kinematics;
+pub use kinematics::{Kinematics, LinkVelocity};
 pub use mesh::{ClosedMesh, MeshError};
 pub use urdf::{CollisionElement, LinkGeometry, PackagePath, RobotModel};
 

@@ -89,6 +89,44 @@ impl<T: Clone> History<T> {
     }
 }
 
+impl History<f64> {
+    /// The rate of change at `stamp_ns` (`None`: the newest), per second: the slope between the
+    /// two samples around it, or between the two newest (oldest) when the stamp lies past that
+    /// end by at most `tolerance_ns`. `None` with fewer than two samples, or when those two lie
+    /// more than `max_span_ns` apart (too far apart to tell the rate now).
+    pub fn slope(
+        &self,
+        stamp_ns: Option<i64>,
+        tolerance_ns: i64,
+        max_span_ns: i64,
+    ) -> Option<Result<f64, Miss>> {
+        let n = self.samples.len();
+        if n < 2 {
+            return None;
+        }
+        let (first, last) = (self.samples[0].0, self.samples[n - 1].0);
+        let k = match stamp_ns {
+            None => n - 1,
+            Some(t) if t >= last => {
+                if t - last > tolerance_ns {
+                    return Some(Err(Miss::Stale { newest_ns: last }));
+                }
+                n - 1
+            }
+            Some(t) if t <= first => {
+                if first - t > tolerance_ns {
+                    return Some(Err(Miss::TooOld { oldest_ns: first }));
+                }
+                1
+            }
+            Some(t) => self.samples.partition_point(|(s, _)| *s < t),
+        };
+        let (a, b) = (&self.samples[k - 1], &self.samples[k]);
+        let span = b.0 - a.0;
+        (span <= max_span_ns).then(|| Ok((b.1 - a.1) / (span as f64 * 1e-9)))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,5 +153,34 @@ mod tests {
         h.insert(5_000, 9.0, 1_000, 10);
         assert_eq!(h.len(), 2, "samples older than keep_ns dropped, two kept");
         assert!(History::<f64>::default().sample(None, 0, lerp).is_none());
+    }
+
+    #[test]
+    fn slopes_between_neighbours() {
+        let mut h = History::default();
+        assert_eq!(h.slope(None, 0, i64::MAX), None);
+        h.insert(0, 1.0, i64::MAX, 10);
+        assert_eq!(h.slope(None, 0, i64::MAX), None, "one sample has no rate");
+        h.insert(100_000_000, 2.0, i64::MAX, 10);
+        h.insert(200_000_000, 2.5, i64::MAX, 10);
+        let close = |r: Option<Result<f64, Miss>>, v: f64| (r.unwrap().unwrap() - v).abs() < 1e-9;
+        assert!(close(h.slope(Some(50_000_000), 0, i64::MAX), 10.0));
+        assert!(close(h.slope(Some(150_000_000), 0, i64::MAX), 5.0));
+        assert!(close(h.slope(Some(230_000_000), 50_000_000, i64::MAX), 5.0));
+        assert!(close(
+            h.slope(Some(-10_000_000), 50_000_000, i64::MAX),
+            10.0
+        ));
+        assert_eq!(
+            h.slope(Some(300_000_000), 50_000_000, i64::MAX),
+            Some(Err(Miss::Stale {
+                newest_ns: 200_000_000
+            }))
+        );
+        assert_eq!(
+            h.slope(Some(150_000_000), 0, 50_000_000),
+            None,
+            "samples too far apart"
+        );
     }
 }

@@ -9,6 +9,13 @@
 //! tolerance is stale: both are errors that name the joint, never a silent zero. Values from the
 //! config (`fixed_joint_state`, for bags without `/joint_states`) hold for all time and are
 //! overridden by messages.
+//!
+//! Joint velocities ([`JointStateBuffer::velocities_at`]) come from the messages' `velocity`
+//! field where the publisher fills it (interpolated like the positions), and otherwise from the
+//! positions, as the slope between the two samples around the stamp; which of the two was used
+//! is stated ([`VelocitySource`]). A joint with neither is an error naming it, never a zero.
+//! Non-finite velocities (some drivers publish NaN for joints without a sensor) count as not
+//! given.
 
 use crate::msg::JointState;
 
@@ -38,6 +45,35 @@ pub enum JointError {
     NonFinite(String),
     #[error("joint {0} is not a joint of the robot")]
     NotInRobot(String),
+    #[error("JointState: {names} names but {velocities} velocities (empty or one per name)")]
+    VelocityLengths { names: usize, velocities: usize },
+    #[error(
+        "joint {0}: no velocity: the joint states carry none, and there are not two positions \
+         within joint_state_tolerance to differentiate"
+    )]
+    NoVelocity(String),
+}
+
+/// Where the joint velocities of a stamp came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VelocitySource {
+    /// Every joint's from the messages' `velocity` field (or held by `fixed_joint_state`).
+    JointStates,
+    /// Every joint's differentiated from its positions.
+    Differentiated,
+    /// Some of each.
+    Mixed,
+}
+
+impl VelocitySource {
+    pub fn name(self) -> &'static str {
+        match self {
+            VelocitySource::JointStates => "joint_states",
+            VelocitySource::Differentiated => "differentiated",
+            VelocitySource::Mixed => "mixed",
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -45,6 +81,8 @@ pub struct JointStateBuffer {
     variables: Vec<String>,
     /// Per variable, its values over time.
     samples: Vec<History<f64>>,
+    /// Per variable, the velocities the messages gave.
+    velocities: Vec<History<f64>>,
     fixed: Vec<Option<f64>>,
 }
 
@@ -54,6 +92,7 @@ impl JointStateBuffer {
         Self {
             variables: variables.to_vec(),
             samples: vec![History::default(); variables.len()],
+            velocities: vec![History::default(); variables.len()],
             fixed: vec![None; variables.len()],
         }
     }
@@ -80,6 +119,12 @@ impl JointStateBuffer {
                 positions: m.position.len(),
             });
         }
+        if !m.velocity.is_empty() && m.velocity.len() != m.name.len() {
+            return Err(JointError::VelocityLengths {
+                names: m.name.len(),
+                velocities: m.velocity.len(),
+            });
+        }
         let stamp = m.header.stamp.as_nanos();
         let known: Vec<(usize, f64)> = m
             .name
@@ -93,7 +138,50 @@ impl JointStateBuffer {
         for (i, p) in known {
             self.samples[i].insert(stamp, p, i64::MAX, MAX_SAMPLES);
         }
+        for (n, &v) in m.name.iter().zip(&m.velocity) {
+            if let Some(i) = self.variables.iter().position(|x| x == n) {
+                if v.is_finite() {
+                    self.velocities[i].insert(stamp, v, i64::MAX, MAX_SAMPLES);
+                }
+            }
+        }
         Ok(())
+    }
+
+    /// `q̇` at `stamp_ns` (`None`: the newest), and where it came from: per joint, the given
+    /// velocity within the tolerance, else the slope of its positions (two samples at most
+    /// `tolerance_s` apart), else 0 for a joint held by `fixed_joint_state` with no message.
+    pub fn velocities_at(
+        &self,
+        stamp_ns: Option<i64>,
+        tolerance_s: f64,
+    ) -> Result<(Vec<f64>, VelocitySource), JointError> {
+        let tolerance_ns = (tolerance_s * 1e9) as i64;
+        let lerp = |a: &f64, b: &f64, w: f64| a + w * (b - a);
+        let (mut given, mut derived) = (0, 0);
+        let mut q_dot = Vec::with_capacity(self.variables.len());
+        for i in 0..self.variables.len() {
+            let v = if let Some(Ok(v)) = self.velocities[i].sample(stamp_ns, tolerance_ns, lerp) {
+                given += 1;
+                v
+            } else if let Some(Ok(v)) = self.samples[i].slope(stamp_ns, tolerance_ns, tolerance_ns)
+            {
+                derived += 1;
+                v
+            } else if self.fixed[i].is_some() && self.samples[i].sample(None, 0, lerp).is_none() {
+                given += 1;
+                0.0
+            } else {
+                return Err(JointError::NoVelocity(self.variables[i].clone()));
+            };
+            q_dot.push(v);
+        }
+        let source = match (given, derived) {
+            (_, 0) => VelocitySource::JointStates,
+            (0, _) => VelocitySource::Differentiated,
+            _ => VelocitySource::Mixed,
+        };
+        Ok((q_dot, source))
     }
 
     /// `q` at `stamp_ns` (`None`: the newest values).
@@ -162,6 +250,57 @@ mod tests {
         buf.set_fixed(&[("c".into(), 0.5)]).unwrap();
         assert_eq!(buf.at(Some(0), 0.1).unwrap(), vec![1.0, 0.5]);
         assert!(buf.set_fixed(&[("zz".into(), 0.0)]).is_err());
+    }
+
+    #[test]
+    fn velocities_given_or_differentiated_and_said_which() {
+        let vars = vec!["a".to_string(), "b".to_string()];
+        let mut buf = JointStateBuffer::new(&vars);
+        let mut m = js(0, &["a", "b"], &[0.0, 1.0]);
+        m.velocity = vec![0.5, f64::NAN];
+        buf.insert(&m).unwrap();
+        // One sample: b's velocity is NaN (not given) and cannot be differentiated yet.
+        assert_eq!(
+            buf.velocities_at(Some(0), 0.1),
+            Err(JointError::NoVelocity("b".into()))
+        );
+        let mut m = js(50_000_000, &["a", "b"], &[0.1, 0.9]);
+        m.velocity = vec![1.5, f64::NAN];
+        buf.insert(&m).unwrap();
+        let (q_dot, source) = buf.velocities_at(Some(25_000_000), 0.1).unwrap();
+        assert!((q_dot[0] - 1.0).abs() < 1e-12, "given, interpolated");
+        assert!(
+            (q_dot[1] + 2.0).abs() < 1e-9,
+            "b differentiated: -0.1 in 0.05 s"
+        );
+        assert_eq!(source, VelocitySource::Mixed);
+        // Positions only: differentiated.
+        let mut buf = JointStateBuffer::new(&vars);
+        buf.insert(&js(0, &["a", "b"], &[0.0, 0.0])).unwrap();
+        buf.insert(&js(20_000_000, &["a", "b"], &[0.02, -0.04]))
+            .unwrap();
+        let (q_dot, source) = buf.velocities_at(Some(30_000_000), 0.1).unwrap();
+        assert!((q_dot[0] - 1.0).abs() < 1e-9 && (q_dot[1] + 2.0).abs() < 1e-9);
+        assert_eq!(source, VelocitySource::Differentiated);
+        // A stale stamp has no velocity either.
+        assert!(buf.velocities_at(Some(900_000_000), 0.1).is_err());
+        // A velocity array of the wrong length refuses the message.
+        let mut m = js(40_000_000, &["a", "b"], &[0.0, 0.0]);
+        m.velocity = vec![1.0];
+        assert!(matches!(
+            buf.insert(&m),
+            Err(JointError::VelocityLengths { .. })
+        ));
+        // A joint held by the config moves at 0.
+        let mut buf = JointStateBuffer::new(&vars);
+        buf.set_fixed(&[("b".into(), 0.3)]).unwrap();
+        let mut m = js(0, &["a"], &[0.0]);
+        m.velocity = vec![0.7];
+        buf.insert(&m).unwrap();
+        assert_eq!(
+            buf.velocities_at(Some(0), 0.1).unwrap(),
+            (vec![0.7, 0.0], VelocitySource::JointStates)
+        );
     }
 
     #[test]

@@ -21,7 +21,7 @@
 mod history;
 pub mod joints;
 
-pub use joints::{JointError, JointStateBuffer};
+pub use joints::{JointError, JointStateBuffer, VelocitySource};
 
 use history::{History, Miss};
 

@@ -8,7 +8,12 @@ package) talks to ist_monitor under the ROS 2 naming, as a standard ROS 2 node w
                             on rt/camera/depth/points (frame camera_link, one plane of points in
                             front of the camera) at 10 Hz, and print, as JSON, the first
                             std_msgs/Float64 received on rt/ist_monitor/min_distance (or null
-                            after 30 s)
+                            after 30 s); then, read with the QoS joint_trajectory_controller's
+                            ~/speed_scaling_input asks (reliable, transient local, keep last 1),
+                            the control_msgs/SpeedScalingFactor on
+                            rt/joint_trajectory_controller/speed_scaling_input (where the node is
+                            remapped to publish it) until its factor reaches 0.2 (or 10 s pass):
+                            the last one received
 """
 import os
 import sys
@@ -65,6 +70,11 @@ class Float64_(IdlStruct, typename="std_msgs::msg::dds_::Float64_"):
 
 
 @dataclass
+class SpeedScalingFactor_(IdlStruct, typename="control_msgs::msg::dds_::SpeedScalingFactor_"):
+    factor: float64
+
+
+@dataclass
 class String_(IdlStruct, typename="std_msgs::msg::dds_::String_"):
     data: str
 
@@ -102,7 +112,18 @@ def main():
         time.sleep(0.1)
         for sample in reader.take(N=10):
             received = sample.data
-    print(json.dumps({"min_distance": received}))
+    scaling = DataReader(dp, Topic(
+        dp, "rt/joint_trajectory_controller/speed_scaling_input", SpeedScalingFactor_),
+                         qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1),
+                                 Policy.Durability.TransientLocal, Policy.History.KeepLast(1)))
+    factor = None
+    deadline = time.time() + 10
+    while received is not None and time.time() < deadline and (factor or 0.0) < 0.2:
+        writer.write(cloud())
+        time.sleep(0.1)
+        for sample in scaling.take(N=10):
+            factor = sample.factor
+    print(json.dumps({"min_distance": received, "speed_scaling": factor}))
 
 
 if __name__ == "__main__":

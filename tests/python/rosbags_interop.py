@@ -18,9 +18,17 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 TS = get_typestore(Stores.ROS2_HUMBLE)
+# The Humble store has no control_msgs: SpeedScalingFactor is registered from its .msg text as
+# control_msgs (ros-controls) defines it, comments and all, so that rosbags parses it itself.
+TS.register(get_types_from_msg(
+    '# A factor to scale trajectory execution by: 1.0 is normal speed, 0.0 a full pause.\n'
+    '# Negative values are not allowed.\n'
+    '\n'
+    'float64 factor\n',
+    'control_msgs/msg/SpeedScalingFactor'))
 M = TS.types
 
 
@@ -106,6 +114,8 @@ def samples():
          M['visualization_msgs/msg/MarkerArray'](markers=[marker])),
         ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
          M['diagnostic_msgs/msg/DiagnosticArray'](header=header(''), status=[status])),
+        ('/speed_scaling', 'control_msgs/msg/SpeedScalingFactor',
+         M['control_msgs/msg/SpeedScalingFactor'](factor=0.35)),
     ]
 
 

@@ -1,5 +1,5 @@
-//! Benchmarks: `bench packing` (here), `bench query` (`query.rs`, with its plot in `plot.rs`)
-//! and `bench gpu` (`gpu.rs`), over the real scenes of `scenes.rs`. Figures are medians with
+//! Benchmarks: `bench packing` (here), `bench query` (`query.rs`, with its plot in `plot.rs`),
+//! `bench gpu` (`gpu.rs`) and `bench ssm` (`ssm.rs`, the separation monitor), over the real scenes of `scenes.rs`. Figures are medians with
 //! the 10th and 90th percentiles ([`ist_monitor::stats::Spread`]), each beside a floor or a
 //! peer measured in the same run.
 
@@ -7,6 +7,7 @@ mod gpu;
 mod plot;
 mod query;
 pub mod scenes;
+mod ssm;
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -31,6 +32,9 @@ pub enum Bench {
     /// The GPU backend against the CPU on the Panda and the Kinect cloud, for clouds of 307k to
     /// 5M points: end-to-end and kernel time, and the crossover for `--backend auto`.
     Gpu(gpu::BenchGpuArgs),
+    /// The speed and separation monitor over the generated approach scene: its cost against
+    /// the query of the same frames; with --plot, distance, S_p and the factor over time.
+    Ssm(ssm::BenchSsmArgs),
 }
 
 pub fn run(bench: Bench) -> Result<()> {
@@ -38,6 +42,7 @@ pub fn run(bench: Bench) -> Result<()> {
         Bench::Packing(args) => packing(args),
         Bench::Query(args) => query::bench_query(args),
         Bench::Gpu(args) => gpu::bench_gpu(args),
+        Bench::Ssm(args) => ssm::bench_ssm(args),
     }
 }
 

@@ -1,10 +1,13 @@
-//! The plot of `bench query`: error against query time per scenario, one series per mode and
-//! per-link setting (labelled with the sphere budget), the peers and the floor as markers.
+//! The plots of `bench query` — error against query time per scenario, one series per mode and
+//! per-link setting (labelled with the sphere budget), the peers and the floor as markers — and
+//! of `bench ssm`: distance, protective separation distance and speed factor over time.
 
 use std::path::Path;
 use std::sync::OnceLock;
 
 use anyhow::{bail, Context, Result};
+
+use ist_monitor::monitor::replay::ReplayFrame;
 
 use super::query::Row;
 use super::scenes::ScenarioName;
@@ -178,6 +181,132 @@ pub fn error_against_time(
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// A labelled series of (time, value) and its colour.
+type Line<'a> = (&'a str, Vec<(f64, f64)>, plotters::style::RGBColor);
+
+/// One panel of the separation plot: `lines` over time up to `t_end`, values in `y`.
+fn panel<DB: plotters::prelude::DrawingBackend>(
+    area: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    caption: &str,
+    t_end: f64,
+    y: (f64, &str),
+    lines: Vec<Line>,
+    legend: plotters::prelude::SeriesLabelPosition,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(35)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..t_end, 0.0..y.0)?;
+    chart
+        .configure_mesh()
+        .x_desc("time, s")
+        .y_desc(y.1)
+        .draw()?;
+    for (label, points, color) in lines {
+        chart
+            .draw_series(LineSeries::new(points, color.stroke_width(2)))?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .position(legend)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}
+
+/// Draws the separation monitor over a replay to the PNG `path`: above, the true distance, the
+/// published (certified) distance, and the distance and protective separation distance S_p of
+/// the link that limits the factor (the least margin when none does); below, the factor each
+/// frame allows and the one published.
+pub fn separation(path: &Path, font: Option<&Path>, frames: &[ReplayFrame]) -> Result<()> {
+    use plotters::prelude::*;
+    register_font(font)?;
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let Some(t0) = frames.first().map(|f| f.stamp_ns) else {
+        bail!("no frames to plot");
+    };
+    let t = |f: &ReplayFrame| (f.stamp_ns - t0) as f64 * 1e-9;
+    let t_end = frames.last().map_or(1.0, t).max(1e-3);
+    let series = |get: &dyn Fn(&ReplayFrame) -> Option<f64>| -> Vec<(f64, f64)> {
+        frames
+            .iter()
+            .filter_map(|f| get(f).map(|v| (t(f), v)))
+            .collect()
+    };
+    let distances: Vec<Line> = vec![
+        (
+            "true distance (generator)",
+            series(&|f| f.truth_m),
+            RGBColor(0, 0, 0),
+        ),
+        (
+            "published distance (certified lower bound)",
+            series(&|f| f.min_distance_m),
+            RGBColor(31, 119, 180),
+        ),
+        (
+            "distance of the link that limits the factor",
+            series(&|f| f.ssm_distance_m),
+            RGBColor(148, 103, 189),
+        ),
+        (
+            "its S_p at the motion as measured",
+            series(&|f| f.protective_m),
+            RGBColor(214, 39, 40),
+        ),
+    ];
+    let d_max = distances
+        .iter()
+        .flat_map(|l| l.1.iter().map(|p| p.1))
+        .fold(0.5, f64::max);
+    let factors: Vec<Line> = vec![
+        (
+            "allowed by this frame",
+            series(&|f| f.speed_scaling.map(|_| f.allowed_factor.unwrap_or(0.0))),
+            RGBColor(255, 127, 14),
+        ),
+        (
+            "published (hysteresis, rate limit)",
+            series(&|f| f.speed_scaling),
+            RGBColor(44, 160, 44),
+        ),
+    ];
+    let root = BitMapBackend::new(path, (1100, 800)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (upper, lower) = root.split_vertically(480);
+    panel(
+        &upper,
+        "generated approach: distance and protective separation distance",
+        t_end,
+        (d_max * 1.1, "m"),
+        distances,
+        SeriesLabelPosition::UpperRight,
+    )?;
+    panel(
+        &lower,
+        "speed-scaling factor",
+        t_end,
+        (1.05, "factor"),
+        factors,
+        SeriesLabelPosition::LowerRight,
+    )?;
     root.present()?;
     Ok(())
 }

@@ -1,7 +1,8 @@
 //! Command line: `build` (trees, quality table, cache, export), `poses` (forward kinematics),
 //! `query` (one cloud against the posed robot), `replay` (a bag through the monitor), `generate`
 //! (scenario bags), `node` (the live ROS 2 node), `play` and `record` (DDS bag tools), `params`
-//! (the parameter table), and `bench packing`, `bench query` and `bench gpu` (in `crate::bench`).
+//! (the parameter table), and `bench packing`, `bench query`, `bench gpu` and `bench ssm` (in
+//! `crate::bench`).
 //!
 //! Every option is defined once, in the module of its subcommand or in `args` when several
 //! share it; the options that are also node parameters take the parameter table's default and
@@ -15,6 +16,7 @@ mod ros;
 
 pub use args::{parse_count, RobotArgs};
 pub use build::cached_trees;
+pub use replay::{load_config, monitor_from_config};
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

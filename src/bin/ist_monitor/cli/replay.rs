@@ -112,7 +112,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
     // The header with the first frame, so that a bag that replays nothing prints only its error.
     let header = || {
         println!(
-            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8}",
+            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8}",
             "frame",
             "stamp [s]",
             "level",
@@ -121,6 +121,11 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             "upper [m]",
             "link",
             "truth [m]",
+            "factor",
+            "margin [m]",
+            "v_r [m/s]",
+            "truth v_r",
+            "truth mrg",
             "ms"
         )
     };
@@ -137,7 +142,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
         }
         let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
         println!(
-            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>8.3}{}",
+            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8.3}{}",
             f.index,
             f.stamp_ns as f64 * 1e-9,
             format!("{:?}", f.level).to_uppercase(),
@@ -149,9 +154,16 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
                 other => other,
             }),
             m(f.truth_m),
+            f.speed_scaling
+                .map_or_else(|| "-".into(), |k| format!("{k:.3}")),
+            m(f.separation_margin_m),
+            m(f.nearest_approach_mps),
+            m(f.truth_approach_mps),
+            m(f.truth_margin_m),
             f.processing_ms,
             f.fault
                 .as_ref()
+                .or(f.ssm_fault.as_ref())
                 .map(|e| format!("  {e}"))
                 .unwrap_or_default()
         );
@@ -218,14 +230,17 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
     };
     let g = scenario::generate(&model, &params, &args.out)?;
     println!(
-        "{:>5} {:>10} {:>10} {:>10}",
-        "frame", "truth [m]", "obstacle", "robot"
+        "{:>5} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "frame", "truth [m]", "v_r [m/s]", "margin [m]", "obstacle", "robot"
     );
+    let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
     for i in 0..g.frames {
         println!(
-            "{:>5} {:>10} {:>10} {:>10}",
+            "{:>5} {:>10} {:>10} {:>10} {:>10} {:>10}",
             i,
-            g.truth_m[i].map_or_else(|| "-".into(), |t| format!("{t:.4}")),
+            m(g.truth_m[i]),
+            m(g.separation[i].map(|s| s.0)),
+            m(g.separation[i].map(|s| s.1)),
             g.obstacle_points[i],
             g.robot_points[i]
         );

@@ -17,7 +17,8 @@ pub struct NodeArgs {
     /// ROS 2 parameters file (default: config/demo_arm.yaml).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// `--ros-args -r __node:=NAME -r __ns:=/NS -p NAME:=VALUE ...`
+    /// `--ros-args -r __node:=NAME -r __ns:=/NS -r FROM:=TO -p NAME:=VALUE ...` (FROM:=TO
+    /// remaps an output topic, e.g. `~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input`)
     #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
     ros_args: Vec<String>,
 }
@@ -69,6 +70,7 @@ pub fn node(args: NodeArgs) -> Result<()> {
     if let Some(ns) = ros.namespace {
         config.namespace = ns;
     }
+    config.remaps = ros.remaps;
     // Signals first: the node answers them throughout, the tree build included.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
