@@ -413,8 +413,8 @@ pub fn nominal_scale(params: &SsmParams, in_effect: f64) -> f64 {
 }
 
 /// The published factor: per source, decreases at once and increases held back (hysteresis,
-/// rate limit); the smallest over the sources is published. A source starts at 0, so the
-/// robot is released only by a frame that allows it.
+/// rate limit); the smallest over the enabled sources is published. An enabled source starts
+/// at 0, so the robot is released only by a frame that allows it; a disabled one never limits.
 #[derive(Debug, Clone)]
 pub struct SpeedScaler {
     hysteresis: f64,
@@ -424,11 +424,20 @@ pub struct SpeedScaler {
 }
 
 impl SpeedScaler {
-    pub fn new(params: &SsmParams, sources: usize) -> Self {
+    /// A scaler for sources that are `enabled` or not.
+    pub fn new(params: &SsmParams, enabled: &[bool]) -> Self {
+        let mut state: Vec<(f64, Option<i64>)> = enabled
+            .iter()
+            .map(|&on| (if on { 0.0 } else { 1.0 }, None))
+            .collect();
+        if !enabled.iter().any(|&on| on) {
+            // Nothing watches the scene: nothing may release the robot.
+            state.push((0.0, None));
+        }
         Self {
             hysteresis: params.hysteresis,
             rate_per_s: params.max_increase_rate_per_s,
-            state: vec![(0.0, None); sources.max(1)],
+            state,
         }
     }
 
@@ -545,8 +554,14 @@ mod tests {
     #[test]
     fn the_scaler_drops_at_once_and_rises_slowly() {
         let p = SsmParams::default();
-        let mut s = SpeedScaler::new(&p, 2);
         let ms = 1_000_000;
+        // A disabled source never limits; with none enabled nothing releases the robot.
+        let mut s = SpeedScaler::new(&p, &[true, false]);
+        s.update(0, 0, Some(1.0));
+        s.update(0, 2000 * ms, Some(1.0));
+        assert_eq!(s.factor(), 1.0);
+        assert_eq!(SpeedScaler::new(&p, &[false]).factor(), 0.0);
+        let mut s = SpeedScaler::new(&p, &[true, true]);
         assert_eq!(s.factor(), 0.0, "starts stopped");
         s.update(0, 0, Some(1.0));
         s.update(1, 0, Some(1.0));

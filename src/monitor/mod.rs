@@ -221,7 +221,7 @@ impl Monitor {
         let engine = Engine::new(&model, trees, &config.selection)?;
         let (tf, joints) = Self::inputs(&config, &model)?;
         let level = LevelTracker::new(&config);
-        let scaler = SpeedScaler::new(&config.ssm, config.sources.len());
+        let scaler = Self::scaler(&config);
         Ok(Self {
             config,
             model,
@@ -255,6 +255,12 @@ impl Monitor {
         Ok((tf, joints))
     }
 
+    /// The speed scaler of the config's sources, each starting at 0.
+    fn scaler(config: &Config) -> SpeedScaler {
+        let enabled: Vec<bool> = config.sources.iter().map(|s| s.enabled).collect();
+        SpeedScaler::new(&config.ssm, &enabled)
+    }
+
     /// Loads the GPU driver now when the backend may use it (`gpu`, or `auto`) instead of on
     /// the first cloud that needs it: the live node does this before it goes on the network, so
     /// that no frame's latency carries the probe (about 0.1 s with a software Vulkan driver).
@@ -275,7 +281,7 @@ impl Monitor {
     pub fn reset(&mut self) -> Result<(), MonitorError> {
         (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
         self.level = LevelTracker::new(&self.config);
-        self.scaler = SpeedScaler::new(&self.config.ssm, self.config.sources.len());
+        self.scaler = Self::scaler(&self.config);
         Ok(())
     }
 
