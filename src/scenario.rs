@@ -390,16 +390,23 @@ impl<'a> Renderer<'a> {
             .collect())
     }
 
-    /// The truth of the separation monitor at `s`: the velocity of the robot's closest mesh
-    /// point (moved with its link along the trajectory, central difference of the forward
-    /// kinematics) projected on the direction to the obstacle point, m/s, and the point's
-    /// speed.
-    pub fn approach(&self, s: f64, ds_dt: f64, w: &Witness) -> Result<(f64, f64), ScenarioError> {
+    /// The truth of the separation monitor for `frame`, rendered at `s`: the velocity of the
+    /// robot's closest mesh point (moved with its link along the trajectory, central difference
+    /// of the forward kinematics) projected on the direction to the obstacle point, m/s, and
+    /// the point's speed.
+    pub fn approach(
+        &self,
+        s: f64,
+        ds_dt: f64,
+        frame: &Frame,
+        w: &Witness,
+    ) -> Result<(f64, f64), ScenarioError> {
         let k = &self.model.kinematics;
         let at = |s: f64| -> Result<Point3<f64>, ScenarioError> {
             Ok(k.link_poses(&self.joints(s)?)[w.link] * w.robot_in_link)
         };
-        let (a, b, r) = (at(s - DS)?, at(s + DS)?, at(s)?);
+        let (a, b) = (at(s - DS)?, at(s + DS)?);
+        let r = frame.link_poses[w.link] * w.robot_in_link;
         let v = (b - a) / (2.0 * DS) * ds_dt;
         let approach = match (w.obstacle_root - r).try_normalize(1e-9) {
             Some(n) => v.dot(&n),
@@ -624,7 +631,7 @@ pub fn generate(
             writer.write(GROUND_TRUTH_TOPIC, log_ns, &Float64 { data: d })?;
             // The separation margin with the default SSM parameters, the cloud seen at once
             // (T_r = reaction_time) and the exact distance (Z_d = the sensor's uncertainty).
-            let (approach, speed) = renderer.approach(s_at(j), ds_dt, &w)?;
+            let (approach, speed) = renderer.approach(s_at(j), ds_dt, &frame, &w)?;
             let margin = d - ssm.protective_distance(
                 ssm.reaction_time_s,
                 approach,

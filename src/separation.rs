@@ -359,14 +359,11 @@ pub fn separation(
         );
         (sp, c.distance_m - sp)
     };
-    let (c, allowed) = constraints
+    // (link, allowed factor, S_p and margin as measured), the least factor, then least margin.
+    let (c, allowed, (protective_m, margin_m)) = constraints
         .iter()
-        .map(|c| (c, params.allowed_factor(c, reaction_s)))
-        .min_by(|(a, ka), (b, kb)| {
-            ka.total_cmp(kb)
-                .then_with(|| measured(a).1.total_cmp(&measured(b).1))
-        })?;
-    let (protective_m, margin_m) = measured(c);
+        .map(|c| (c, params.allowed_factor(c, reaction_s), measured(c)))
+        .min_by(|(_, ka, (_, ma)), (_, kb, (_, mb))| ka.total_cmp(kb).then(ma.total_cmp(mb)))?;
     let approach = scale * c.approach_mps;
     let closing = params.human_speed_mps + approach;
     let gap = (c.distance_m - c.z_d_m).max(0.0);

@@ -399,16 +399,14 @@ impl Monitor {
         stamp_ns: i64,
         process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion), Fault>,
     ) -> Frame {
-        let (result, motion) = match process(self) {
-            Ok((r, m)) => (Ok(r), Some(m)),
-            Err(f) => (Err(f), None),
-        };
+        let processed = process(self);
         let processing_s = start.elapsed().as_secs_f64();
         let speed = self
             .config
             .ssm
             .enabled
-            .then(|| self.speed_scaling(source, stamp_ns, &result, motion, processing_s));
+            .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
+        let result = processed.map(|(r, _)| r);
         let name = self.config.sources[source].name.clone();
         let outputs = Outputs::new(
             &self.config,
@@ -437,19 +435,17 @@ impl Monitor {
         &mut self,
         source: usize,
         stamp_ns: i64,
-        result: &Result<QueryResult, Fault>,
-        motion: Option<Motion>,
+        processed: &Result<(QueryResult, Motion), Fault>,
         processing_s: f64,
     ) -> SpeedScaling {
         let start = Instant::now();
         let ssm = &self.config.ssm;
-        let separation = match (result, motion) {
-            (Err(fault), _) => Err(format!("no distance: {fault}")),
-            (Ok(r), _) if outputs::published_distance(r).is_none() => {
+        let separation = match processed {
+            Err(fault) => Err(format!("no distance: {fault}")),
+            Ok((r, _)) if outputs::published_distance(r).is_none() => {
                 Err("no distance: no valid points, or every valid point self-filtered".into())
             }
-            (Ok(_), None) => Err("no joint velocities".into()),
-            (Ok(r), Some(m)) => match self
+            Ok((r, m)) => match self
                 .joints
                 .velocities_at(Some(m.stamp_ns), self.config.joint_state_tolerance_s)
             {

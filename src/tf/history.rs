@@ -56,6 +56,30 @@ impl<T: Clone> History<T> {
         }
     }
 
+    /// Where `stamp_ns` (`None`: the newest) lies among the samples: past the newest or before
+    /// the oldest by at most `tolerance_ns`, or between two. `None` when there is no sample.
+    fn locate(&self, stamp_ns: Option<i64>, tolerance_ns: i64) -> Option<Result<Place, Miss>> {
+        let (first, last) = (self.samples.front()?.0, self.samples.back()?.0);
+        let Some(t) = stamp_ns else {
+            return Some(Ok(Place::Newest));
+        };
+        Some(if t >= last {
+            if t - last <= tolerance_ns {
+                Ok(Place::Newest)
+            } else {
+                Err(Miss::Stale { newest_ns: last })
+            }
+        } else if t <= first {
+            if first - t <= tolerance_ns {
+                Ok(Place::Oldest)
+            } else {
+                Err(Miss::TooOld { oldest_ns: first })
+            }
+        } else {
+            Ok(Place::Before(self.samples.partition_point(|(s, _)| *s < t)))
+        })
+    }
+
     /// The value at `stamp_ns` (`None`: the newest): `lerp(a, b, w)` between the two samples
     /// around it, or the nearest sample when the stamp lies past either end by at most
     /// `tolerance_ns`. `None` when there is no sample.
@@ -65,28 +89,30 @@ impl<T: Clone> History<T> {
         tolerance_ns: i64,
         lerp: impl Fn(&T, &T, f64) -> T,
     ) -> Option<Result<T, Miss>> {
-        let (first, last) = (self.samples.front()?, self.samples.back()?);
-        let Some(t) = stamp_ns else {
-            return Some(Ok(last.1.clone()));
-        };
-        Some(if t >= last.0 {
-            if t - last.0 <= tolerance_ns {
-                Ok(last.1.clone())
-            } else {
-                Err(Miss::Stale { newest_ns: last.0 })
-            }
-        } else if t <= first.0 {
-            if first.0 - t <= tolerance_ns {
-                Ok(first.1.clone())
-            } else {
-                Err(Miss::TooOld { oldest_ns: first.0 })
-            }
-        } else {
-            let k = self.samples.partition_point(|(s, _)| *s < t);
-            let (a, b) = (&self.samples[k - 1], &self.samples[k]);
-            Ok(lerp(&a.1, &b.1, (t - a.0) as f64 / (b.0 - a.0) as f64))
-        })
+        Some(
+            self.locate(stamp_ns, tolerance_ns)?
+                .map(|place| match place {
+                    Place::Newest => self.samples[self.samples.len() - 1].1.clone(),
+                    Place::Oldest => self.samples[0].1.clone(),
+                    Place::Before(k) => {
+                        let (a, b) = (&self.samples[k - 1], &self.samples[k]);
+                        let t = stamp_ns.unwrap_or(b.0);
+                        lerp(&a.1, &b.1, (t - a.0) as f64 / (b.0 - a.0) as f64)
+                    }
+                }),
+        )
     }
+}
+
+/// Where a stamp lies among a history's samples.
+#[derive(Debug, Clone, Copy)]
+enum Place {
+    /// At or after the newest sample (within the tolerance).
+    Newest,
+    /// At or before the oldest (within the tolerance).
+    Oldest,
+    /// Between sample `k − 1` and sample `k`.
+    Before(usize),
 }
 
 impl History<f64> {
@@ -104,22 +130,11 @@ impl History<f64> {
         if n < 2 {
             return None;
         }
-        let (first, last) = (self.samples[0].0, self.samples[n - 1].0);
-        let k = match stamp_ns {
-            None => n - 1,
-            Some(t) if t >= last => {
-                if t - last > tolerance_ns {
-                    return Some(Err(Miss::Stale { newest_ns: last }));
-                }
-                n - 1
-            }
-            Some(t) if t <= first => {
-                if first - t > tolerance_ns {
-                    return Some(Err(Miss::TooOld { oldest_ns: first }));
-                }
-                1
-            }
-            Some(t) => self.samples.partition_point(|(s, _)| *s < t),
+        let k = match self.locate(stamp_ns, tolerance_ns)? {
+            Err(miss) => return Some(Err(miss)),
+            Ok(Place::Newest) => n - 1,
+            Ok(Place::Oldest) => 1,
+            Ok(Place::Before(k)) => k,
         };
         let (a, b) = (&self.samples[k - 1], &self.samples[k]);
         let span = b.0 - a.0;
