@@ -135,7 +135,7 @@ fn robot_dir() -> &'static Path {
 pub fn urdf(data: &[u8]) {
     let path = robot_dir().join(format!("robot-{:?}.urdf", std::thread::current().id()));
     if std::fs::write(&path, data).is_ok() {
-        let _ = RobotModel::load(&path, &[]);
+        let _ = RobotModel::load(&path, &[], &Default::default());
     }
 }
 

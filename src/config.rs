@@ -59,6 +59,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("gpu_min_points", "100000", "points", "crossover of backend auto (measure it with `ist_monitor bench gpu`)"),
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
     p("exclude_links", "[]", "", "leave these links out"),
+    p("convex_hull_links", "[]", "", "pack these links' convex hulls instead of their meshes ([\"*\"]: every link); a hull contains the link, so only its certified lower bound holds for the link, and that is what is published as its distance"),
     p("max_spheres", "8192", "", "inner spheres per link"),
     p("cache_dir", "~", "path", "where the trees are cached (default: $IST_MONITOR_CACHE or ~/.cache/ist_monitor)"),
     p("joint_states_topic", "/joint_states", "topic", "sensor_msgs/JointState input"),
@@ -632,6 +633,7 @@ impl Config {
             selection: LinkSelection {
                 include: v.strings("links")?,
                 exclude: v.strings("exclude_links")?,
+                convex_hull: v.strings("convex_hull_links")?,
             },
             build,
             cache_dir: v.opt_string("cache_dir", "cache_dir")?.map(path),

@@ -225,7 +225,7 @@ fn too_many_links_are_refused_before_any_tree_is_built() {
     assert!(e.contains("nope"), "{e}");
     assert_eq!(built.load(std::sync::atomic::Ordering::Relaxed), 0);
     // Leaving one out is within the limit; only the selected links are built.
-    let model = RobotModel::load(&path, &[]).unwrap();
+    let model = RobotModel::load(&path, &[], &Default::default()).unwrap();
     let c = config(&[("exclude_links", "[l128]")]);
     assert!(c.selection.check(&model).is_ok());
     let m = Monitor::new(config(&[("links", "[l3, l7]")]), &count).unwrap();

@@ -78,6 +78,8 @@ fn geometry(name: &str, mesh: ClosedMesh) -> LinkGeometry {
             tessellation_error_m: 0.0,
             sphere_center: None,
         }],
+        intake: Vec::new(),
+        hull_of_volume_m3: None,
     }
 }
 
@@ -440,6 +442,61 @@ proptest! {
             let far = run(&mut engine, &points, &far_sensor, &scene.link_poses, &options);
             prop_assert!((distance(&near) - distance(&far)).abs() < 1e-4,
                 "{mode:?}: {} at the origin, {} at {offset} m", distance(&near), distance(&far));
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, .. ProptestConfig::default() })]
+
+    /// A cloud stored in f32 in a frame far from the robot (a map- or UTM-frame lidar, offsets
+    /// 1e2–1e7 m, random rotation and direction): the certified interval and the exact mode hold
+    /// the exact f64 distance of the same f32 points, as the sensor-frame query does near the
+    /// origin; where the f32 points are spaced more coarsely than 1 cm at the robot (beyond
+    /// 131 km) the query is refused, naming the spacing, never answered.
+    #[test]
+    fn clouds_far_from_their_frames_origin(seed in 1u64.., log_offset in 2.0f64..7.0, per_link: bool) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, 2, 64);
+        let mut engine = scene.engine();
+        let offset = 10f64.powf(log_offset);
+        let direction = Vector3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize();
+        let rotation = rng.pose(0.0).rotation;
+        let sensor_from_root = Isometry3::from_parts(Translation3::from(direction * offset), rotation);
+        let root_from_sensor = sensor_from_root.inverse();
+        // Points near the links, rounded to f32 in the far frame: these f32 values are the cloud.
+        let points: Vec<[f32; 3]> = cloud(&mut rng, 300, &Isometry3::identity())
+            .iter()
+            .map(|p| {
+                if !ist_monitor::query::is_valid_point(*p) {
+                    return *p;
+                }
+                let q = sensor_from_root * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                [q.x as f32, q.y as f32, q.z as f32]
+            })
+            .collect();
+        let largest = points.iter().flatten().filter(|v| v.is_finite()).fold(0f32, |m, v| m.max(v.abs()));
+        let spacing = f32::from_bits(largest.to_bits() + 1) - largest;
+        let (exact, _) = scene.brute_force(&points, &root_from_sensor);
+        for mode in [Mode::Certified, Mode::Exact] {
+            let options = QueryOptions { mode, per_link, ..all_points() };
+            match engine.query(&points, &root_from_sensor, &scene.link_poses, &options) {
+                Ok(r) => {
+                    prop_assert!(r.point_spacing_m <= 0.01, "answered with points {} m apart", r.point_spacing_m);
+                    let n = r.nearest.as_ref().expect("a nearest point");
+                    let lower = n.lower_m.unwrap();
+                    prop_assert!(lower <= exact + 1e-5 && exact <= n.distance_m + 1e-5,
+                        "{mode:?} at {offset:.0} m: [{lower}, {}] does not hold the exact {exact}", n.distance_m);
+                    if mode == Mode::Exact {
+                        prop_assert!((n.distance_m - exact).abs() < 1e-5, "exact {} against {exact} at {offset:.0} m", n.distance_m);
+                    }
+                    prop_assert_eq!(n.point_sensor, points[n.point_index as usize]);
+                }
+                Err(e) => {
+                    prop_assert!(spacing > 0.005, "refused with points {spacing} m apart at {offset:.0} m: {e}");
+                    prop_assert!(e.to_string().contains("m apart where the robot is"), "{e}");
+                }
+            }
         }
     }
 }

@@ -365,7 +365,7 @@ fn every_fault_kind_is_an_error_with_no_distance() {
 
 #[test]
 fn generator_reproduces_the_bundled_bag() {
-    let model = RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();
+    let model = RobotModel::load(Path::new(DEMO_URDF), &[], &Default::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
     let params = ScenarioParams {

@@ -11,7 +11,12 @@ use ist_monitor::ist::{build_robot, BuildOptions, LinkTree, Origin};
 use ist_monitor::robot::{PackagePath, RobotModel};
 
 fn load(shared: &Path, robot: &str) -> RobotModel {
-    RobotModel::load(&shared.join("robots").join(robot).join("robot.urdf"), &[]).expect("loads")
+    RobotModel::load(
+        &shared.join("robots").join(robot).join("robot.urdf"),
+        &[],
+        &Default::default(),
+    )
+    .expect("loads")
 }
 
 fn options(budget: u32) -> BuildOptions {
@@ -144,7 +149,9 @@ fn package_uris_resolve_through_package_path_and_ros_package_path() {
     let moved = elsewhere.path().join("panda.urdf");
     std::fs::copy(&urdf, &moved).expect("copy");
     // Without a package path the package is not found, and the error says which.
-    let err = RobotModel::load(&moved, &[]).unwrap_err().to_string();
+    let err = RobotModel::load(&moved, &[], &Default::default())
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("panda_description") && err.contains("panda_link0"),
         "{err}"
@@ -153,7 +160,8 @@ fn package_uris_resolve_through_package_path_and_ros_package_path() {
         name: "panda_description".into(),
         dir: ws.path().join("panda_description"),
     }];
-    let model = RobotModel::load(&moved, &packages).expect("explicit package path");
+    let model =
+        RobotModel::load(&moved, &packages, &Default::default()).expect("explicit package path");
     assert_eq!(model.links.len(), 11);
     // The environment variables, through the binary so they are set for that process only.
     let poses = |var: &str, value: &Path| {

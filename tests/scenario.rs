@@ -21,7 +21,12 @@ fn kinect_panda_reference_distances() {
     let Some(shared) = common::shared() else {
         return;
     };
-    let model = RobotModel::load(&shared.join("robots/panda/robot.urdf"), &[]).unwrap();
+    let model = RobotModel::load(
+        &shared.join("robots/panda/robot.urdf"),
+        &[],
+        &Default::default(),
+    )
+    .unwrap();
     let cache_dir = tempfile::tempdir().unwrap();
     let mut options = BuildOptions::default();
     options.packing.max_spheres = 1024;

@@ -17,7 +17,7 @@ use crate::robot::LinkGeometry;
 
 const MAGIC: &[u8; 8] = b"ISTCACHE";
 /// Bump when the file layout or anything that changes the trees for the same key changes.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CacheError {
@@ -53,6 +53,10 @@ pub fn key(link: &LinkGeometry, options: &BuildOptions) -> [u8; 32] {
         h.update(&(e.mesh.triangles.len() as u64).to_le_bytes());
         h.update(bytemuck::cast_slice(&e.mesh.triangles));
         h.update(&e.tessellation_error_m.to_le_bytes());
+        if let Some(fill) = &e.mesh.fill {
+            h.update(&fill.voxel_m.to_le_bytes());
+            h.update(fill.labels());
+        }
     }
     *h.finalize().as_bytes()
 }

@@ -16,6 +16,7 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::packing::grid::SphereGrid;
 pub use crate::packing::InnerSphere;
 use crate::packing::{gap::surface_gap, pack, pack_sphere, PackingParams};
 use crate::robot::{LinkGeometry, RobotModel};
@@ -98,6 +99,7 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
     let mut spheres = Vec::new();
     let mut gap_m = 0.0f64;
     let mut gap_sampled_m = 0.0f64;
+    let mut packings = Vec::with_capacity(link.elements.len());
     for element in &link.elements {
         let share = element.mesh.volume_m3 / mesh_volume_m3;
         let budget = ((params.max_spheres as f64 * share).round() as usize).max(1);
@@ -107,20 +109,57 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
             Some(center) => pack_sphere(&element.mesh, center, params),
             None => pack(&element.mesh, budget, params),
         };
-        let packed_s = t.elapsed().as_secs_f64();
-        let gap = surface_gap(&element.mesh, &packing.grid, options.gap_tolerance_m);
         log::debug!(
-            "link {} element {}: {} spheres, {} settles, packed in {packed_s:.2} s, gap in {:.2} s, h {:.2} mm at {:?}",
+            "link {} element {}: {} spheres, {} settles, packed in {:.2} s",
             link.name,
             element.index,
             packing.grid.spheres().len(),
             packing.settles,
-            t.elapsed().as_secs_f64() - packed_s,
+            t.elapsed().as_secs_f64(),
+        );
+        packings.push(packing);
+    }
+    // The gap of each element's surface against all the link's spheres: the link's solid is
+    // the union of its elements, so a sphere of one element covers the surface of another
+    // that lies against it (a mesh file's shells, overlapping primitives). With one element
+    // that is its own packing's grid.
+    let union = (packings.len() > 1).then(|| {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for e in &link.elements {
+            let (a, b) = e.mesh.bounds();
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        let mut grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
+        for p in &packings {
+            for s in p.grid.spheres() {
+                grid.insert(*s);
+            }
+        }
+        grid
+    });
+    for (element, packing) in link.elements.iter().zip(&packings) {
+        let t = Instant::now();
+        let gap = surface_gap(
+            &element.mesh,
+            union.as_ref().unwrap_or(&packing.grid),
+            options.gap_tolerance_m,
+        );
+        log::debug!(
+            "link {} element {}: gap in {:.2} s, h {:.2} mm at {:?}",
+            link.name,
+            element.index,
+            t.elapsed().as_secs_f64(),
             gap.upper_m * 1e3,
             gap.worst_point
         );
         gap_m = gap_m.max(gap.upper_m as f64 + element.tessellation_error_m);
         gap_sampled_m = gap_sampled_m.max(gap.lower_m as f64);
+    }
+    for packing in packings {
         spheres.extend(packing.grid.into_spheres());
     }
     if spheres.is_empty() {

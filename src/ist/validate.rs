@@ -2,8 +2,8 @@
 //! point–triangle distances and winding numbers (`geometry`), independent of the f32 parry3d
 //! queries the packing used:
 //! - every sphere lies inside the link: inside one of its elements, i.e. its centre inside the
-//!   element (winding number ≥ ½) and its radius at most the distance from the centre to that
-//!   element's surface, plus `tolerance`;
+//!   element (winding number ≥ ½; for a solid the intake filled, its flood fill) and its radius
+//!   at most the distance from the centre to that element's surface, plus `tolerance`;
 //! - no two spheres overlap by more than `tolerance`, on links of one element (the elements of
 //!   a link may overlap each other, and so may spheres packed into different elements);
 //! - every node bounds each of its children, and every sphere is reached exactly once.
@@ -64,7 +64,13 @@ pub fn validate_link(
         let c = widen(s.center);
         let mut best_clearance = f64::NEG_INFINITY;
         for e in &geometry.elements {
-            if winding_number(c, &e.mesh.vertices, &e.mesh.triangles) >= 0.5 {
+            // A filled solid's inside is its flood fill's (its triangles face the outside
+            // and need not be closed); a closed mesh's is the f64 winding number.
+            let inside = match &e.mesh.fill {
+                Some(fill) => fill.contains(s.center, false),
+                None => winding_number(c, &e.mesh.vertices, &e.mesh.triangles) >= 0.5,
+            };
+            if inside {
                 let clearance = distance_point_mesh(c, &e.mesh.vertices, &e.mesh.triangles);
                 if s.radius as f64 <= clearance + tolerance {
                     return Ok(());

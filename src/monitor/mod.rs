@@ -172,8 +172,10 @@ impl Monitor {
     /// is ready. Errors here are start-up errors.
     pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self, MonitorError> {
         let model = match config.robot_source()? {
-            RobotSource::File(urdf) => RobotModel::load(&urdf, &config.package_paths)
-                .map_err(|source| MonitorError::Robot { urdf, source })?,
+            RobotSource::File(urdf) => {
+                RobotModel::load(&urdf, &config.package_paths, &config.selection)
+                    .map_err(|source| MonitorError::Robot { urdf, source })?
+            }
             RobotSource::Text(xml) => Self::model_from_text(&config, &xml, "robot_description")?,
             RobotSource::Topic(topic) => return Err(MonitorError::FromTopic(topic)),
         };
@@ -188,8 +190,14 @@ impl Monitor {
         from: &str,
     ) -> Result<RobotModel, MonitorError> {
         let urdf = std::path::PathBuf::from(from);
-        RobotModel::from_text(xml, &urdf, std::path::Path::new("."), &config.package_paths)
-            .map_err(|source| MonitorError::Robot { urdf, source })
+        RobotModel::from_text(
+            xml,
+            &urdf,
+            std::path::Path::new("."),
+            &config.package_paths,
+            &config.selection,
+        )
+        .map_err(|source| MonitorError::Robot { urdf, source })
     }
 
     /// As [`Monitor::new`], with the robot loaded.

@@ -99,9 +99,12 @@ const CELLS_PER_PROTOTYPE: usize = 2;
 /// Most surface samples of the gap pass (about 24 MiB); reached only by links of metres.
 const MAX_GAP_SAMPLES: usize = 1 << 20;
 
-/// A closed mesh as a solid for point queries (the one boundary to parry3d's glam types).
+/// A closed mesh as a solid for point queries (the one boundary to parry3d's glam types). For
+/// a filled solid (`robot::fill`) inside and outside come from the fill and distances from the
+/// triangles that face the outside.
 pub struct Solid {
     trimesh: TriMesh,
+    fill: Option<std::sync::Arc<crate::robot::fill::Fill>>,
 }
 
 impl Solid {
@@ -111,13 +114,32 @@ impl Solid {
             .iter()
             .map(|v| Vector::new(v[0], v[1], v[2]))
             .collect();
-        // The mesh was checked closed and non-degenerate, so parry accepts it.
-        let trimesh = TriMesh::with_flags(vertices, mesh.triangles.clone(), TriMeshFlags::ORIENTED)
-            .unwrap_or_else(|e| panic!("closed mesh rejected by parry3d: {e:?}"));
-        Self { trimesh }
+        // The intake checked that parry accepts the mesh (closed and oriented, or the
+        // triangles of a filled solid).
+        let trimesh = match mesh.fill {
+            Some(_) => TriMesh::new(vertices, mesh.triangles.clone()),
+            None => TriMesh::with_flags(vertices, mesh.triangles.clone(), TriMeshFlags::ORIENTED),
+        }
+        .unwrap_or_else(|e| panic!("closed mesh rejected by parry3d: {e:?}"));
+        Self {
+            trimesh,
+            fill: mesh.fill.clone(),
+        }
     }
 
-    /// Signed distance to the surface (positive inside) and the closest surface point.
+    /// Whether `p` is inside, given parry's answer for a closed mesh; for a filled solid, the
+    /// fill's, with `ambiguous` where it cannot tell (a point among triangles closer together
+    /// than its voxel).
+    #[inline]
+    fn inside(&self, p: [f32; 3], parry_inside: bool, ambiguous: bool) -> bool {
+        match &self.fill {
+            Some(fill) => fill.contains(p, ambiguous),
+            None => parry_inside,
+        }
+    }
+
+    /// Signed distance to the surface (positive inside) and the closest surface point; a point
+    /// a filled solid cannot place counts as outside (no sphere is grown from it).
     #[inline]
     pub fn signed_distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
         let projection = self
@@ -125,7 +147,14 @@ impl Solid {
             .project_local_point(Vector::new(p[0], p[1], p[2]), false);
         let q = [projection.point.x, projection.point.y, projection.point.z];
         let d = distance(p, q);
-        (if projection.is_inside { d } else { -d }, q)
+        (
+            if self.inside(p, projection.is_inside, false) {
+                d
+            } else {
+                -d
+            },
+            q,
+        )
     }
 
     /// Axis-aligned bounds of the mesh.
@@ -137,15 +166,18 @@ impl Solid {
         )
     }
 
-    /// Distance to the solid (0 inside) and the closest point (the point itself inside).
+    /// Distance to the solid (0 inside) and the closest point (the point itself inside); a
+    /// point a filled solid cannot place counts as inside (distance 0, never too far).
     #[inline]
     pub fn distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
-        let (d, q) = self.signed_distance(p);
-        if d >= 0.0 {
-            (0.0, p)
-        } else {
-            (-d, q)
+        let projection = self
+            .trimesh
+            .project_local_point(Vector::new(p[0], p[1], p[2]), false);
+        if self.inside(p, projection.is_inside, true) {
+            return (0.0, p);
         }
+        let q = [projection.point.x, projection.point.y, projection.point.z];
+        (distance(p, q), q)
     }
 
     /// Distance along the ray `origin + t·dir` (unit `dir`) to the first surface hit within
@@ -167,7 +199,7 @@ impl Solid {
             false,
             max,
         )?;
-        if projection.is_inside {
+        if self.inside(p, projection.is_inside, true) {
             return Some((0.0, p));
         }
         let q = [projection.point.x, projection.point.y, projection.point.z];

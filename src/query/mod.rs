@@ -29,9 +29,14 @@
 //! - `peers`: reference methods for the tests and the benchmarks.
 //!
 //! Frames and precision: all poses are composed in f64 and the robot is brought into the sensor
-//! frame, where the points are small numbers; only then are the per-link transforms rounded to
-//! f32. A robot and sensor 1000 km from the map origin therefore give the answer they give at the
-//! origin (the offsets cancel in f64 before anything is rounded). The per-point work is f32.
+//! frame, where the points are usually small numbers; only then are the per-link transforms
+//! rounded to f32. A robot and sensor 1000 km from the map origin therefore give the answer they
+//! give at the origin (the offsets cancel in f64 before anything is rounded). A cloud whose own
+//! frame is far from the robot (a map-frame lidar) runs in a working frame near the robot, the
+//! points moved by one exact f32 subtraction (`pose::working_origin`), so that the certified
+//! interval holds for its f32 points at any offset; where those points are spaced more coarsely
+//! than `pose::MAX_POINT_SPACING_M`, the query is refused rather than certified. The per-point
+//! work is f32.
 //!
 //! Leaving out what the scene does not need, cheapest first:
 //! 1. invalid points (NaN, ±Inf, and (0, 0, 0), which drivers use for "no return") are counted
@@ -219,6 +224,16 @@ pub enum QueryError {
     TooManyPoints(usize),
     #[error("{got} link poses given, the robot has {expected} links")]
     LinkPoses { got: usize, expected: usize },
+    #[error(
+        "the cloud's f32 coordinates are {spacing_m} m apart where the robot is ({offset_m:.0} m \
+         from the origin of the cloud's frame), coarser than the {limit_m} m the query certifies: \
+         publish the cloud in a frame near the robot"
+    )]
+    CoarseCloud {
+        spacing_m: f32,
+        offset_m: f64,
+        limit_m: f32,
+    },
 }
 
 /// One link as the query sees it: its tree, its surface gap and, for exact mode, its solids.
@@ -232,6 +247,9 @@ pub struct QueryLink {
     pub gap_m: f32,
     /// One solid per collision element (elements may overlap, so they are kept apart).
     pub solids: Vec<Solid>,
+    /// Packed as its convex hull: its inner-sphere distance is no upper bound of the link's,
+    /// so the result gives its certified lower bound as its distance.
+    pub convex_hull: bool,
     /// Structure-of-arrays copies of the node and sphere arrays for the CPU descent (four
     /// children tested at once); derived from `nodes` and `spheres` by [`QueryLink::new`].
     pub(crate) node_soa: SphereSoa,
@@ -267,14 +285,16 @@ impl QueryLink {
         let solids = geometry
             .map(|g| g.elements.iter().map(|e| Solid::new(&e.mesh)).collect())
             .unwrap_or_default();
-        Self::new(
+        let mut link = Self::new(
             tree.link.clone(),
             pose_index,
             tree.nodes.clone(),
             tree.spheres.clone(),
             tree.quality.gap_m as f32,
             solids,
-        )
+        );
+        link.convex_hull = geometry.is_some_and(|g| g.hull_of_volume_m3.is_some());
+        link
     }
 
     /// A link from its tree, surface gap, solids and index into the link poses.
@@ -295,42 +315,35 @@ impl QueryLink {
             spheres,
             gap_m,
             solids,
+            convex_hull: false,
             node_soa,
             sphere_soa,
         }
     }
 }
 
-/// Which links take part, by name.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct LinkSelection {
-    /// Only these (all when empty).
-    pub include: Vec<String>,
-    pub exclude: Vec<String>,
-}
+pub use crate::robot::LinkSelection;
 
 impl LinkSelection {
-    /// Whether link `name` takes part.
-    pub fn selects(&self, name: &str) -> bool {
-        (self.include.is_empty() || self.include.iter().any(|n| n == name))
-            && !self.exclude.iter().any(|n| n == name)
-    }
-
     /// Checks the selection against `model` before anything is built: every name it gives is a
     /// link with collision geometry, and the links it selects are at least one and at most
     /// [`MAX_LINKS`].
     pub fn check(&self, model: &RobotModel) -> Result<(), QueryError> {
-        let known = || {
+        // Links the selection left out when the robot was loaded are known by name.
+        let names = || {
             model
                 .links
                 .iter()
                 .map(|l| l.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
+                .chain(model.unloaded_links.iter().map(String::as_str))
         };
-        for name in self.include.iter().chain(&self.exclude) {
-            if !model.links.iter().any(|l| &l.name == name) {
-                return Err(QueryError::UnknownLink(name.clone(), known()));
+        let hulls = self.convex_hull.iter().filter(|n| n.as_str() != "*");
+        for name in self.include.iter().chain(&self.exclude).chain(hulls) {
+            if !names().any(|n| n == name) {
+                return Err(QueryError::UnknownLink(
+                    name.clone(),
+                    names().collect::<Vec<_>>().join(", "),
+                ));
             }
         }
         match model.links.iter().filter(|l| self.selects(&l.name)).count() {
@@ -347,6 +360,9 @@ pub struct Engine {
     pose_count: usize,
     bounds: bounds::Bounds,
     gpu: GpuSlot,
+    /// The points in the working frame, for clouds far from their frame's origin (kept to
+    /// avoid an allocation per query).
+    work: Vec<[f32; 3]>,
 }
 
 /// The GPU backend, created on first use.
@@ -414,6 +430,7 @@ impl Engine {
             pose_count,
             bounds,
             gpu: GpuSlot::Untried,
+            work: Vec::new(),
         })
     }
 
@@ -460,6 +477,42 @@ impl Engine {
         if points.len() > u32::MAX as usize {
             return Err(QueryError::TooManyPoints(points.len()));
         }
+        let (origin, spacing) = pose::working_origin(&self.links, root_from_sensor, link_poses);
+        if spacing > pose::MAX_POINT_SPACING_M {
+            let o = origin.unwrap_or_default();
+            return Err(QueryError::CoarseCloud {
+                spacing_m: spacing,
+                offset_m: o.iter().map(|v| (*v as f64).powi(2)).sum::<f64>().sqrt(),
+                limit_m: pose::MAX_POINT_SPACING_M,
+            });
+        }
+        let Some(o) = origin else {
+            let mut result = self.run(points, width, root_from_sensor, link_poses, options);
+            result.point_spacing_m = spacing;
+            return Ok(result);
+        };
+        let mut work = std::mem::take(&mut self.work);
+        pose::to_work(points, o, &mut work);
+        let root_from_work = pose::root_from_work(root_from_sensor, o);
+        let mut result = self.run(&work, width, &root_from_work, link_poses, options);
+        self.work = work;
+        result.point_spacing_m = spacing;
+        // The one sensor-frame coordinate of the result: the point as the cloud gave it.
+        if let Some(n) = &mut result.nearest {
+            n.point_sensor = points[n.point_index as usize];
+        }
+        Ok(result)
+    }
+
+    /// Steps 1 to 5 of a checked query, in the frame the points are given in.
+    fn run(
+        &mut self,
+        points: &[[f32; 3]],
+        width: Option<usize>,
+        root_from_sensor: &Isometry3<f64>,
+        link_poses: &[Isometry3<f64>],
+        options: &QueryOptions,
+    ) -> QueryResult {
         let input = Input {
             points,
             width,
@@ -479,7 +532,7 @@ impl Engine {
                     // A GPU that gives up leaves `bounds` as prepared (it writes them only on
                     // success), so the CPU below starts from the same state.
                     match gpu.query(&self.links, &mut self.bounds, &robot_box, input) {
-                        Ok(Some(r)) => return Ok(r),
+                        Ok(Some(r)) => return r,
                         Ok(None) => log::debug!(
                             "GPU result incomplete (candidate list full, or an arg-min lost): CPU"
                         ),
@@ -488,7 +541,7 @@ impl Engine {
                 }
             }
         }
-        Ok(cpu::run(&self.links, &mut self.bounds, input, robot_box))
+        cpu::run(&self.links, &mut self.bounds, input, robot_box)
     }
 
     /// The GPU backend, created on first use; `None` (said once) when there is no usable GPU.
@@ -629,6 +682,9 @@ pub struct QueryResult {
     /// The links the self-filtered points were taken as (the first link, in engine order,
     /// within the padding), with their counts; links with none are left out.
     pub self_filtered_by_link: Vec<(String, u64)>,
+    /// The spacing of the cloud's f32 coordinates where the robot is, m: every point is known to
+    /// within √3/2 of it, and the interval holds for the points as given.
+    pub point_spacing_m: f32,
 }
 
 /// What one query asks: the cloud, where its sensor is, how the robot is posed, the options.

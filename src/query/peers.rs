@@ -89,7 +89,18 @@ fn scan(
     link_poses: &[Isometry3<f64>],
     distance: impl Fn(usize, &QueryLink, [f32; 3], f32) -> Option<f32> + Sync,
 ) -> Option<PeerMinimum> {
-    let posed = posed(engine, root_from_sensor, link_poses);
+    // A cloud far from its frame's origin is taken in the engine's working frame, as the
+    // engine takes it.
+    let mut work = Vec::new();
+    let (points, root_from_sensor) =
+        match pose::working_origin(engine.links(), root_from_sensor, link_poses).0 {
+            Some(o) => {
+                pose::to_work(points, o, &mut work);
+                (&work[..], pose::root_from_work(root_from_sensor, o))
+            }
+            None => (points, *root_from_sensor),
+        };
+    let posed = posed(engine, &root_from_sensor, link_poses);
     let best: Vec<AtomicU64> = posed.iter().map(|_| AtomicU64::new(EMPTY)).collect();
     let shared = AtomicU64::new(EMPTY);
     points.par_iter().enumerate().for_each(|(i, &p)| {

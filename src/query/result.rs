@@ -197,6 +197,50 @@ fn assemble(
         }
         _ => None,
     };
+    // Links packed as convex hulls: their inner spheres may lie outside the link, so only
+    // their certified lower bound holds for the link, and it is their distance. Exact mode
+    // measures the hull itself, which contains the link: already a lower bound.
+    let hull = |l: &QueryLink| l.convex_hull && options.mode != Mode::Exact;
+    let mut link_results = link_results;
+    for (r, link) in link_results.iter_mut().zip(links).filter(|(_, l)| hull(l)) {
+        // In fast mode too: the hull's bound is the only distance that holds for the link.
+        r.lower_m = r
+            .farther_than_m
+            .or(r.distance_m)
+            .map(|d| (d - link.gap_m as f64).max(0.0));
+        if r.distance_m.is_some() {
+            r.distance_m = r.lower_m;
+        }
+    }
+    let mut nearest = nearest;
+    if let Some(n) = nearest.as_mut().filter(|_| links.iter().any(hull)) {
+        // The smallest lower bound of a hull link, measured or farther than a bound (every
+        // link's, without per-link minima).
+        let hull_lower = if options.per_link {
+            link_results
+                .iter()
+                .zip(links)
+                .filter(|(_, l)| hull(l))
+                .filter_map(|(r, _)| r.lower_m.map(|d| (d, r)))
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(d, r)| (d, Some(r)))
+        } else {
+            Some((global_lower.max(0.0) as f64, None))
+        };
+        if let Some((d, r)) = hull_lower.filter(|(d, _)| *d < n.distance_m) {
+            n.distance_m = d;
+            n.lower_m = Some(n.lower_m.map_or(d, |l| l.min(d)));
+            if let Some(r) = r {
+                n.link = r.link.clone();
+                if let (Some(i), Some((p, q))) = (r.point_index, r.witness) {
+                    n.point_index = i;
+                    n.point_sensor = points[i as usize];
+                    n.point_root = p;
+                    n.robot_point_root = q;
+                }
+            }
+        }
+    }
     let outcome = if counts.total == counts.invalid {
         Outcome::NoPoints
     } else if nearest.is_some() {
@@ -218,5 +262,7 @@ fn assemble(
             .map(|(link, n)| (link.name.clone(), n.load(Relaxed)))
             .filter(|(_, n)| *n > 0)
             .collect(),
+        // Set by the engine, which knows the cloud's frame.
+        point_spacing_m: 0.0,
     }
 }

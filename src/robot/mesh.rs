@@ -1,16 +1,11 @@
-//! Collision meshes: loading (STL, COLLADA, OBJ through mesh-loader), validation and primitive
-//! tessellation, producing one closed, outward-oriented triangle mesh per collision element, in
-//! the link frame, in metres.
+//! Collision meshes: loading (STL, COLLADA, OBJ through mesh-loader), the strict closed mesh and
+//! primitive tessellation, in the link frame, in metres.
 //!
-//! Policy for bad meshes (the packing needs a solid with an inside):
-//! - non-finite vertices, degenerate (zero-area) triangles, zero volume: refused with an error;
-//! - open meshes (an edge used by one triangle only, or by more than two): refused with the count
-//!   of such edges. Repairing or wrapping a mesh in its convex hull would put inner spheres
-//!   outside the real link, which breaks the upper bound the monitor relies on, so the user is
-//!   asked to fix or replace the collision mesh instead;
-//! - inside-out meshes (negative volume) are flipped, with a warning.
-//!
-//! Vertices are welded by exact position first, since STL stores every triangle on its own.
+//! [`ClosedMesh::new`] is strict: it welds bit-identical vertices and refuses non-finite
+//! vertices, degenerate triangles, open or non-manifold edges and zero volume (an inside-out
+//! mesh is flipped, with a warning). Primitives and the shells the intake made pass through it.
+//! Mesh files go through `robot::intake` first, which takes meshes as vendors ship them (CAD
+//! noise, holes, non-manifold edges, hollow shells) and says what it did.
 
 use std::collections::HashMap;
 use std::f64::consts::PI;
@@ -38,15 +33,33 @@ pub enum MeshError {
     },
     #[error("mesh encloses no volume ({volume_m3:.3e} m³)")]
     ZeroVolume { volume_m3: f64 },
+    #[error("a shell cannot be oriented (its triangles disagree around a loop)")]
+    Unorientable,
+    #[error(
+        "the mesh encloses nothing: its surface separates no inside from the outside \
+         ({open_shells} shells could not be closed or oriented, as on a Möbius strip); fix the \
+         mesh, use a primitive, or pack the link's convex hull (convex_hull_links)"
+    )]
+    EnclosesNothing { open_shells: usize },
+    #[error(
+        "{open_edges} open edges that do not close into loops (a hole's rim runs into an edge \
+         shared by three or more triangles)"
+    )]
+    OpenChain { open_edges: usize },
 }
 
-/// A closed, outward-oriented triangle mesh in a link frame (metres, f32).
+/// A collision solid in a link frame (metres, f32): a closed, outward-oriented triangle mesh,
+/// or, where the intake filled a mesh whose shells enclose space together (`robot::fill`), the
+/// triangles that face the outside of a solid whose inside the fill decides.
 #[derive(Debug, Clone)]
 pub struct ClosedMesh {
     pub vertices: Vec<[f32; 3]>,
     pub triangles: Vec<[u32; 3]>,
     /// Enclosed volume, m³.
     pub volume_m3: f64,
+    /// The flood fill that decides inside and outside, for a filled solid (then `triangles`
+    /// need not be closed or oriented).
+    pub fill: Option<std::sync::Arc<super::fill::Fill>>,
 }
 
 impl ClosedMesh {
@@ -57,19 +70,7 @@ impl ClosedMesh {
         triangles: Vec<[u32; 3]>,
         flip_warning: &str,
     ) -> Result<Self, MeshError> {
-        if triangles.is_empty() {
-            return Err(MeshError::Empty);
-        }
-        if let Some((vertex, value)) = vertices
-            .iter()
-            .enumerate()
-            .find(|(_, v)| v.iter().any(|x| !x.is_finite()))
-        {
-            return Err(MeshError::NonFiniteVertex {
-                vertex,
-                value: *value,
-            });
-        }
+        check_soup(&vertices, &triangles)?;
         let (vertices, mut triangles) = weld(&vertices, &triangles)?;
         let extent = extent(&vertices);
         let min_area = (extent * extent * 1e-14).max(f64::MIN_POSITIVE);
@@ -112,6 +113,7 @@ impl ClosedMesh {
             vertices,
             triangles,
             volume_m3: volume,
+            fill: None,
         })
     }
 
@@ -190,9 +192,41 @@ fn bounds(vertices: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
     (lo, hi)
 }
 
-fn extent(vertices: &[[f32; 3]]) -> f64 {
-    let (lo, hi) = bounds(vertices);
-    (0..3).map(|k| (hi[k] - lo[k]) as f64).fold(0.0, f64::max)
+/// Refuses a soup with no triangle or a non-finite vertex.
+pub(super) fn check_soup(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<(), MeshError> {
+    if triangles.is_empty() {
+        return Err(MeshError::Empty);
+    }
+    if let Some((vertex, value)) = vertices
+        .iter()
+        .enumerate()
+        .find(|(_, v)| v.iter().any(|x| !x.is_finite()))
+    {
+        return Err(MeshError::NonFiniteVertex {
+            vertex,
+            value: *value,
+        });
+    }
+    Ok(())
+}
+
+/// Axis-aligned bounds (min, max) in f64.
+pub(super) fn bounds_f64(vertices: &[[f32; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for v in vertices {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v[k] as f64);
+            hi[k] = hi[k].max(v[k] as f64);
+        }
+    }
+    (lo, hi)
+}
+
+/// The largest side of the bounds, m.
+pub(super) fn extent(vertices: &[[f32; 3]]) -> f64 {
+    let (lo, hi) = bounds_f64(vertices);
+    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
 }
 
 /// Merges vertices with identical coordinates; drops unreferenced ones.

@@ -2,13 +2,43 @@
 //! metres) and the kinematic tree that poses the links (f64). Its output feeds the sphere
 //! packing (`packing`), and the link poses that the query (`query`) and the monitor use.
 
+pub mod fill;
+pub mod intake;
 pub mod kinematics;
 pub mod mesh;
 pub mod urdf;
 
+pub use intake::MeshReport;
 pub use kinematics::{Kinematics, LinkVelocity};
 pub use mesh::{ClosedMesh, MeshError};
-pub use urdf::{CollisionElement, LinkGeometry, PackagePath, RobotModel};
+pub use urdf::{CollisionElement, LinkGeometry, MeshIntake, PackagePath, RobotModel};
+
+/// Which links take part, by name, and which are packed as their convex hull: given before the
+/// robot is loaded, so that a link left out never has its meshes read (a broken mesh on an
+/// excluded link does not stop the load).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LinkSelection {
+    /// Only these (all when empty).
+    pub include: Vec<String>,
+    pub exclude: Vec<String>,
+    /// Links replaced by the convex hull of their collision geometry (`*`: every link). A hull
+    /// contains the link, so a certified lower bound for the hull is one for the link; its
+    /// inner spheres may lie outside the link, so no upper bound follows (see `query`).
+    pub convex_hull: Vec<String>,
+}
+
+impl LinkSelection {
+    /// Whether link `name` takes part.
+    pub fn selects(&self, name: &str) -> bool {
+        (self.include.is_empty() || self.include.iter().any(|n| n == name))
+            && !self.exclude.iter().any(|n| n == name)
+    }
+
+    /// Whether link `name` is packed as its convex hull.
+    pub fn hull(&self, name: &str) -> bool {
+        self.convex_hull.iter().any(|n| n == name || n == "*")
+    }
+}
 
 use std::path::PathBuf;
 
@@ -63,6 +93,8 @@ pub enum RobotError {
         file: PathBuf,
         source: MeshError,
     },
+    #[error("{} links cannot be loaded (fix each, or leave it out with exclude_links):\n  - {}", .0.len(), .0.iter().map(|e| e.to_string()).collect::<Vec<_>>().join("\n  - "))]
+    Links(Vec<RobotError>),
     #[error("unknown joint '{0}'")]
     UnknownJoint(String),
     #[error("no value given for joint '{0}'")]

@@ -11,12 +11,13 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3};
 
+use super::intake::{intake, MeshReport};
 use super::kinematics::{pose_from_urdf, Kinematics};
 use super::mesh::{
     load_mesh_file, tessellate_box, tessellate_capsule, tessellate_cylinder, tessellate_sphere,
     ClosedMesh, Tessellation,
 };
-use super::RobotError;
+use super::{LinkSelection, RobotError};
 
 /// One `--package-path NAME=DIR` entry.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,7 +60,24 @@ pub struct CollisionElement {
 #[derive(Debug, Clone)]
 pub struct LinkGeometry {
     pub name: String,
+    /// The closed meshes packed; a mesh file gives one per outer shell (`robot::intake`), so
+    /// several may share an `index`.
     pub elements: Vec<CollisionElement>,
+    /// What the intake did to each mesh file of the link.
+    pub intake: Vec<MeshIntake>,
+    /// The link's collision geometry was replaced by its convex hull (`LinkSelection::
+    /// convex_hull`): its volume before, m³. The hull contains the link: distances to it are
+    /// lower bounds of the link's, never upper bounds.
+    pub hull_of_volume_m3: Option<f64>,
+}
+
+/// The intake of one mesh file.
+#[derive(Debug, Clone)]
+pub struct MeshIntake {
+    /// The collision element (position among the link's `<collision>` elements).
+    pub element: usize,
+    pub file: PathBuf,
+    pub report: MeshReport,
 }
 
 /// A robot loaded from a URDF: kinematics and the collision geometry of its links.
@@ -72,11 +90,18 @@ pub struct RobotModel {
     pub links: Vec<LinkGeometry>,
     /// Links without collision geometry.
     pub skipped_links: Vec<String>,
+    /// Links with collision geometry that the link selection left out: their meshes were
+    /// never read.
+    pub unloaded_links: Vec<String>,
 }
 
 impl RobotModel {
-    /// Loads a URDF file and all its collision geometry.
-    pub fn load(path: &Path, packages: &[PackagePath]) -> Result<Self, RobotError> {
+    /// Loads a URDF file and the collision geometry of the links `selection` selects.
+    pub fn load(
+        path: &Path,
+        packages: &[PackagePath],
+        selection: &LinkSelection,
+    ) -> Result<Self, RobotError> {
         let xml = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
             path: path.to_owned(),
             source,
@@ -86,38 +111,97 @@ impl RobotModel {
             path,
             path.parent().unwrap_or(Path::new(".")),
             packages,
+            selection,
         )
     }
 
     /// A robot from URDF text; `path` names it in errors (the file, or where the text came
-    /// from) and relative mesh paths are taken from `base`.
+    /// from) and relative mesh paths are taken from `base`. Every selected link is loaded even
+    /// when one fails, so that the error lists every link that needs fixing.
     pub fn from_text(
         xml: &str,
         path: &Path,
         base: &Path,
         packages: &[PackagePath],
+        selection: &LinkSelection,
     ) -> Result<Self, RobotError> {
         let robot = parse_urdf(xml, path)?;
         let kinematics = Kinematics::from_urdf(&robot, &path.display().to_string())?;
         let mut links = Vec::new();
         let mut skipped_links = Vec::new();
+        let mut unloaded_links = Vec::new();
+        let mut failed = Vec::new();
         for link in &robot.links {
             if link.collision.is_empty() {
                 skipped_links.push(link.name.clone());
                 continue;
             }
-            let elements = link
-                .collision
-                .iter()
-                .enumerate()
-                .map(|(index, collision)| {
-                    load_element(&link.name, index, collision, base, packages)
-                })
-                .collect::<Result<Vec<_>, _>>()?;
-            links.push(LinkGeometry {
+            if !selection.selects(&link.name) {
+                unloaded_links.push(link.name.clone());
+                continue;
+            }
+            let mut geometry = LinkGeometry {
                 name: link.name.clone(),
-                elements,
-            });
+                elements: Vec::new(),
+                intake: Vec::new(),
+                hull_of_volume_m3: None,
+            };
+            for (index, collision) in link.collision.iter().enumerate() {
+                match load_element(&link.name, index, collision, base, packages) {
+                    Ok((elements, intake)) => {
+                        geometry.elements.extend(elements);
+                        geometry.intake.extend(intake);
+                    }
+                    Err(e) => failed.push(e),
+                }
+            }
+            if selection.hull(&link.name) && !geometry.elements.is_empty() {
+                match convex_hull(&geometry) {
+                    Ok(hull) => {
+                        log::info!(
+                            "link {}: packed as its convex hull ({:.3e} m³ against {:.3e} m³ of \
+                             mesh): its distance is the certified lower bound",
+                            link.name,
+                            hull.mesh.volume_m3,
+                            geometry
+                                .elements
+                                .iter()
+                                .map(|e| e.mesh.volume_m3)
+                                .sum::<f64>()
+                        );
+                        geometry.hull_of_volume_m3 =
+                            Some(geometry.elements.iter().map(|e| e.mesh.volume_m3).sum());
+                        geometry.elements = vec![hull];
+                    }
+                    Err(message) => failed.push(RobotError::Geometry {
+                        link: link.name.clone(),
+                        element: 0,
+                        what: "convex hull".into(),
+                        message,
+                    }),
+                }
+            }
+            for i in &geometry.intake {
+                let level = if i.report.clean() {
+                    log::Level::Debug
+                } else {
+                    log::Level::Info
+                };
+                log::log!(
+                    level,
+                    "link {}, collision element {} ({}): {}",
+                    link.name,
+                    i.element,
+                    i.file.display(),
+                    i.report.summary()
+                );
+            }
+            links.push(geometry);
+        }
+        match failed.len() {
+            0 => {}
+            1 => return Err(failed.remove(0)),
+            _ => return Err(RobotError::Links(failed)),
         }
         if !skipped_links.is_empty() {
             log::info!(
@@ -132,6 +216,7 @@ impl RobotModel {
             kinematics,
             links,
             skipped_links,
+            unloaded_links,
         })
     }
 }
@@ -180,7 +265,7 @@ fn load_element(
     collision: &urdf_rs::Collision,
     base: &Path,
     packages: &[PackagePath],
-) -> Result<CollisionElement, RobotError> {
+) -> Result<(Vec<CollisionElement>, Option<MeshIntake>), RobotError> {
     let origin_values = collision
         .origin
         .xyz
@@ -278,16 +363,7 @@ fn load_element(
         }
     }
     let label = format!("link {link}, collision element {index} ({source})");
-    let mesh = ClosedMesh::new(vertices, triangles, &label).map_err(|source| match &file {
-        Some(file) => RobotError::Mesh {
-            link: link.to_owned(),
-            element: index,
-            file: file.clone(),
-            source,
-        },
-        None => geometry_error(&source_label(&collision.geometry), source.to_string()),
-    })?;
-    Ok(CollisionElement {
+    let element = |mesh, source| CollisionElement {
         index,
         source,
         mesh,
@@ -296,6 +372,70 @@ fn load_element(
             let c = link_from_element.translation.vector;
             [c.x, c.y, c.z]
         }),
+    };
+    match file {
+        // A mesh file as its vendor made it: welded, closed and filled by the intake.
+        Some(file) => {
+            let (shells, report) =
+                intake(&vertices, &triangles).map_err(|source| RobotError::Mesh {
+                    link: link.to_owned(),
+                    element: index,
+                    file: file.clone(),
+                    source,
+                })?;
+            let n = shells.len();
+            let elements = shells
+                .into_iter()
+                .enumerate()
+                .map(|(k, mesh)| {
+                    let label = if n > 1 {
+                        format!("{source}, shell {}", k + 1)
+                    } else {
+                        source.clone()
+                    };
+                    element(mesh, label)
+                })
+                .collect();
+            Ok((
+                elements,
+                Some(MeshIntake {
+                    element: index,
+                    file,
+                    report,
+                }),
+            ))
+        }
+        // A primitive, tessellated here: closed by construction.
+        None => {
+            let mesh = ClosedMesh::new(vertices, triangles, &label)
+                .map_err(|e| geometry_error(&source_label(&collision.geometry), e.to_string()))?;
+            Ok((vec![element(mesh, source)], None))
+        }
+    }
+}
+
+/// The convex hull of every vertex of a link's elements (parry3d's quickhull), as one element.
+fn convex_hull(link: &LinkGeometry) -> Result<CollisionElement, String> {
+    let points: Vec<parry3d::math::Vector> = link
+        .elements
+        .iter()
+        .flat_map(|e| &e.mesh.vertices)
+        .map(|v| parry3d::math::Vector::new(v[0], v[1], v[2]))
+        .collect();
+    let (vertices, triangles) = parry3d::transformation::convex_hull(&points);
+    let vertices = vertices.iter().map(|v| [v.x, v.y, v.z]).collect();
+    let mesh = ClosedMesh::new(vertices, triangles, &format!("link {} hull", link.name))
+        .map_err(|e| e.to_string())?;
+    Ok(CollisionElement {
+        index: 0,
+        source: format!("convex hull of {} elements", link.elements.len()),
+        mesh,
+        tessellation_error_m: link
+            .elements
+            .iter()
+            .map(|e| e.tessellation_error_m)
+            .fold(0.0, f64::max),
+        sphere_center: None,
     })
 }
 

@@ -205,7 +205,9 @@ pub fn demo_trees() -> (
     Vec<ist_monitor::ist::LinkTree>,
 ) {
     use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
-    let model = ist_monitor::robot::RobotModel::load(Path::new(DEMO_URDF), &[]).unwrap();
+    let model =
+        ist_monitor::robot::RobotModel::load(Path::new(DEMO_URDF), &[], &Default::default())
+            .unwrap();
     let trees = build_robot(
         &model,
         &BuildOptions::default(),

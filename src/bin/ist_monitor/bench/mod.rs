@@ -63,7 +63,7 @@ fn packing(args: BenchPackingArgs) -> Result<()> {
     if args.budgets.contains(&0) {
         bail!("--budgets: every budget must be at least 1");
     }
-    let model = args.robot.load()?;
+    let model = args.robot.load(&Default::default())?;
     println!(
         "robot {} ({} links), {} threads",
         model.name,

@@ -2,6 +2,9 @@
 //! - `kinect`: the Panda and the real Kinect cloud of the MoveIt perception tutorial
 //!   (`../shared`), at the joint configurations of its SCENARIO.md and five more reaching toward
 //!   the table;
+//! - `kinect_far`: the same cloud stored in a frame 10 km from the camera (a map-frame cloud:
+//!   every point moved by (8000, −5000, 3000) m in f64 and rounded to f32 there, the sensor pose
+//!   moved to match), which the query runs in a working frame near the robot;
 //! - `grabber`: the UR5e placed 0.35 m in front of the camera of PCL's three grabber frames
 //!   (base 0.3 m below the optical axis, z up), at four configurations reaching toward the
 //!   scene (5 to 27 cm from it);
@@ -38,6 +41,7 @@ use ist_monitor::scenario::{Mount, Renderer, ScenarioParams, SceneKind};
 #[serde(rename_all = "snake_case")]
 pub enum ScenarioName {
     Kinect,
+    KinectFar,
     Grabber,
     RobotInView,
     Wrist,
@@ -48,7 +52,10 @@ pub enum ScenarioName {
 impl ScenarioName {
     /// Whether the scene needs `../shared`.
     pub fn needs_shared(self) -> bool {
-        matches!(self, ScenarioName::Kinect | ScenarioName::Grabber)
+        matches!(
+            self,
+            ScenarioName::Kinect | ScenarioName::KinectFar | ScenarioName::Grabber
+        )
     }
 }
 
@@ -194,7 +201,11 @@ fn cases_of(
 
 /// The demo robot of this repository (`urdf/demo_arm.urdf` in the demo folder `demo`).
 pub fn demo_model(demo: &Path) -> Result<RobotModel> {
-    Ok(RobotModel::load(&demo.join("urdf/demo_arm.urdf"), &[])?)
+    Ok(RobotModel::load(
+        &demo.join("urdf/demo_arm.urdf"),
+        &[],
+        &Default::default(),
+    )?)
 }
 
 /// 10 generated 640×480 frames along `scene` seen from `mount`, with their truth.
@@ -251,11 +262,35 @@ pub fn load_scenario(shared: &Path, demo: &Path, name: ScenarioName) -> Result<S
             let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
             fixed(
                 name,
-                RobotModel::load(&shared.join("robots/panda/robot.urdf"), &[])?,
+                RobotModel::load(
+                    &shared.join("robots/panda/robot.urdf"),
+                    &[],
+                    &Default::default(),
+                )?,
                 vec![("kinect".into(), cloud::load(&bag, 0)?)],
                 kinect_root_from_sensor(),
                 kinect_poses(),
             )?
+        }
+        ScenarioName::KinectFar => {
+            let mut scenario = load_scenario(shared, demo, ScenarioName::Kinect)?;
+            let far_from_sensor = Translation3::new(8000.0, -5000.0, 3000.0);
+            let points: Vec<[f32; 3]> = scenario.cases[0]
+                .points
+                .iter()
+                .map(|p| {
+                    let q = far_from_sensor
+                        * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                    [q.x as f32, q.y as f32, q.z as f32]
+                })
+                .collect();
+            let points = Arc::new(points);
+            for case in &mut scenario.cases {
+                case.points = points.clone();
+                case.root_from_sensor *= far_from_sensor.inverse();
+            }
+            scenario.name = name;
+            scenario
         }
         ScenarioName::Grabber => {
             let dir = shared.join("clouds/pcl_test/grabber_sequences");
@@ -276,7 +311,11 @@ pub fn load_scenario(shared: &Path, demo: &Path, name: ScenarioName) -> Result<S
                 .collect::<Result<Vec<_>>>()?;
             fixed(
                 name,
-                RobotModel::load(&shared.join("robots/ur5e/robot.urdf"), &[])?,
+                RobotModel::load(
+                    &shared.join("robots/ur5e/robot.urdf"),
+                    &[],
+                    &Default::default(),
+                )?,
                 clouds,
                 grabber_root_from_sensor(),
                 grabber_poses(),

@@ -11,7 +11,7 @@ use ist_monitor::config::{self, Config};
 use ist_monitor::ist::{BuildOptions, TreeBuilder};
 use ist_monitor::packing::PackingParams;
 use ist_monitor::query::{Backend, Mode};
-use ist_monitor::robot::{PackagePath, RobotModel};
+use ist_monitor::robot::{LinkSelection, PackagePath, RobotModel};
 
 use crate::demo;
 
@@ -31,9 +31,10 @@ pub struct RobotArgs {
 }
 
 impl RobotArgs {
-    pub fn load(&self) -> Result<RobotModel> {
+    /// The robot, with the meshes of the links `selection` selects.
+    pub fn load(&self, selection: &LinkSelection) -> Result<RobotModel> {
         let urdf = demo::or_demo(&self.urdf, demo::URDF)?;
-        RobotModel::load(&urdf, &self.package_paths)
+        RobotModel::load(&urdf, &self.package_paths, selection)
             .with_context(|| format!("loading robot {}", urdf.display()))
     }
 }
@@ -134,6 +135,10 @@ pub struct QueryParams {
     /// Leave these links out (comma separated).
     #[arg(long, value_delimiter = ',')]
     pub exclude_links: Vec<String>,
+    /// Pack these links' convex hulls instead of their meshes (comma separated; '*': all); their
+    /// distance is then the certified lower bound.
+    #[arg(long, value_delimiter = ',')]
+    pub convex_hull_links: Vec<String>,
     /// cpu, gpu, or auto (the GPU from --gpu-min-points points on, on a hardware GPU).
     #[arg(long, value_enum, default_value = param("backend"))]
     pub backend: Backend,
@@ -145,7 +150,11 @@ pub struct QueryParams {
 impl QueryParams {
     /// The options as `-p NAME:=VALUE` overrides of the node's parameters.
     pub fn overrides(&self) -> Vec<(String, String)> {
-        let list = |v: &[String]| format!("[{}]", v.join(", "));
+        // Quoted: a bare `*` is a YAML alias.
+        let list = |v: &[String]| {
+            let items: Vec<String> = v.iter().map(|s| format!("{s:?}")).collect();
+            format!("[{}]", items.join(", "))
+        };
         let range = self.per_link_range.clone();
         [
             ("mode", enum_name(&self.mode)),
@@ -155,6 +164,7 @@ impl QueryParams {
             ("per_link", (!self.no_per_link).to_string()),
             ("links", list(&self.links)),
             ("exclude_links", list(&self.exclude_links)),
+            ("convex_hull_links", list(&self.convex_hull_links)),
             ("backend", enum_name(&self.backend)),
             ("gpu_min_points", self.gpu_min_points.to_string()),
         ]

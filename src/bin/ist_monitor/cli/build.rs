@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use ist_monitor::ist::cache::TreeCache;
 use ist_monitor::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin};
-use ist_monitor::robot::RobotModel;
+use ist_monitor::robot::{LinkSelection, RobotModel};
 
 use super::args::{parse_joint, RobotArgs, TreeArgs};
 
@@ -27,9 +27,19 @@ pub struct BuildArgs {
     /// Write {"<link>": [[x, y, z, r], ...]} (link frames, metres) to this file.
     #[arg(long, value_name = "FILE")]
     export_spheres: Option<PathBuf>,
-    /// Check every sphere and node against the meshes (exact, in f64).
+    /// Check every sphere and node against the meshes (exact, in f64), and print per link
+    /// what its meshes needed (welding, holes closed, shells) and what was checked.
     #[arg(long)]
     validate: bool,
+    /// Only these links (comma separated); the others' meshes are not read.
+    #[arg(long, value_delimiter = ',')]
+    links: Vec<String>,
+    /// Leave these links out (comma separated); their meshes are not read.
+    #[arg(long, value_delimiter = ',')]
+    exclude_links: Vec<String>,
+    /// Pack these links' convex hulls instead of their meshes (comma separated; '*': all).
+    #[arg(long, value_delimiter = ',')]
+    convex_hull_links: Vec<String>,
 }
 
 #[derive(Args)]
@@ -86,7 +96,14 @@ struct LinkRow<'a> {
 
 pub fn build(args: BuildArgs) -> Result<()> {
     let options = args.trees.packing.options()?;
-    let model = args.trees.robot.load()?;
+    let selection = LinkSelection {
+        include: args.links.clone(),
+        exclude: args.exclude_links.clone(),
+        convex_hull: args.convex_hull_links.clone(),
+    };
+    let model = args.trees.robot.load(&selection)?;
+    // Names the selection gives that the robot does not have, before anything is built.
+    selection.check(&model)?;
     if !model.skipped_links.is_empty() && !args.json {
         eprintln!(
             "links without collision geometry (skipped): {}",
@@ -100,6 +117,43 @@ pub fn build(args: BuildArgs) -> Result<()> {
     if args.validate {
         for ((tree, _), geometry) in trees.iter().zip(&model.links) {
             validate_link(tree, geometry, 1e-6)?;
+            if args.json {
+                continue;
+            }
+            println!("link {}:", geometry.name);
+            for e in &geometry.elements {
+                println!(
+                    "  element {} ({}): {}, {} triangles, {:.3e} m³",
+                    e.index,
+                    e.source,
+                    match &e.mesh.fill {
+                        Some(f) => format!(
+                            "filled (inside by exterior flood fill, {:.2} mm voxels; the \
+                             triangles facing the outside)",
+                            f.voxel_m * 1e3
+                        ),
+                        None => "closed (inside by its orientation)".into(),
+                    },
+                    e.mesh.triangles.len(),
+                    e.mesh.volume_m3
+                );
+            }
+            for i in &geometry.intake {
+                println!("  mesh {}: {}", i.file.display(), i.report.summary());
+            }
+            if let Some(v) = geometry.hull_of_volume_m3 {
+                println!(
+                    "  convex hull of {v:.3e} m³ of mesh: distances to it are lower bounds of the \
+                     link's, its distance is the certified lower bound"
+                );
+            }
+            println!(
+                "  checked: {} spheres inside the solid (centre inside by winding number or flood \
+                 fill, radius within the f64 distance to the surface), no overlap beyond 1e-6 m, \
+                 every node bounds its children; h {:.3} mm",
+                tree.spheres.len(),
+                tree.quality.gap_m * 1e3
+            );
         }
     }
     let rows: Vec<LinkRow> = trees
@@ -173,7 +227,7 @@ fn export_spheres(path: &Path, trees: &[(LinkTree, Origin)]) -> Result<()> {
 }
 
 pub fn poses(args: PosesArgs) -> Result<()> {
-    let model = args.robot.load()?;
+    let model = args.robot.load(&Default::default())?;
     let k = &model.kinematics;
     let q = k.values_from_names(&args.joints, Some(0.0))?;
     let poses = k.link_poses(&q);

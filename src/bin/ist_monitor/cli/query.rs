@@ -41,7 +41,7 @@ pub fn query(args: QueryArgs) -> Result<()> {
     let config = args.params.config()?;
     let options = config.query.clone();
     let build = args.trees.packing.options()?;
-    let model = args.trees.robot.load()?;
+    let model = args.trees.robot.load(&config.selection)?;
     let trees = cached_trees(&model, &build, args.trees.cache_dir.as_deref())?;
     let mut engine = Engine::new(&model, &trees, &config.selection)?;
     let q = model

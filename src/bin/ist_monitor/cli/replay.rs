@@ -215,7 +215,7 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
     if !(args.noise >= 0.0 && args.noise.is_finite() && (0.0..=1.0).contains(&args.holes)) {
         bail!("--noise must be ≥ 0 and --holes in [0, 1]");
     }
-    let model = args.robot.load()?;
+    let model = args.robot.load(&Default::default())?;
     let params = ScenarioParams {
         scene: args.scene,
         frames: args.frames,
