@@ -564,3 +564,24 @@ fn point_cloud2_encoder_refuses_what_does_not_fit() {
     assert!(pointcloud2::encode(header(), &points, &layout).is_err());
     assert!(pointcloud2::encode(header(), &points, &pointcloud2::Layout::unorganized(4)).is_ok());
 }
+
+/// FLOAT64 coordinates are taken as far as f32 keeps them within 1e-5 m: 10.123456789 m is
+/// decoded (to its f32 rounding), 1000.00002 m (which f32 moves by 2e-5 m) refuses the cloud
+/// with the value and the reason, rather than measure a point that was not published.
+#[test]
+fn float64_coordinates_f32_cannot_keep_are_refused() {
+    let with_x = |x: f64| {
+        let mut m = point_cloud2(&[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], false, true, (2, 1, 0));
+        let mut data = m.data.to_vec();
+        data[..8].copy_from_slice(&x.to_le_bytes());
+        m.data = data.into();
+        m.to_cloud()
+    };
+    let c = with_x(10.123456789).expect("decoded");
+    assert_eq!(c.points[0], [10.123456789f64 as f32, 2.0, 3.0]);
+    let e = with_x(1000.00002).unwrap_err().to_string();
+    assert!(
+        e.contains("1000.00002") && e.contains("rounded to f32") && e.contains("camera"),
+        "{e}"
+    );
+}

@@ -157,6 +157,12 @@ impl Scalar {
 
     #[inline]
     pub fn read(self, b: &[u8], big_endian: bool) -> f32 {
+        self.read_f64(b, big_endian) as f32
+    }
+
+    /// The value as stored (every type here is exact in f64).
+    #[inline]
+    pub fn read_f64(self, b: &[u8], big_endian: bool) -> f64 {
         macro_rules! get {
             ($t:ty, $n:expr) => {{
                 let a: [u8; $n] = b[..$n].try_into().unwrap();
@@ -168,14 +174,14 @@ impl Scalar {
             }};
         }
         match self {
-            Scalar::I8 => b[0] as i8 as f32,
-            Scalar::U8 => b[0] as f32,
-            Scalar::I16 => get!(i16, 2) as f32,
-            Scalar::U16 => get!(u16, 2) as f32,
-            Scalar::I32 => get!(i32, 4) as f32,
-            Scalar::U32 => get!(u32, 4) as f32,
-            Scalar::F32 => get!(f32, 4),
-            Scalar::F64 => get!(f64, 8) as f32,
+            Scalar::I8 => b[0] as i8 as f64,
+            Scalar::U8 => b[0] as f64,
+            Scalar::I16 => get!(i16, 2) as f64,
+            Scalar::U16 => get!(u16, 2) as f64,
+            Scalar::I32 => get!(i32, 4) as f64,
+            Scalar::U32 => get!(u32, 4) as f64,
+            Scalar::F32 => get!(f32, 4) as f64,
+            Scalar::F64 => get!(f64, 8),
         }
     }
 }

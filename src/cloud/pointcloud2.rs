@@ -127,11 +127,34 @@ impl PointCloud2<'_> {
                 }
             });
         } else {
-            out.zip(rows).for_each(|(out, line)| {
-                for (q, p) in out.iter_mut().zip(line.chunks_exact(step)) {
-                    *q = xyz.map(|(o, s)| s.read(&p[o..], big));
-                }
-            });
+            // FLOAT64 and 32-bit integer coordinates may not fit f32: the largest rounding
+            // (and the value it happened at) is kept, and beyond MAX_ROUNDING_M the cloud is
+            // refused rather than measured at points that are not the ones published.
+            let worst = out
+                .zip(rows)
+                .map(|(out, line)| {
+                    let mut worst = (0.0f64, 0.0f64);
+                    for (q, p) in out.iter_mut().zip(line.chunks_exact(step)) {
+                        *q = xyz.map(|(o, s)| {
+                            let v = s.read_f64(&p[o..], big);
+                            let r = v as f32;
+                            let loss = (v - r as f64).abs();
+                            if loss > worst.0 {
+                                worst = (loss, v);
+                            }
+                            r
+                        });
+                    }
+                    worst
+                })
+                .reduce(|| (0.0, 0.0), |a, b| if a.0 >= b.0 { a } else { b });
+            if worst.0 > MAX_ROUNDING_M {
+                return Err(self.error(format!(
+                    "x/y/z value {} moves by {:.2e} m when rounded to f32 (at most \
+                     {MAX_ROUNDING_M} m is taken): publish the cloud in a frame near the robot",
+                    worst.1, worst.0
+                )));
+            }
         }
         Ok(self.cloud(points))
     }
@@ -146,6 +169,12 @@ impl PointCloud2<'_> {
         }
     }
 }
+
+/// The most a FLOAT64 (or 32-bit integer) coordinate may move when rounded to the f32 the
+/// query works in, m: about the rounding of the query's own f32 transforms. A FLOAT64 cloud in a
+/// frame far from the robot (beyond ~256 m from its origin) moves by more and is refused; an
+/// f32 cloud there is measured exactly as published (`query::pose`).
+pub const MAX_ROUNDING_M: f64 = 1e-5;
 
 /// The colour [`encode`] gives a point (red, green, blue).
 pub type Colour = fn([f32; 3]) -> [u8; 3];
