@@ -30,9 +30,6 @@ pub mod gap;
 pub mod grid;
 
 use bytemuck::{Pod, Zeroable};
-use parry3d::math::Vector;
-use parry3d::query::{PointQuery, Ray, RayCast};
-use parry3d::shape::{TriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -99,113 +96,7 @@ const CELLS_PER_PROTOTYPE: usize = 2;
 /// Most surface samples of the gap pass (about 24 MiB); reached only by links of metres.
 const MAX_GAP_SAMPLES: usize = 1 << 20;
 
-/// A closed mesh as a solid for point queries (the one boundary to parry3d's glam types). For
-/// a filled solid (`robot::fill`) inside and outside come from the fill and distances from the
-/// triangles that face the outside.
-pub struct Solid {
-    trimesh: TriMesh,
-    fill: Option<std::sync::Arc<crate::robot::fill::Fill>>,
-}
-
-impl Solid {
-    pub fn new(mesh: &ClosedMesh) -> Self {
-        let vertices = mesh
-            .vertices
-            .iter()
-            .map(|v| Vector::new(v[0], v[1], v[2]))
-            .collect();
-        // The intake checked that parry accepts the mesh (closed and oriented, or the
-        // triangles of a filled solid).
-        let trimesh = match mesh.fill {
-            Some(_) => TriMesh::new(vertices, mesh.triangles.clone()),
-            None => TriMesh::with_flags(vertices, mesh.triangles.clone(), TriMeshFlags::ORIENTED),
-        }
-        .unwrap_or_else(|e| panic!("closed mesh rejected by parry3d: {e:?}"));
-        Self {
-            trimesh,
-            fill: mesh.fill.clone(),
-        }
-    }
-
-    /// Whether `p` is inside, given parry's answer for a closed mesh; for a filled solid, the
-    /// fill's, with `ambiguous` where it cannot tell (a point among triangles closer together
-    /// than its voxel).
-    #[inline]
-    fn inside(&self, p: [f32; 3], parry_inside: bool, ambiguous: bool) -> bool {
-        match &self.fill {
-            Some(fill) => fill.contains(p, ambiguous),
-            None => parry_inside,
-        }
-    }
-
-    /// Signed distance to the surface (positive inside) and the closest surface point; a point
-    /// a filled solid cannot place counts as outside (no sphere is grown from it).
-    #[inline]
-    pub fn signed_distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
-        let projection = self
-            .trimesh
-            .project_local_point(Vector::new(p[0], p[1], p[2]), false);
-        let q = [projection.point.x, projection.point.y, projection.point.z];
-        let d = distance(p, q);
-        (
-            if self.inside(p, projection.is_inside, false) {
-                d
-            } else {
-                -d
-            },
-            q,
-        )
-    }
-
-    /// Axis-aligned bounds of the mesh.
-    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
-        let aabb = self.trimesh.local_aabb();
-        (
-            [aabb.mins.x, aabb.mins.y, aabb.mins.z],
-            [aabb.maxs.x, aabb.maxs.y, aabb.maxs.z],
-        )
-    }
-
-    /// Distance to the solid (0 inside) and the closest point (the point itself inside); a
-    /// point a filled solid cannot place counts as inside (distance 0, never too far).
-    #[inline]
-    pub fn distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
-        let projection = self
-            .trimesh
-            .project_local_point(Vector::new(p[0], p[1], p[2]), false);
-        if self.inside(p, projection.is_inside, true) {
-            return (0.0, p);
-        }
-        let q = [projection.point.x, projection.point.y, projection.point.z];
-        (distance(p, q), q)
-    }
-
-    /// Distance along the ray `origin + t·dir` (unit `dir`) to the first surface hit within
-    /// `max`, or 0 from inside.
-    pub fn cast_ray(&self, origin: [f32; 3], dir: [f32; 3], max: f32) -> Option<f32> {
-        let ray = Ray::new(
-            Vector::new(origin[0], origin[1], origin[2]),
-            Vector::new(dir[0], dir[1], dir[2]),
-        );
-        self.trimesh.cast_local_ray(&ray, max, true)
-    }
-
-    /// [`Self::distance`] when it is at most `max`, for a point known to be outside: the BVH
-    /// descent stops at `max`, so a point inside but deeper than `max` would read as `None`.
-    #[inline]
-    pub fn distance_within(&self, p: [f32; 3], max: f32) -> Option<(f32, [f32; 3])> {
-        let projection = self.trimesh.project_local_point_with_max_dist(
-            Vector::new(p[0], p[1], p[2]),
-            false,
-            max,
-        )?;
-        if self.inside(p, projection.is_inside, true) {
-            return Some((0.0, p));
-        }
-        let q = [projection.point.x, projection.point.y, projection.point.z];
-        Some((distance(p, q), q))
-    }
-}
+pub use crate::robot::solid::Solid;
 
 #[derive(Clone, Copy, PartialEq)]
 enum State {

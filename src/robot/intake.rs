@@ -38,12 +38,9 @@
 
 use std::collections::HashMap;
 
-use parry3d::math::{Pose, Vector};
-use parry3d::query::{intersection_test, PointQuery};
-use parry3d::shape::{TriMesh, TriMeshFlags, Triangle};
-
 use super::fill::Fill;
 use super::mesh::{check_soup, extent, ClosedMesh, MeshError};
+use super::solid::Solid;
 use crate::geometry::{dist, mesh_volume, triangle_area, widen};
 
 /// Welding tolerance relative to the mesh's largest extent.
@@ -221,8 +218,10 @@ pub fn intake(
         }
         // The strict constructor and parry3d's oriented mesh (the packing's inside test) must
         // both take the shell; one they refuse goes to the fill instead.
-        match ClosedMesh::new(verts, shell_tris.clone(), "").and_then(|m| trimesh(&m).map(|_| m)) {
-            Ok(mesh) => shells.push(mesh),
+        match ClosedMesh::new(verts, shell_tris.clone(), "")
+            .and_then(|m| Solid::try_new(&m).map(|s| (m, s)))
+        {
+            Ok(shell) => shells.push(shell),
             Err(_) => {
                 report.open_shells += 1;
                 loose.extend(shell.iter().map(|&t| tris[t]));
@@ -233,12 +232,14 @@ pub fn intake(
     if shells.is_empty() && loose.is_empty() {
         return Err(MeshError::ZeroVolume { volume_m3: 0.0 });
     }
-    let shells = drop_inner(shells, &mut report)?;
+    let shells = drop_inner(shells, &mut report);
     if shells.len() == 1 && loose.is_empty() {
         return Ok((shells, report));
     }
-    let loose = (loose, &all_vertices[..]);
-    Ok((vec![filled(&shells, loose, &mut report)?], report))
+    Ok((
+        vec![filled(&shells, loose, &all_vertices, &mut report)?],
+        report,
+    ))
 }
 
 /// Merges vertices within `tolerance` (the first of a cluster stands for it), through a hash
@@ -572,7 +573,8 @@ fn compact(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> (Vec<[f32; 3]>, Vec
 /// (`robot::fill`), with the triangles that face the outside as its surface.
 fn filled(
     shells: &[ClosedMesh],
-    (loose, loose_vertices): (Vec<[u32; 3]>, &[[f32; 3]]),
+    loose: Vec<[u32; 3]>,
+    loose_vertices: &[[f32; 3]],
     report: &mut MeshReport,
 ) -> Result<ClosedMesh, MeshError> {
     let mut vertices = loose_vertices.to_vec();
@@ -597,82 +599,41 @@ fn filled(
     report.fill_voxel_m = Some(fill.voxel_m);
     report.inner_triangles = triangles.len() - kept.len();
     let (vertices, kept) = compact(&vertices, &kept);
-    // parry3d takes the kept triangles (the packing's distances): checked here, not panicked on.
-    TriMesh::new(
-        vertices
-            .iter()
-            .map(|v| Vector::new(v[0], v[1], v[2]))
-            .collect(),
-        kept.clone(),
-    )
-    .map_err(|e| MeshError::Load(format!("parry3d refuses the filled mesh: {e:?}")))?;
-    Ok(ClosedMesh {
+    let mesh = ClosedMesh {
         vertices,
         triangles: kept,
         volume_m3: fill.volume_m3(),
         fill: Some(std::sync::Arc::new(fill)),
-    })
-}
-
-/// A closed mesh as parry3d's oriented triangle mesh.
-fn trimesh(mesh: &ClosedMesh) -> Result<TriMesh, MeshError> {
-    let vertices = mesh
-        .vertices
-        .iter()
-        .map(|v| Vector::new(v[0], v[1], v[2]))
-        .collect();
-    TriMesh::with_flags(vertices, mesh.triangles.clone(), TriMeshFlags::ORIENTED)
-        .map_err(|e| MeshError::Load(format!("a closed shell parry3d refuses: {e:?}")))
-}
-
-/// Signed distance to a closed mesh (positive inside).
-fn signed_distance(solid: &TriMesh, p: [f32; 3]) -> f32 {
-    let q = solid.project_local_point(Vector::new(p[0], p[1], p[2]), false);
-    let d = dist(widen(p), [q.point.x, q.point.y, q.point.z].map(f64::from)) as f32;
-    if q.is_inside {
-        d
-    } else {
-        -d
-    }
+    };
+    // The packing's solid takes it: checked here, never panicked on later.
+    Solid::try_new(&mesh)?;
+    Ok(mesh)
 }
 
 /// Drops the shells that lie wholly inside another shell (see the module doc for the test).
-fn drop_inner(
-    mut shells: Vec<ClosedMesh>,
-    report: &mut MeshReport,
-) -> Result<Vec<ClosedMesh>, MeshError> {
-    if shells.len() < 2 {
-        return Ok(shells);
-    }
+fn drop_inner(mut shells: Vec<(ClosedMesh, Solid)>, report: &mut MeshReport) -> Vec<ClosedMesh> {
     // Largest first: an inner shell is enclosed by a larger one.
-    shells.sort_by(|a, b| b.volume_m3.total_cmp(&a.volume_m3));
-    let mut kept: Vec<(ClosedMesh, TriMesh)> = Vec::new();
-    for shell in shells {
+    shells.sort_by(|a, b| b.0.volume_m3.total_cmp(&a.0.volume_m3));
+    let mut kept: Vec<(ClosedMesh, Solid)> = Vec::new();
+    for (shell, solid) in shells {
         let (lo, hi) = shell.bounds();
-        let inside = kept.iter().any(|(outer, solid)| {
+        let inside = kept.iter().any(|(outer, outer_solid)| {
             let (olo, ohi) = outer.bounds();
             (0..3).all(|k| olo[k] <= lo[k] && hi[k] <= ohi[k])
                 && shell
                     .vertices
                     .iter()
-                    .all(|&v| signed_distance(solid, v) > 0.0)
-                && shell.triangles.iter().all(|t| {
-                    let [a, b, c] = t.map(|i| {
-                        let v = shell.vertices[i as usize];
-                        Vector::new(v[0], v[1], v[2])
-                    });
-                    // Unsupported never happens for a mesh and a triangle; taken as touching.
-                    let triangle = Triangle::new(a, b, c);
-                    intersection_test(&Pose::IDENTITY, solid, &Pose::IDENTITY, &triangle)
-                        .is_ok_and(|i| !i.intersecting)
-                })
+                    .all(|&v| outer_solid.signed_distance(v).0 > 0.0)
+                && shell
+                    .triangles
+                    .iter()
+                    .all(|t| !outer_solid.meets_triangle(t.map(|i| shell.vertices[i as usize])))
         });
         if inside {
             report.inner_shells += 1;
         } else {
-            let solid = trimesh(&shell)?;
             kept.push((shell, solid));
         }
     }
-    Ok(kept.into_iter().map(|(m, _)| m).collect())
+    kept.into_iter().map(|(m, _)| m).collect()
 }

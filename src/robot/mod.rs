@@ -6,6 +6,7 @@ pub mod fill;
 pub mod intake;
 pub mod kinematics;
 pub mod mesh;
+pub mod solid;
 pub mod urdf;
 
 pub use intake::MeshReport;
