@@ -71,7 +71,9 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
     p("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
     p("sources", "[camera]", "", "names of the point cloud sources"),
-    p("<source>.topic", "/camera/depth/points", "topic", "sensor_msgs/PointCloud2 input of the source"),
+    p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
+    p("<source>.topic", "/camera/depth/points", "topic", "the source's PointCloud2 or depth Image topic"),
+    p("<source>.camera_info_topic", "~", "topic", "depth_image: the CameraInfo topic (default: camera_info beside the image topic, as image_transport pairs them)"),
     p("<source>.enabled", "true", "", "whether the source is used"),
     p("<source>.source_timeout", "0.5", "s", "no cloud for this long, or a cloud stamped longer ago than this, is a fault (as Nav2's collision monitor)"),
     p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
@@ -119,12 +121,33 @@ pub enum ConfigError {
 #[derive(Debug, Clone, PartialEq)]
 pub struct SourceConfig {
     pub name: String,
+    pub kind: SourceKind,
     pub topic: String,
+    /// The CameraInfo topic of a depth image source.
+    pub camera_info_topic: Option<String>,
     pub enabled: bool,
     pub source_timeout_s: f64,
     pub min_range_m: f64,
     pub max_range_m: Option<f64>,
     pub reliable: bool,
+}
+
+/// What a source publishes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SourceKind {
+    /// `sensor_msgs/PointCloud2`.
+    PointCloud,
+    /// `sensor_msgs/Image` depth images with their `sensor_msgs/CameraInfo`.
+    DepthImage,
+}
+
+/// The CameraInfo topic image_transport pairs with an image topic: `camera_info` in the image
+/// topic's namespace (`/camera/depth/image_raw` → `/camera/depth/camera_info`).
+pub fn camera_info_beside(image_topic: &str) -> String {
+    match image_topic.rsplit_once('/') {
+        Some((ns, _)) => format!("{ns}/camera_info"),
+        None => "camera_info".into(),
+    }
 }
 
 /// Where the robot's URDF comes from.
@@ -524,6 +547,26 @@ impl Config {
                 let (min, mi) = get("min_range");
                 let (max, ma) = get("max_range");
                 let (qos, q) = get("qos");
+                let (kind, k) = get("type");
+                let (info, i) = get("camera_info_topic");
+                let kind = match v.string(&kind, &k)?.as_str() {
+                    "pointcloud" => SourceKind::PointCloud,
+                    "depth_image" => SourceKind::DepthImage,
+                    other => {
+                        return Err(Values::bad(
+                            &kind,
+                            format!("'{other}' (expected pointcloud or depth_image)"),
+                        ))
+                    }
+                };
+                let topic = v.string(&topic, &t)?;
+                let camera_info_topic = match kind {
+                    SourceKind::PointCloud => None,
+                    SourceKind::DepthImage => Some(
+                        v.opt_string(&info, &i)?
+                            .unwrap_or_else(|| camera_info_beside(&topic)),
+                    ),
+                };
                 let reliable = match v.string(&qos, &q)?.as_str() {
                     "sensor_data" => false,
                     "reliable" => true,
@@ -544,7 +587,9 @@ impl Config {
                 }
                 Ok(SourceConfig {
                     name: s.clone(),
-                    topic: v.string(&topic, &t)?,
+                    kind,
+                    topic,
+                    camera_info_topic,
                     enabled: v.bool(&enabled, &e)?,
                     source_timeout_s,
                     min_range_m: v.distance(&min, &mi)?,

@@ -43,6 +43,7 @@ use rayon::prelude::*;
 use crate::bag::{
     writer::Compression, BagWriter, APPROACH_TRUTH_TOPIC, GROUND_TRUTH_TOPIC, MARGIN_TRUTH_TOPIC,
 };
+use crate::cloud::depth::{encode_depth, points_from_depth, DepthEncoding, PinholeCamera};
 use crate::cloud::pointcloud2::{encode, Colour, Layout};
 use crate::cloud::CloudError;
 use crate::msg::{
@@ -96,6 +97,9 @@ pub struct ScenarioParams {
     /// Bytes per point: 16 (x y z, padding) or 32 (x y z, padding, rgb, padding), as RGB-D
     /// drivers publish.
     pub point_step: u32,
+    /// Record depth images in this encoding on [`DEPTH_TOPIC`] instead of clouds: the points
+    /// (and the truth) are then those `depth_image_proc` makes from the recorded image.
+    pub depth: Option<DepthEncoding>,
 }
 
 impl Default for ScenarioParams {
@@ -112,12 +116,15 @@ impl Default for ScenarioParams {
             seed: 1,
             compression: Compression::Zstd,
             point_step: 16,
+            depth: None,
         }
     }
 }
 
 pub const CLOUD_TOPIC: &str = "/camera/depth/points";
 pub const CAMERA_INFO_TOPIC: &str = "/camera/depth/camera_info";
+/// Where depth images are recorded (`ScenarioParams::depth`).
+pub const DEPTH_TOPIC: &str = "/camera/depth/image_raw";
 pub const CAMERA_LINK: &str = "camera_link";
 pub const OPTICAL_FRAME: &str = "camera_optical_frame";
 const CLOUD_RATE_HZ: f64 = 10.0;
@@ -289,6 +296,8 @@ pub struct Frame {
     pub root_from_sensor: Isometry3<f64>,
     /// Organized, row-major, NaN where no return; in the optical frame.
     pub points: Vec<[f32; 3]>,
+    /// The depth image the points were made from (`ScenarioParams::depth`), header unset.
+    pub depth_image: Option<crate::msg::Image<'static>>,
     /// Exact minimum distance between the robot's meshes and the obstacle points (`None`: no
     /// obstacle point, or not asked for).
     pub truth_m: Option<f64>,
@@ -365,6 +374,30 @@ impl<'a> Renderer<'a> {
     pub fn k(&self) -> [f64; 9] {
         let (fx, cx, cy) = (self.fx, self.cx, self.cy);
         [fx, 0.0, cx, 0.0, fx, cy, 0.0, 0.0, 1.0]
+    }
+
+    /// The camera's CameraInfo (no distortion; P = [K | 0]).
+    pub fn camera_info(&self, header: Header) -> CameraInfo {
+        let k = self.k();
+        let (fx, cx, cy) = (k[0], k[2], k[5]);
+        CameraInfo {
+            header,
+            height: self.params.height,
+            width: self.params.width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k,
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [fx, 0.0, cx, 0.0, 0.0, fx, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            ..CameraInfo::default()
+        }
+    }
+
+    /// The pinhole model the monitor reads from [`Renderer::camera_info`].
+    pub fn camera(&self) -> Result<PinholeCamera, ScenarioError> {
+        Ok(PinholeCamera::from_camera_info(
+            &self.camera_info(Header::default()),
+        )?)
     }
 
     /// The unit ray of pixel `i` (row-major) in the optical frame.
@@ -460,24 +493,45 @@ impl<'a> Renderer<'a> {
             .collect();
         // Noise and holes, in pixel order from the one stream; then the points.
         let mut points = vec![[f32::NAN; 3]; w * h];
-        let mut obstacle = Vec::new();
-        let mut robot_points = 0;
         for (i, hit) in hits.iter().enumerate() {
             let dropped = self.noise.uniform() < params.holes;
             let n = self.noise.gaussian().clamp(-2.5, 2.5) * params.noise_m;
-            let Some((t, on_robot)) = *hit else { continue };
+            let Some((t, _)) = *hit else { continue };
             if dropped {
                 continue;
             }
             let p = self.ray(i) * (t + n);
             points[i] = [p.x as f32, p.y as f32, p.z as f32];
+        }
+        // A depth camera records each pixel's depth (z); the points are then the ones
+        // depth_image_proc makes from the recorded image, and so is the truth.
+        let depth_image = match params.depth {
+            Some(encoding) => {
+                let depths: Vec<f32> = points.iter().map(|p| p[2]).collect();
+                let image = encode_depth(
+                    Header::default(),
+                    params.width,
+                    params.height,
+                    &depths,
+                    encoding,
+                );
+                points_from_depth(&image, &self.camera()?, (0.0, None), &mut points)?;
+                Some(image)
+            }
+            None => None,
+        };
+        let mut obstacle = Vec::new();
+        let mut robot_points = 0;
+        for (p, hit) in points.iter().zip(&hits) {
+            let Some((_, on_robot)) = *hit else { continue };
+            if p[0].is_nan() {
+                continue;
+            }
             if on_robot {
                 robot_points += 1;
             } else {
-                obstacle.push(
-                    world_from_optical
-                        * Point3::new(p.x as f32 as f64, p.y as f32 as f64, p.z as f32 as f64),
-                );
+                obstacle
+                    .push(world_from_optical * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
             }
         }
         // The truth: exact distance from every obstacle point to the robot's meshes, and where.
@@ -524,6 +578,7 @@ impl<'a> Renderer<'a> {
             link_poses: poses,
             root_from_sensor: world_from_optical,
             points,
+            depth_image,
             truth_m,
             truth_witness,
             obstacle_points: obstacle.len(),
@@ -604,28 +659,23 @@ pub fn generate(
             frame_id: OPTICAL_FRAME.into(),
             ..stamp(t_ns)
         };
-        writer.write(
-            CLOUD_TOPIC,
-            log_ns,
-            &cloud_message(&header, params, &frame.points)?,
-        )?;
-        let k = renderer.k();
-        let (fx, cx, cy) = (k[0], k[2], k[5]);
-        writer.write(
-            CAMERA_INFO_TOPIC,
-            log_ns,
-            &CameraInfo {
-                header,
-                height: params.height,
-                width: params.width,
-                distortion_model: "plumb_bob".into(),
-                d: vec![0.0; 5],
-                k,
-                r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-                p: [fx, 0.0, cx, 0.0, 0.0, fx, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-                ..CameraInfo::default()
-            },
-        )?;
+        match &frame.depth_image {
+            // The camera model first, as a depth camera driver latches it before its images.
+            Some(image) => {
+                let info = renderer.camera_info(header.clone());
+                writer.write(CAMERA_INFO_TOPIC, log_ns, &info)?;
+                let image = crate::msg::Image {
+                    header,
+                    ..image.clone()
+                };
+                writer.write(DEPTH_TOPIC, log_ns, &image)?;
+            }
+            None => {
+                let cloud = cloud_message(&header, params, &frame.points)?;
+                writer.write(CLOUD_TOPIC, log_ns, &cloud)?;
+                writer.write(CAMERA_INFO_TOPIC, log_ns, &renderer.camera_info(header))?;
+            }
+        }
         let mut separation = None;
         if let (Some(d), Some(w)) = (frame.truth_m, frame.truth_witness) {
             writer.write(GROUND_TRUTH_TOPIC, log_ns, &Float64 { data: d })?;

@@ -378,3 +378,100 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
         .expect("a speed_scaling factor from the node");
     assert!((0.2..=1.0).contains(&factor), "{factor}");
 }
+
+/// Depth images over DDS: a generated 16UC1 bag (images and their CameraInfo) played to a node
+/// whose source is a depth image; every image is answered, and each distance the node publishes
+/// is bit for bit one that `replay` of the same bag gives.
+#[test]
+fn depth_images_feed_the_node() {
+    if !in_private_network("depth_images_feed_the_node") {
+        return;
+    }
+    use ist_monitor::cloud::depth::DepthEncoding;
+    use ist_monitor::monitor::replay::{replay, Clock};
+    use ist_monitor::scenario::{self, ScenarioParams, DEPTH_TOPIC};
+    let (model, _) = common::demo_trees();
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("depth");
+    let params = ScenarioParams {
+        frames: 20,
+        depth: Some(DepthEncoding::Millimetres16),
+        ..ScenarioParams::default()
+    };
+    scenario::generate(&model, &params, &bag).unwrap();
+    let type_param = "camera.type:=depth_image".to_string();
+    let topic_param = format!("camera.topic:={DEPTH_TOPIC}");
+    let node = ist_monitor()
+        .args(["node", "--ros-args", "-p", &type_param, "-p", &topic_param])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let record = dir.path().join("outputs.mcap");
+    let mut recorder = spawn(&[
+        "record",
+        "--duration",
+        "5",
+        "--out",
+        record.to_str().unwrap(),
+    ]);
+    std::thread::sleep(Duration::from_secs(1));
+    let run = common::json_output(ist_monitor().args([
+        "play",
+        "--json",
+        "--wait",
+        "1.5",
+        "--measure",
+        "/ist_monitor/link_distances",
+        bag.to_str().unwrap(),
+    ]));
+    assert!(recorder.wait().unwrap().success());
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let out = node.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        log.contains("first depth image on /camera/depth/image_raw"),
+        "{log}"
+    );
+    assert_eq!(run["clouds_published"], 20);
+    let received = run["outputs_received"].as_u64().unwrap();
+    assert!(
+        received >= 18,
+        "only {received} of 20 images answered: {run}"
+    );
+    // The library's answers on the same bag.
+    let config = ist_monitor::config::Config::load(
+        Path::new(common::DEMO_CONFIG),
+        &[
+            ("camera.type".into(), "depth_image".into()),
+            ("camera.topic".into(), DEPTH_TOPIC.into()),
+        ],
+    )
+    .unwrap();
+    let mut monitor = ist_monitor::monitor::Monitor::new(config, &|_| {}).unwrap();
+    let mut library = Vec::new();
+    replay(&mut monitor, &bag, None, Clock::Stamp, &mut |f| {
+        library.extend(f.min_distance_m)
+    })
+    .unwrap();
+    let published: Vec<f64> = read_messages(&record, &|t, _| t == "/ist_monitor/min_distance")
+        .unwrap()
+        .iter()
+        .map(|m| msg::decode::<Float64>(&m.data).unwrap().data)
+        .collect();
+    assert!(
+        published.len() >= 15,
+        "{} distances recorded",
+        published.len()
+    );
+    for d in &published {
+        assert!(
+            library.iter().any(|l| l.to_bits() == d.to_bits()),
+            "the node published {d}, which replay never gives: {library:?}"
+        );
+    }
+}

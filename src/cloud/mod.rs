@@ -8,6 +8,8 @@
 //! - `pointcloud2`: `sensor_msgs/msg/PointCloud2` (structs in `crate::msg`), decoded
 //!   from CDR, and the extraction of `x y z` (FLOAT32 or FLOAT64, either byte order, any
 //!   point_step and row_step);
+//! - `depth`: `sensor_msgs/Image` depth images (16UC1, 32FC1) with their `CameraInfo`, made
+//!   into points as `depth_image_proc` does;
 //! - a bag (`crate::bag`, a `.mcap` file or a rosbag2 folder): its N-th PointCloud2 message.
 //!
 //! Invalid points (NaN, Inf, zeros) are kept as they are: the query counts and skips them.
@@ -17,6 +19,7 @@
 //! would silently read part of the file) is an error naming the file, never an allocation of
 //! what the header says.
 
+pub mod depth;
 pub mod pcd;
 pub mod ply;
 pub mod pointcloud2;
@@ -65,6 +68,10 @@ pub enum CloudError {
     Decode(#[from] crate::msg::MsgError),
     #[error("PointCloud2 in frame '{frame}': {message}")]
     Layout { frame: String, message: String },
+    #[error("depth image in frame '{frame}': {message}")]
+    DepthImage { frame: String, message: String },
+    #[error("CameraInfo of frame '{frame}': {message}")]
+    Camera { frame: String, message: String },
     #[error("{path}: topic {topic}: {source}")]
     InBag {
         path: PathBuf,

@@ -26,10 +26,11 @@ use std::time::Instant;
 
 use nalgebra::Isometry3;
 
+use crate::cloud::depth::{self, PinholeCamera};
 use crate::cloud::{pointcloud2, CloudError};
-use crate::config::{Config, RobotSource};
+use crate::config::{Config, RobotSource, SourceKind};
 use crate::ist::{self, cache::TreeCache, LinkTree};
-use crate::msg::{self, JointState, MsgError, PointCloud2, TfMessage};
+use crate::msg::{self, CameraInfo, Image, JointState, MsgError, PointCloud2, TfMessage};
 use crate::query::{Backend, Engine, Outcome, QueryError, QueryResult};
 use crate::robot::RobotModel;
 use crate::separation::{self, SpeedScaler, SpeedScaling};
@@ -48,6 +49,10 @@ pub enum Fault {
     Query(#[from] QueryError),
     #[error("cloud has no frame_id")]
     NoFrame,
+    /// A depth image whose source has no usable CameraInfo: none received yet on `topic`, or
+    /// the last one refused (`reason`).
+    #[error("depth image without camera model: {reason} (CameraInfo topic {topic})")]
+    NoCameraInfo { topic: String, reason: String },
     /// A stamp of 0: the driver never set it, so the cloud cannot be placed in time.
     #[error("cloud stamp is 0 (not set by its publisher)")]
     NoStamp,
@@ -86,6 +91,7 @@ impl Fault {
             Fault::Tf(_) => "tf",
             Fault::Query(_) => "query",
             Fault::NoFrame => "decode",
+            Fault::NoCameraInfo { .. } => "camera_info",
             Fault::NoStamp => "no_stamp",
             Fault::StaleCloud { .. } => "stale_cloud",
             Fault::FutureCloud { .. } => "future_cloud",
@@ -104,6 +110,11 @@ pub enum InputError {
     Tf { topic: String, source: TfError },
     #[error("{topic}: {source}")]
     Joints { topic: String, source: JointError },
+    #[error("{topic}: {source}")]
+    Camera {
+        topic: String,
+        source: Box<CloudError>,
+    },
 }
 
 /// One processed cloud.
@@ -135,6 +146,11 @@ pub struct Monitor {
     joints: JointStateBuffer,
     level: LevelTracker,
     scaler: SpeedScaler,
+    /// Per source: the camera model of its last CameraInfo, or why that one was refused
+    /// (depth image sources; `None` until one arrives).
+    cameras: Vec<Option<Result<PinholeCamera, String>>>,
+    /// The points of the last depth image (kept so that its allocation is reused).
+    depth_points: Vec<[f32; 3]>,
 }
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
@@ -230,6 +246,7 @@ impl Monitor {
         let (tf, joints) = Self::inputs(&config, &model)?;
         let level = LevelTracker::new(&config);
         let scaler = Self::scaler(&config);
+        let cameras = vec![None; config.sources.len()];
         Ok(Self {
             config,
             model,
@@ -238,6 +255,8 @@ impl Monitor {
             joints,
             level,
             scaler,
+            cameras,
+            depth_points: Vec::new(),
         })
     }
 
@@ -290,6 +309,7 @@ impl Monitor {
         (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
         self.level = LevelTracker::new(&self.config);
         self.scaler = Self::scaler(&self.config);
+        self.cameras = vec![None; self.config.sources.len()];
         Ok(())
     }
 
@@ -352,6 +372,89 @@ impl Monitor {
             .sources
             .iter()
             .position(|s| s.enabled && s.topic == topic)
+    }
+
+    /// The enabled depth image sources whose CameraInfo comes on `topic`.
+    pub fn camera_info_sources(&self, topic: &str) -> Vec<usize> {
+        (self.config.sources.iter().enumerate())
+            .filter(|(_, s)| s.enabled && s.camera_info_topic.as_deref() == Some(topic))
+            .map(|(k, _)| k)
+            .collect()
+    }
+
+    /// Takes a `sensor_msgs/CameraInfo` of depth image source `source`, from its CDR payload.
+    pub fn on_camera_info(&mut self, source: usize, payload: &[u8]) -> Result<(), InputError> {
+        let topic = self.config.sources[source]
+            .camera_info_topic
+            .clone()
+            .unwrap_or_default();
+        let m: CameraInfo = msg::decode(payload).map_err(|source| InputError::Msg {
+            topic: topic.clone(),
+            source,
+        })?;
+        self.on_camera_info_message(source, &m)
+    }
+
+    /// Takes a decoded CameraInfo of source `source`: its camera model is used for the
+    /// source's next depth images; a refused one (the error names the field) makes them faults
+    /// that say why, until a good one arrives.
+    pub fn on_camera_info_message(
+        &mut self,
+        source: usize,
+        m: &CameraInfo,
+    ) -> Result<(), InputError> {
+        let topic = self.config.sources[source]
+            .camera_info_topic
+            .clone()
+            .unwrap_or_default();
+        let camera = PinholeCamera::from_camera_info(m);
+        self.cameras[source] = Some(camera.as_ref().map_err(|e| e.to_string()).copied());
+        camera.map(|_| ()).map_err(|e| InputError::Camera {
+            topic,
+            source: Box::new(e),
+        })
+    }
+
+    /// Processes one message of source `source` from its CDR payload, as the source's type
+    /// says (a PointCloud2, or a depth Image); see [`Monitor::on_cloud`].
+    pub fn on_source_message(
+        &mut self,
+        source: usize,
+        payload: &[u8],
+        now_ns: Option<i64>,
+    ) -> Frame {
+        match self.config.sources[source].kind {
+            SourceKind::PointCloud => self.on_cloud(source, payload, now_ns),
+            SourceKind::DepthImage => self.on_depth_image(source, payload, now_ns),
+        }
+    }
+
+    /// Processes one depth image of source `source`, from its CDR payload (as
+    /// [`Monitor::on_cloud`]).
+    pub fn on_depth_image(&mut self, source: usize, payload: &[u8], now_ns: Option<i64>) -> Frame {
+        let start = Instant::now();
+        match msg::decode::<Image>(payload) {
+            Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
+                me.process_depth(source, &m, now_ns)
+            }),
+            Err(e) => self.finish_frame(source, start, 0, |_| {
+                Err(Fault::Decode(CloudError::Decode(e)))
+            }),
+        }
+    }
+
+    /// Processes one decoded depth image of source `source` (as
+    /// [`Monitor::on_cloud_message`]).
+    pub fn on_depth_image_message(
+        &mut self,
+        source: usize,
+        m: &Image,
+        start: Instant,
+        now_ns: i64,
+    ) -> Frame {
+        self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
+            me.process_depth(source, m, Some(now_ns))
+        })
     }
 
     /// Processes one cloud of source `source`, from its CDR payload; `now_ns` is the clock the
@@ -532,6 +635,57 @@ impl Monitor {
                 }
             }
         }
+        let width = (cloud.height > 1).then_some(cloud.width as usize);
+        self.measure(stamp_ns, &frame, &cloud.points, width, now_ns)
+    }
+
+    /// A depth image: its points made with the source's camera model (`cloud::depth`), then
+    /// measured as a cloud's.
+    fn process_depth(
+        &mut self,
+        source: usize,
+        image: &Image,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
+        let stamp_ns = image.header.stamp.as_nanos();
+        self.check_stamp(source, stamp_ns, now_ns)?;
+        let frame = Some(image.header.frame_id.clone()).filter(|f| !f.is_empty());
+        let frame = frame.ok_or(Fault::NoFrame)?;
+        let s = &self.config.sources[source];
+        let camera = match &self.cameras[source] {
+            Some(Ok(c)) => *c,
+            other => {
+                return Err(Fault::NoCameraInfo {
+                    topic: s.camera_info_topic.clone().unwrap_or_default(),
+                    reason: match other {
+                        Some(Err(e)) => format!("the last CameraInfo was refused: {e}"),
+                        _ => "no CameraInfo received yet".into(),
+                    },
+                })
+            }
+        };
+        let range = (s.min_range_m, s.max_range_m);
+        let mut points = std::mem::take(&mut self.depth_points);
+        let result = depth::points_from_depth(image, &camera, range, &mut points)
+            .map_err(Fault::Decode)
+            .and_then(|()| {
+                let width = (image.height > 1).then_some(image.width as usize);
+                self.measure(stamp_ns, &frame, &points, width, now_ns)
+            });
+        self.depth_points = points;
+        result
+    }
+
+    /// The query of a cloud's points in `frame` at `stamp_ns`, and the motion the separation
+    /// stage needs.
+    fn measure(
+        &mut self,
+        stamp_ns: i64,
+        frame: &str,
+        points: &[[f32; 3]],
+        width: Option<usize>,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
         let stamp = Some(stamp_ns);
         let q = self.joints.at(stamp, self.config.joint_state_tolerance_s)?;
         let poses = self.model.kinematics.link_poses(&q);
@@ -541,15 +695,14 @@ impl Monitor {
         };
         let root_from_sensor = tf::root_from_sensor(
             &self.tf,
-            &frame,
+            frame,
             kinematics.root_link(),
             stamp,
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
-        let width = (cloud.height > 1).then_some(cloud.width as usize);
         let result = self.engine.query_image(
-            &cloud.points,
+            points,
             width,
             &root_from_sensor,
             &poses,

@@ -1,6 +1,7 @@
 //! Replay: a recorded bag fed through the monitor in log-time order, exactly as the live node
 //! would receive it — `/tf_static`, `/tf`, the joint-state topic and every enabled source's
-//! clouds — one [`ReplayFrame`] per cloud and a [`Summary`]. With an output path the node's
+//! clouds or depth images (with their CameraInfo) — one [`ReplayFrame`] per cloud or image and
+//! a [`Summary`]. With an output path the node's
 //! outputs are written to an MCAP under the live node's topics and types, each at the cloud's
 //! log time plus its processing time.
 //!
@@ -91,7 +92,8 @@ pub enum ReplayError {
     Bag(#[from] BagError),
     #[error(
         "{bag}: no message on the enabled sources' topics ({sources}); the bag has: {found} \
-         (set <source>.topic to the cloud topic)"
+         (set <source>.topic to the cloud topic, and <source>.type to depth_image for a \
+         sensor_msgs/Image depth topic)"
     )]
     NoClouds {
         bag: std::path::PathBuf,
@@ -150,6 +152,9 @@ pub fn replay(
         .iter()
         .map(|s| s.topic.clone())
         .collect();
+    let camera_info_topics: Vec<String> = (monitor.config.sources.iter())
+        .filter_map(|s| s.camera_info_topic.clone())
+        .collect();
     // Every channel of the bag, to say what it has when it has no cloud for the sources.
     let channels = std::cell::RefCell::new(std::collections::BTreeSet::new());
     let keep = |t: &str, schema: &str| {
@@ -161,6 +166,7 @@ pub fn replay(
             || t == APPROACH_TRUTH_TOPIC
             || t == MARGIN_TRUTH_TOPIC
             || source_topics.iter().any(|s| s == t)
+            || camera_info_topics.iter().any(|s| s == t)
     };
     let messages = read_messages(bag, &keep)?;
     // A bag with no cloud for any enabled source replays nothing: say so, with what it has,
@@ -219,11 +225,17 @@ pub fn replay(
             log::warn!("{e}");
             summary.input_errors += 1;
         }
+        for source in monitor.camera_info_sources(t) {
+            if let Err(e) = monitor.on_camera_info(source, &m.data) {
+                log::warn!("{e}");
+                summary.input_errors += 1;
+            }
+        }
         let Some(source) = monitor.source_of(t) else {
             continue;
         };
         let now_ns = (clock == Clock::Log).then_some(m.log_time_ns as i64);
-        let frame = monitor.on_cloud(source, &m.data, now_ns);
+        let frame = monitor.on_source_message(source, &m.data, now_ns);
         let index = summary.frames;
         summary.frames += 1;
         times.push(frame.processing_s * 1e3);

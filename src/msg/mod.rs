@@ -214,7 +214,8 @@ owned_as_is!(
     JointState,
     DiagnosticArray,
     TfMessage,
-    SpeedScalingFactor
+    SpeedScalingFactor,
+    CameraInfo
 );
 
 /// `data` copied out of the sample.
@@ -226,6 +227,16 @@ impl OwnedMessage for PointCloud2<'static> {
     fn deserialize_owned<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let m = PointCloud2::deserialize(d)?;
         Ok(PointCloud2 {
+            data: owned_bytes(m.data),
+            ..m
+        })
+    }
+}
+
+impl OwnedMessage for Image<'static> {
+    fn deserialize_owned<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let m = Image::deserialize(d)?;
+        Ok(Image {
             data: owned_bytes(m.data),
             ..m
         })

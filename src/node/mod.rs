@@ -28,11 +28,12 @@ use ros2_client::{
 use serde::de::DeserializeOwned;
 
 use crate::config::Config;
-use crate::config::RobotSource;
+use crate::config::{RobotSource, SourceKind};
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::{Frame, Monitor, Outputs};
 use crate::msg::{
-    JointState, Owned, OwnedMessage, PointCloud2, RosMessage, StringMessage, TfMessage, Time,
+    CameraInfo, Image, JointState, Owned, OwnedMessage, PointCloud2, RosMessage, StringMessage,
+    TfMessage, Time,
 };
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -341,12 +342,71 @@ impl<K: std::hash::Hash + Eq> SequenceGaps<K> {
     }
 }
 
-/// The newest unprocessed cloud of a source.
+/// A source's message: a cloud or a depth image.
+enum SourceMessage {
+    Cloud(PointCloud2<'static>),
+    Depth(Image<'static>),
+}
+
+impl SourceMessage {
+    fn describe(&self) -> (u32, u32, &str) {
+        match self {
+            Self::Cloud(c) => (c.width, c.height, &c.header.frame_id),
+            Self::Depth(i) => (i.width, i.height, &i.header.frame_id),
+        }
+    }
+}
+
+/// The newest unprocessed cloud (or depth image) of a source.
 #[derive(Default)]
 struct Slot {
-    /// The cloud, when it was received, and the clock then (ns since the epoch).
-    cloud: Option<(PointCloud2<'static>, Instant, i64)>,
+    /// The message, when it was received, and the clock then (ns since the epoch).
+    cloud: Option<(SourceMessage, Instant, i64)>,
     last_received: Option<Instant>,
+}
+
+/// Subscribes to source `k`'s messages of type `T`: each replaces the slot's unprocessed one
+/// (counted as dropped), and gaps in each writer's sequence numbers count as dropped too.
+fn source_task<T>(
+    executor: &smol::Executor<'static>,
+    sub: Subscription<T>,
+    k: usize,
+    shared: &Arc<Shared>,
+    wrap: fn(T) -> SourceMessage,
+) -> smol::Task<()>
+where
+    T: OwnedMessage,
+{
+    let shared = shared.clone();
+    executor.spawn(async move {
+        let mut stream = std::pin::pin!(sub.async_stream_seed(Owned::<T>::default()));
+        let mut gaps = SequenceGaps::default();
+        while let Some(item) = stream.next().await {
+            match item {
+                Ok((m, info)) => {
+                    let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
+                    shared.dropped.fetch_add(lost, Ordering::Relaxed);
+                    let now = Instant::now();
+                    let mut slot = lock(&shared.slots[k]);
+                    if slot
+                        .cloud
+                        .replace((wrap(m), now, Time::now_nanos()))
+                        .is_some()
+                    {
+                        shared.dropped.fetch_add(1, Ordering::Relaxed);
+                    }
+                    slot.last_received = Some(now);
+                    drop(slot);
+                    *lock(&shared.wake_lock) = true;
+                    shared.wake.notify_one();
+                }
+                Err(e) => {
+                    log::warn!("source message: {e:?}");
+                    shared.input_errors.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+    })
 }
 
 struct Shared {
@@ -644,44 +704,47 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
     let mut tasks: Vec<smol::Task<()>> = Vec::new();
     let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
     let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
+    let (info_tx, info_rx) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
     for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
         let qos = if s.reliable {
             RELIABLE_QOS.history(History::KeepLast { depth: 1 })
         } else {
             SENSOR_QOS
         };
-        let sub = subscription::<PointCloud2<'static>>(&mut node, &s.topic, qos)?;
-        let shared = shared.clone();
-        tasks.push(executor.spawn(async move {
-            let mut stream =
-                std::pin::pin!(sub.async_stream_seed(Owned::<PointCloud2<'static>>::default()));
-            let mut gaps = SequenceGaps::default();
-            while let Some(item) = stream.next().await {
-                match item {
-                    Ok((cloud, info)) => {
-                        let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
-                        shared.dropped.fetch_add(lost, Ordering::Relaxed);
-                        let now = Instant::now();
-                        let mut slot = lock(&shared.slots[k]);
-                        if slot
-                            .cloud
-                            .replace((cloud, now, Time::now_nanos()))
-                            .is_some()
-                        {
-                            shared.dropped.fetch_add(1, Ordering::Relaxed);
-                        }
-                        slot.last_received = Some(now);
-                        drop(slot);
-                        *lock(&shared.wake_lock) = true;
-                        shared.wake.notify_one();
-                    }
-                    Err(e) => {
-                        log::warn!("cloud: {e:?}");
-                        shared.input_errors.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
+        match s.kind {
+            SourceKind::PointCloud => {
+                let sub = subscription::<PointCloud2<'static>>(&mut node, &s.topic, qos)?;
+                tasks.push(source_task(
+                    &executor,
+                    sub,
+                    k,
+                    &shared,
+                    SourceMessage::Cloud,
+                ));
             }
-        }));
+            SourceKind::DepthImage => {
+                let sub = subscription::<Image<'static>>(&mut node, &s.topic, qos.clone())?;
+                tasks.push(source_task(
+                    &executor,
+                    sub,
+                    k,
+                    &shared,
+                    SourceMessage::Depth,
+                ));
+                // The camera model, with the image's QoS as image_transport's CameraSubscriber
+                // gives both; a latched (transient local) publisher is matched too.
+                let topic = s.camera_info_topic.clone().unwrap_or_default();
+                let sub = subscription::<CameraInfo>(&mut node, &topic, qos)?;
+                tasks.push(forward(
+                    &executor,
+                    sub,
+                    "camera info",
+                    info_tx.clone(),
+                    move |m| (k, m),
+                    &shared,
+                ));
+            }
+        }
     }
     for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
         let qos = if is_static {
@@ -741,6 +804,12 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
                 shared.input_errors.fetch_add(1, Ordering::Relaxed);
             }
         }
+        while let Ok((k, m)) = info_rx.try_recv() {
+            if let Err(e) = monitor.on_camera_info_message(k, &m) {
+                log::warn!("{e}");
+                shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
         while let Ok(m) = js_rx.try_recv() {
             if let Err(e) = monitor.on_joint_state_message(&config.joint_states_topic, &m) {
                 log::warn!("{e}");
@@ -755,18 +824,25 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
             };
             if let Some((cloud, received, clock_ns)) = cloud {
                 if !heard[k] || silent_logged[k] {
+                    let (width, height, frame_id) = cloud.describe();
                     log::info!(
-                        "source {}: {} cloud on {} ({}×{}, frame '{}')",
+                        "source {}: {} {} on {} ({width}×{height}, frame '{frame_id}')",
                         s.name,
                         if heard[k] { "again a" } else { "first" },
+                        match s.kind {
+                            SourceKind::PointCloud => "cloud",
+                            SourceKind::DepthImage => "depth image",
+                        },
                         s.topic,
-                        cloud.width,
-                        cloud.height,
-                        cloud.header.frame_id
                     );
                     (heard[k], silent_logged[k]) = (true, false);
                 }
-                let frame = monitor.on_cloud_message(k, &cloud, received, clock_ns);
+                let frame = match &cloud {
+                    SourceMessage::Cloud(c) => monitor.on_cloud_message(k, c, received, clock_ns),
+                    SourceMessage::Depth(i) => {
+                        monitor.on_depth_image_message(k, i, received, clock_ns)
+                    }
+                };
                 {
                     let (d, e) = counts();
                     outputs.publish(frame, d, e);

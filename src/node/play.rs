@@ -1,5 +1,5 @@
-//! `ist_monitor play`: a bag's PointCloud2, JointState and TF messages published on DDS at their
-//! recorded pace, as `ros2 bag play` would. Stamps are shifted so that each loop starts now,
+//! `ist_monitor play`: a bag's PointCloud2, depth Image, CameraInfo, JointState and TF messages
+//! published on DDS at their recorded pace, as `ros2 bag play` would. Stamps are shifted so that each loop starts now,
 //! which keeps them consistent with each other. It can also measure the node: with a `measure`
 //! topic (the node's `~/link_distances`, whose stamp is the cloud's), each output is matched to
 //! the cloud it answers, and the delivered rate and latency (cloud published → output received)
@@ -18,7 +18,7 @@ use super::{
     publisher, subscription, tool_node, History, NodeError, QosProfile, RELIABLE_QOS, TF_STATIC_QOS,
 };
 use crate::bag::read_messages;
-use crate::msg::{self, JointState, PointCloud2, RosMessage, TfMessage, Time};
+use crate::msg::{self, CameraInfo, Image, JointState, PointCloud2, RosMessage, TfMessage, Time};
 
 #[derive(Debug, Clone)]
 pub struct PlayOptions {
@@ -34,6 +34,7 @@ pub struct PlayOptions {
 
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct PlaySummary {
+    /// Clouds and depth images.
     pub clouds_published: usize,
     pub messages_published: usize,
     pub outputs_received: usize,
@@ -46,6 +47,8 @@ pub struct PlaySummary {
 
 enum Out {
     Cloud(Publisher<PointCloud2<'static>>),
+    Depth(Publisher<Image<'static>>),
+    CameraInfo(Publisher<CameraInfo>),
     Joints(Publisher<JointState>),
     Tf(Publisher<TfMessage>),
 }
@@ -60,7 +63,13 @@ fn shift(t: &mut Time, offset_ns: i64) {
 
 /// Plays `bag`; returns what was published and, with `measure`, what came back.
 pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError> {
-    let known = [PointCloud2::TYPE, JointState::TYPE, TfMessage::TYPE];
+    let known = [
+        PointCloud2::TYPE,
+        Image::TYPE,
+        CameraInfo::TYPE,
+        JointState::TYPE,
+        TfMessage::TYPE,
+    ];
     let messages = read_messages(bag, &|_, schema| known.contains(&schema))?;
     let first = messages
         .first()
@@ -76,13 +85,14 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
         if outs.contains_key(&*m.topic) {
             continue;
         }
+        // Sensor data as drivers publish it: best effort, the newest only.
+        let sensor = QosProfile::publisher_default()
+            .reliability_best_effort()
+            .history(History::KeepLast { depth: 1 });
         let out = match &*m.schema {
-            s if s == PointCloud2::TYPE => {
-                let qos = QosProfile::publisher_default()
-                    .reliability_best_effort()
-                    .history(History::KeepLast { depth: 1 });
-                Out::Cloud(publisher(&mut node, &m.topic, qos)?)
-            }
+            s if s == PointCloud2::TYPE => Out::Cloud(publisher(&mut node, &m.topic, sensor)?),
+            s if s == Image::TYPE => Out::Depth(publisher(&mut node, &m.topic, sensor)?),
+            s if s == CameraInfo::TYPE => Out::CameraInfo(publisher(&mut node, &m.topic, sensor)?),
             s if s == JointState::TYPE => {
                 Out::Joints(publisher(&mut node, &m.topic, RELIABLE_QOS)?)
             }
@@ -143,6 +153,22 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
                     };
                     super::lock(&sent).insert(c.header.stamp.as_nanos(), Instant::now());
                     summary.clouds_published += 1;
+                    p.publish(c).map_err(|e| format!("{e:?}"))
+                }
+                Out::Depth(p) => {
+                    let mut i: Image = msg::decode(&m.data)?;
+                    shift(&mut i.header.stamp, offset);
+                    let i = Image {
+                        data: std::borrow::Cow::Owned(i.data.into_owned()),
+                        ..i
+                    };
+                    super::lock(&sent).insert(i.header.stamp.as_nanos(), Instant::now());
+                    summary.clouds_published += 1;
+                    p.publish(i).map_err(|e| format!("{e:?}"))
+                }
+                Out::CameraInfo(p) => {
+                    let mut c: CameraInfo = msg::decode(&m.data)?;
+                    shift(&mut c.header.stamp, offset);
                     p.publish(c).map_err(|e| format!("{e:?}"))
                 }
                 Out::Joints(p) => {

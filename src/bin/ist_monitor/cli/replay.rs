@@ -7,6 +7,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 
 use ist_monitor::bag::writer::Compression;
+use ist_monitor::cloud::depth::DepthEncoding;
 use ist_monitor::config::{parse_override, Config};
 use ist_monitor::monitor::replay;
 use ist_monitor::monitor::Monitor;
@@ -79,6 +80,12 @@ pub struct GenerateArgs {
     /// Bytes per point: 16 (x y z) or 32 (x y z, rgb), as RGB-D drivers publish.
     #[arg(long, default_value_t = 16)]
     point_step: u32,
+    /// Record depth images (sensor_msgs/Image, 16UC1 in millimetres or 32FC1 in metres) on
+    /// /camera/depth/image_raw instead of clouds; the truth is then over the points
+    /// depth_image_proc makes from them. Replay them with `-p camera.type:=depth_image -p
+    /// camera.topic:=/camera/depth/image_raw`.
+    #[arg(long, value_name = "ENCODING")]
+    depth: Option<String>,
 }
 
 /// The monitor of a config, with a progress line while its trees are built or loaded.
@@ -215,8 +222,15 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
     if !(args.noise >= 0.0 && args.noise.is_finite() && (0.0..=1.0).contains(&args.holes)) {
         bail!("--noise must be ≥ 0 and --holes in [0, 1]");
     }
+    let depth = match args.depth.as_deref() {
+        None => None,
+        Some(e) => Some(DepthEncoding::from_name(e).with_context(|| {
+            format!("--depth {e}: expected 16UC1 (millimetres) or 32FC1 (metres)")
+        })?),
+    };
     let model = args.robot.load(&Default::default())?;
     let params = ScenarioParams {
+        depth,
         scene: args.scene,
         frames: args.frames,
         width: args.width,
