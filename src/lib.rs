@@ -22,8 +22,8 @@
 //!   once) → `monitor` (the per-cloud pipeline, faults and levels, the output table, replay) →
 //!   `node` (the live ROS 2 node, and the `play` and `record` tools);
 //! - `msg` (the ROS 2 messages) → `bag` (rosbag2 MCAP in and out) → `cloud` (PCD, PLY,
-//!   PointCloud2, with one encoder) and `msg` → `tf` (TF buffer, joint states), both into
-//!   `monitor`;
+//!   PointCloud2 with one encoder, depth images) and `msg` → `tf` (TF buffer, joint states),
+//!   both into `monitor`;
 //! - beside them: `geometry` (mesh helpers, under `robot`), `scenario` (the bag generator, on
 //!   the meshes, clouds and bags), `stats` (percentiles of timings).
 //!

@@ -1,9 +1,11 @@
 //! The monitor: the one pipeline that `replay` and the live node run. Inputs are CDR payloads
 //! as they come off a bag or DDS — `/tf`, `/tf_static`, `/joint_states` and each source's
-//! PointCloud2 — and every cloud gives a [`Frame`]: the query result or the fault that stopped
+//! PointCloud2, or depth Image with its CameraInfo (`cloud::depth`) — and every cloud or depth
+//! image gives a [`Frame`]: the query result or the fault that stopped
 //! it, and the node's output messages (`outputs`).
 //!
-//! Per cloud: decode → the stamp against the clock (0, older than the source's
+//! Per cloud: decode (a depth image: its points made with the source's last camera model, into a
+//! buffer the monitor keeps) → the stamp against the clock (0, older than the source's
 //! `source_timeout` or ahead by more than `future_stamp_tolerance` is a fault) → drop points
 //! outside the source's `min_range`/`max_range` (they become invalid points) → the joint values
 //! at the cloud's stamp (`tf::JointStateBuffer`) → forward kinematics → the sensor frame in the

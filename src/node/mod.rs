@@ -3,9 +3,9 @@
 //! observe it (tests, benchmarks, demos).
 //!
 //! Threads: an executor thread runs the ros2-client spinner and one task per subscription.
-//! `/tf`, `/tf_static` and the joint states go straight into the monitor's buffers. Each cloud
-//! replaces the previous one in its source's slot: only the newest is ever processed, so no
-//! queue grows. The DDS reader keeps one sample (KeepLast 1), and a cloud that is overwritten
+//! `/tf`, `/tf_static`, the joint states and depth sources' CameraInfo go to the processing
+//! thread in order. Each cloud (or depth image) replaces the previous one in its source's slot:
+//! only the newest is ever processed, so no queue grows. The DDS reader keeps one sample (KeepLast 1), and a cloud that is overwritten
 //! before it is processed counts as dropped, as do gaps in the writer's sequence numbers. The
 //! processing thread waits for a slot, runs the monitor and publishes its outputs. It also
 //! checks every source: one silent for longer than its `source_timeout` (or never heard) is a
@@ -202,6 +202,48 @@ pub fn subscription<T: RosMessage + 'static>(
         .map_err(|e| entity("subscription", name, e))
 }
 
+/// Samples a source's DDS topic cache may hold: the newest, and the one being handed over.
+/// RustDDS keeps 64 samples of a topic whose QoS sets no resource limits, whatever the reader's
+/// history depth: 627 MB of 9.8 MB clouds.
+pub const SOURCE_SAMPLES: i32 = 2;
+
+/// The DDS QoS of a source's topic: `qos` with at most [`SOURCE_SAMPLES`] samples kept.
+pub fn source_topic_qos(qos: &QosProfile) -> ros2_client::dds::rustdds::QosPolicies {
+    use ros2_client::dds::rustdds::{policy::ResourceLimits, QosPolicies, QosPolicyBuilder};
+    let limits = QosPolicyBuilder::new()
+        .resource_limits(ResourceLimits {
+            max_samples: SOURCE_SAMPLES,
+            max_instances: 1,
+            max_samples_per_instance: SOURCE_SAMPLES,
+        })
+        .build();
+    QosPolicies::from(qos).modify_by(&limits)
+}
+
+/// Creates a subscription of a source's messages `T` on `topic`, whose DDS topic holds at most
+/// [`SOURCE_SAMPLES`] samples (QoS resource limits). The topic is made on the node's DDS
+/// participant directly: ros2-client's QoS profile has no resource limits.
+pub fn source_subscription<T: RosMessage + 'static>(
+    ctx: &Context,
+    node: &mut Node,
+    node_name: &NodeName,
+    topic: &str,
+    qos: QosProfile,
+) -> Result<Subscription<T>> {
+    let dds_qos = source_topic_qos(&qos);
+    let t = ctx
+        .domain_participant()
+        .create_topic(
+            topic_name(topic)?.to_dds_name("rt", node_name, ""),
+            type_name::<T>().dds_msg_type(),
+            &dds_qos,
+            ros2_client::dds::rustdds::TopicKind::NoKey,
+        )
+        .map_err(|e| entity("topic", topic, e))?;
+    node.create_subscription(&t, Some(qos))
+        .map_err(|e| entity("subscription", topic, e))
+}
+
 /// Forwards each message of `sub`, as `wrap` makes it, to `tx` (the processing thread); a
 /// message that fails to decode is counted and skipped.
 fn forward<T, U>(
@@ -349,10 +391,11 @@ enum SourceMessage {
 }
 
 impl SourceMessage {
-    fn describe(&self) -> (u32, u32, &str) {
+    /// Width, height, frame and bytes of data.
+    fn describe(&self) -> (u32, u32, &str, usize) {
         match self {
-            Self::Cloud(c) => (c.width, c.height, &c.header.frame_id),
-            Self::Depth(i) => (i.width, i.height, &i.header.frame_id),
+            Self::Cloud(c) => (c.width, c.height, &c.header.frame_id, c.data.len()),
+            Self::Depth(i) => (i.width, i.height, &i.header.frame_id, i.data.len()),
         }
     }
 }
@@ -513,6 +556,27 @@ impl Publishers {
     }
 }
 
+fn mib(bytes: usize) -> String {
+    format!("{:.1} MiB", bytes as f64 / (1 << 20) as f64)
+}
+
+/// What the granted socket buffer means for a source's messages of `bytes`: a message larger
+/// than the buffer arrives as one burst the kernel cannot hold, so whole messages are lost
+/// (measured: 9.8 MB clouds with 4 MiB granted, 12–13 % lost at 30 Hz; README, 'Host setup').
+fn warn_burst(source: &str, what: &str, bytes: usize) {
+    if let Some(granted) = granted_receive_buffer(SOCKET_BUFFER).filter(|&g| bytes > g) {
+        log::warn!(
+            "source {source}: each {what} is {}, more than the {} socket receive buffer the \
+             kernel grants (net.core.rmem_max): expect lost {what}s and reassembly memory; \
+             raise rmem_max to at least {} (README, 'Host setup'), or publish depth images \
+             (type: depth_image)",
+            mib(bytes),
+            mib(granted),
+            mib((2 * bytes).next_power_of_two()),
+        );
+    }
+}
+
 /// The one line that says the node is up and what it watches, and a warning when the kernel
 /// grants less socket buffer than a cloud burst needs.
 fn log_up(config: &Config, monitor: &Monitor) {
@@ -523,7 +587,6 @@ fn log_up(config: &Config, monitor: &Monitor) {
         .map(|s| format!("{} on {}", s.name, s.topic))
         .collect();
     let granted = granted_receive_buffer(SOCKET_BUFFER);
-    let mib = |b: usize| format!("{:.1} MiB", b as f64 / (1 << 20) as f64);
     log::info!(
         "up: node {} (outputs on ~/ and /diagnostics), robot '{}' ({} links monitored), mode {}, \
          sources: {}; DDS (RustDDS) on domain {}; socket receive buffer {} asked, {} granted",
@@ -641,7 +704,9 @@ fn wait_for_monitor(
 /// (ERROR with the reason, the safety stop), and a stop during the build ends it at once.
 pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
     let executor = Arc::new(smol::Executor::new());
-    let (_ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;
+    let (ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;
+    let node_name = NodeName::new(&config.namespace, &config.node_name)
+        .map_err(|e| entity("node name", &config.node_path(), e))?;
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });
@@ -713,7 +778,9 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
         };
         match s.kind {
             SourceKind::PointCloud => {
-                let sub = subscription::<PointCloud2<'static>>(&mut node, &s.topic, qos)?;
+                let sub = source_subscription::<PointCloud2<'static>>(
+                    &ctx, &mut node, &node_name, &s.topic, qos,
+                )?;
                 tasks.push(source_task(
                     &executor,
                     sub,
@@ -723,7 +790,13 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
                 ));
             }
             SourceKind::DepthImage => {
-                let sub = subscription::<Image<'static>>(&mut node, &s.topic, qos.clone())?;
+                let sub = source_subscription::<Image<'static>>(
+                    &ctx,
+                    &mut node,
+                    &node_name,
+                    &s.topic,
+                    qos.clone(),
+                )?;
                 tasks.push(source_task(
                     &executor,
                     sub,
@@ -824,17 +897,21 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
             };
             if let Some((cloud, received, clock_ns)) = cloud {
                 if !heard[k] || silent_logged[k] {
-                    let (width, height, frame_id) = cloud.describe();
+                    let (width, height, frame_id, bytes) = cloud.describe();
+                    let what = match s.kind {
+                        SourceKind::PointCloud => "cloud",
+                        SourceKind::DepthImage => "depth image",
+                    };
                     log::info!(
-                        "source {}: {} {} on {} ({width}×{height}, frame '{frame_id}')",
+                        "source {}: {} {what} on {} ({width}×{height}, {}, frame '{frame_id}')",
                         s.name,
                         if heard[k] { "again a" } else { "first" },
-                        match s.kind {
-                            SourceKind::PointCloud => "cloud",
-                            SourceKind::DepthImage => "depth image",
-                        },
                         s.topic,
+                        mib(bytes),
                     );
+                    if !heard[k] {
+                        warn_burst(&s.name, what, bytes);
+                    }
                     (heard[k], silent_logged[k]) = (true, false);
                 }
                 let frame = match &cloud {
@@ -926,6 +1003,26 @@ mod tests {
         ] {
             let bad: Vec<String> = bad.iter().map(|s| s.to_string()).collect();
             assert!(parse_ros_args(&bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn source_topics_keep_two_samples() {
+        use ros2_client::dds::rustdds::policy;
+        for qos in [
+            SENSOR_QOS,
+            RELIABLE_QOS.history(History::KeepLast { depth: 1 }),
+        ] {
+            let q = source_topic_qos(&qos);
+            let limits = q.resource_limits().expect("resource limits set");
+            assert_eq!(limits.max_samples, SOURCE_SAMPLES);
+            assert_eq!(limits.max_samples_per_instance, SOURCE_SAMPLES);
+            // The rest of the profile is kept.
+            assert_eq!(q.history(), Some(policy::History::KeepLast { depth: 1 }));
+            assert_eq!(
+                matches!(q.reliability(), Some(policy::Reliability::BestEffort)),
+                qos == SENSOR_QOS
+            );
         }
     }
 

@@ -1,6 +1,8 @@
 //! `ist_monitor play`: a bag's PointCloud2, depth Image, CameraInfo, JointState and TF messages
-//! published on DDS at their recorded pace, as `ros2 bag play` would. Stamps are shifted so that each loop starts now,
-//! which keeps them consistent with each other. It can also measure the node: with a `measure`
+//! published on DDS at their recorded pace, as `ros2 bag play` would. Stamps are moved so that
+//! each loop starts now, and with `rate` they run as fast as the messages are published (a cloud
+//! played three times faster is not stamped in the future); all move alike, which keeps them
+//! consistent with each other. It can also measure the node: with a `measure`
 //! topic (the node's `~/link_distances`, whose stamp is the cloud's), each output is matched to
 //! the cloud it answers, and the delivered rate and latency (cloud published → output received)
 //! are reported.
@@ -53,12 +55,23 @@ enum Out {
     Tf(Publisher<TfMessage>),
 }
 
-/// Shifts a stamp; a stamp of 0 (never set) stays 0, as `ros2 bag play` leaves it.
-fn shift(t: &mut Time, offset_ns: i64) {
+/// How a loop moves the bag's stamps onto the clock: the bag's first log time `t0` becomes
+/// `now_ns`, and time since it runs `rate` times faster, as the messages are published.
+#[derive(Clone, Copy)]
+struct Retime {
+    t0: i64,
+    now_ns: i64,
+    rate: f64,
+}
+
+/// Moves a stamp onto the clock; a stamp of 0 (never set) stays 0, as `ros2 bag play` leaves
+/// it.
+fn shift(t: &mut Time, r: Retime) {
     if t.as_nanos() == 0 {
         return;
     }
-    *t = Time::from_nanos(t.as_nanos() + offset_ns);
+    let since = (t.as_nanos() - r.t0) as f64 / r.rate;
+    *t = Time::from_nanos(r.now_ns + since.round() as i64);
 }
 
 /// Plays `bag`; returns what was published and, with `measure`, what came back.
@@ -137,7 +150,11 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
     let started = Instant::now();
     for _ in 0..options.loops.max(1) {
         let loop_start = Instant::now();
-        let offset = Time::now_nanos() - t0 as i64;
+        let offset = Retime {
+            t0: t0 as i64,
+            now_ns: Time::now_nanos(),
+            rate: options.rate,
+        };
         for m in &messages {
             let due = Duration::from_secs_f64((m.log_time_ns - t0) as f64 * 1e-9 / options.rate);
             if let Some(wait) = due.checked_sub(loop_start.elapsed()) {
