@@ -50,6 +50,21 @@ fn in_private_network(test: &str) -> bool {
     false
 }
 
+/// Kills the processes it names when dropped during a panic: a failed assertion must not leave
+/// a node or a router holding the test's pipes (the outer test would wait for them forever).
+struct Reap(Vec<u32>);
+
+impl Drop for Reap {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            return;
+        }
+        for pid in &self.0 {
+            let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
+        }
+    }
+}
+
 fn spawn(args: &[&str]) -> Child {
     ist_monitor()
         .args(args)
@@ -474,4 +489,256 @@ fn depth_images_feed_the_node() {
             "the node published {d}, which replay never gives: {library:?}"
         );
     }
+}
+
+/// The zenoh transport, as rmw_zenoh speaks it, through a router (`ist_monitor zenoh-router`,
+/// at rmw_zenoh's default endpoint): an independent zenoh peer (Python `eclipse-zenoh`) publishes
+/// a PointCloud2, then a depth image with its CameraInfo, the rmw_zenoh way, and receives the
+/// node's `~/min_distance`, which equals the library's answer on the same data; then the demo
+/// bag is played twice over zenoh (every cloud answered), the source's silence between the plays
+/// is reported as ERROR and the node recovers; SIGTERM ends it cleanly.
+#[test]
+fn zenoh_transport_serves_the_node() {
+    if !in_private_network("zenoh_transport_serves_the_node") {
+        return;
+    }
+    use ist_monitor::cloud::depth::{
+        encode_depth, points_from_depth, DepthEncoding, PinholeCamera,
+    };
+    use ist_monitor::cloud::pointcloud2::{encode, Layout};
+    use ist_monitor::msg::{CameraInfo, Header, Time};
+    let Some(python) = common::venv_python() else {
+        return;
+    };
+    let has_zenoh = Command::new(&python)
+        .args(["-c", "import zenoh"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !has_zenoh {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "eclipse-zenoh missing from the venv"
+        );
+        common::skip("the venv has no eclipse-zenoh (bash .ci/run installs it)");
+        return;
+    }
+    let (model, trees) = common::demo_trees();
+    let dir = tempfile::tempdir().unwrap();
+    let k = &model.kinematics;
+    let poses = k.link_poses(&vec![0.0; k.variables().len()]);
+    let camera_link = poses[k.link_index("camera_link").unwrap()];
+    let optical = ist_monitor::scenario::link_from_optical();
+    let q = optical.rotation.quaternion();
+    let header = |frame: &str| Header {
+        stamp: Time::from_nanos(1),
+        frame_id: frame.into(),
+    };
+    // A PointCloud2 in camera_link (x forward): a 20 × 20 patch 0.6 m ahead.
+    let patch: Vec<[f32; 3]> = (0..20)
+        .flat_map(|i| (0..20).map(move |j| [0.6, -0.2 + 0.02 * i as f32, -0.2 + 0.02 * j as f32]))
+        .collect();
+    let cloud = encode(header("camera_link"), &patch, &Layout::unorganized(400)).unwrap();
+    // A 16UC1 depth image in the optical frame: a plane 0.7 m ahead, and its camera.
+    let info = CameraInfo {
+        header: header("camera_optical_frame"),
+        width: 20,
+        height: 20,
+        k: [100.0, 0.0, 9.5, 0.0, 100.0, 9.5, 0.0, 0.0, 1.0],
+        p: [
+            100.0, 0.0, 9.5, 0.0, 0.0, 100.0, 9.5, 0.0, 0.0, 0.0, 1.0, 0.0,
+        ],
+        ..CameraInfo::default()
+    };
+    let image = encode_depth(
+        header("camera_optical_frame"),
+        20,
+        20,
+        &[0.7; 400],
+        DepthEncoding::Millimetres16,
+    );
+    let files = [
+        (
+            "/camera/depth/points",
+            "sensor_msgs::msg::dds_::PointCloud2_",
+            msg::encode(&cloud).unwrap(),
+        ),
+        (
+            "/camera/depth/camera_info",
+            "sensor_msgs::msg::dds_::CameraInfo_",
+            msg::encode(&info).unwrap(),
+        ),
+        (
+            "/camera/depth/image_raw",
+            "sensor_msgs::msg::dds_::Image_",
+            msg::encode(&image).unwrap(),
+        ),
+    ];
+    let mut plan = Vec::new();
+    for (i, (topic, ty, bytes)) in files.iter().enumerate() {
+        let path = dir.path().join(format!("{i}.cdr"));
+        std::fs::write(&path, bytes).unwrap();
+        plan.push(format!("{topic}={},{ty}", path.display()));
+    }
+    // The library's answers on the same points.
+    let mut engine = Engine::new(&model, &trees, &LinkSelection::default()).unwrap();
+    let options = QueryOptions {
+        mode: Mode::Certified,
+        backend: Backend::Cpu,
+        ..QueryOptions::default()
+    };
+    let mut lower = |points: &[[f32; 3]], sensor| {
+        let r = engine.query(points, &sensor, &poses, &options).unwrap();
+        r.nearest.expect("the points are seen").lower_m.unwrap()
+    };
+    let expected_cloud = lower(&patch, camera_link);
+    let mut depth_points = Vec::new();
+    let camera = PinholeCamera::from_camera_info(&info).unwrap();
+    points_from_depth(&image, &camera, (0.0, None), &mut depth_points).unwrap();
+    let expected_depth = lower(&depth_points, camera_link * optical);
+
+    let zenoh = |c: &mut Command| {
+        c.env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp");
+    };
+    let mut router = spawn(&["zenoh-router"]);
+    std::thread::sleep(Duration::from_millis(500));
+    let joints =
+        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
+    let rotation = format!("optical.rotation:=[{}, {}, {}, {}]", q.i, q.j, q.k, q.w);
+    let mut node = ist_monitor();
+    zenoh(&mut node);
+    let node = node
+        .args([
+            "node",
+            "--ros-args",
+            "-p",
+            "backend:=cpu",
+            "-p",
+            &format!("fixed_joint_state.names:={joints}"),
+            "-p",
+            "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
+            "-p",
+            "sources:=[camera, depth]",
+            "-p",
+            "camera.source_timeout:=0.5",
+            "-p",
+            "depth.type:=depth_image",
+            "-p",
+            "depth.topic:=/camera/depth/image_raw",
+            "-p",
+            "static_transforms:=[optical]",
+            "-p",
+            "optical.parent_frame:=camera_link",
+            "-p",
+            "optical.child_frame:=camera_optical_frame",
+            "-p",
+            &rotation,
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _reap = Reap(vec![router.id(), node.id()]);
+    std::thread::sleep(Duration::from_millis(1500));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/zenoh_interop.py");
+    let peer = common::json_output(
+        Command::new(&python)
+            .arg(script)
+            .arg("tcp/localhost:7447")
+            .args(&plan),
+    );
+    for (topic, expected) in [
+        ("/camera/depth/points", expected_cloud),
+        ("/camera/depth/image_raw", expected_depth),
+    ] {
+        let got: Vec<f64> = peer[topic]
+            .as_array()
+            .unwrap_or_else(|| panic!("{peer}"))
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert!(got.len() >= 10, "{topic}: {} distances: {peer}", got.len());
+        for d in &got {
+            assert!(
+                (d - expected).abs() < 1e-6,
+                "{topic}: the node published {d}, the library gives {expected}"
+            );
+        }
+    }
+    // The demo bag over zenoh, twice, recorded over zenoh.
+    let record = dir.path().join("outputs.mcap");
+    let mut recorder = ist_monitor();
+    zenoh(&mut recorder);
+    let mut recorder = recorder
+        .args([
+            "record",
+            "--duration",
+            "9",
+            "--out",
+            record.to_str().unwrap(),
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1000));
+    let play = |wait: &str| {
+        let mut c = ist_monitor();
+        zenoh(&mut c);
+        common::json_output(c.args([
+            "play",
+            "--json",
+            "--wait",
+            wait,
+            "--measure",
+            "/ist_monitor/link_distances",
+        ]))
+    };
+    let first = play("1.0");
+    std::thread::sleep(Duration::from_millis(1500));
+    let second = play("0.3");
+    assert!(recorder.wait().unwrap().success());
+    for run in [&first, &second] {
+        assert_eq!(run["clouds_published"], 30);
+        let received = run["outputs_received"].as_u64().unwrap();
+        assert!(
+            received >= 29,
+            "only {received} of 30 clouds answered over zenoh: {run}"
+        );
+    }
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let out = node.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        log.contains("zenoh (rmw_zenoh)") && log.contains("1 router(s)"),
+        "{log}"
+    );
+    for line in log.lines() {
+        assert!(
+            !line.starts_with("[ERROR"),
+            "an error line in a normal run: {line}"
+        );
+    }
+    Command::new("kill")
+        .arg(router.id().to_string())
+        .status()
+        .unwrap();
+    assert!(router.wait().unwrap().success());
+    // Between the plays the source was silent: ERROR, then distances again.
+    let diagnostics: Vec<DiagnosticStatus> = read_messages(&record, &|t, _| t == "/diagnostics")
+        .unwrap()
+        .iter()
+        .map(|m| msg::decode::<DiagnosticArray>(&m.data).unwrap().status[0].clone())
+        .filter(|s| s.name.ends_with(": camera"))
+        .collect();
+    let stale = diagnostics
+        .iter()
+        .position(|s| s.message.contains("no cloud for"))
+        .expect("a stale-source ERROR between the plays");
+    assert_eq!(diagnostics[stale].level, DiagnosticStatus::ERROR);
+    assert!(diagnostics[stale..]
+        .iter()
+        .any(|s| s.message.starts_with("min distance")));
 }

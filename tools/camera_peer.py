@@ -3,7 +3,8 @@ publishes a real organized cloud, as a PointCloud2 or as the 16UC1 depth image a
 made from it, at a given rate with fresh stamps, and measures the node's answers on
 ~/link_distances (stamped with the cloud's stamp): how many came back and how late.
 
-    camera_peer.py BAG --mode cloud|depth [--rate HZ] [--duration S] [--node /ist_monitor]
+    camera_peer.py BAG --mode cloud|depth [--transport dds|zenoh] [--rate HZ] [--duration S]
+                   [--node /ist_monitor] [--connect tcp/localhost:7447]
 
 BAG is a rosbag2 holding an organized PointCloud2 (the first is used; the real Kinect bag of
 ../shared/bags/moveit_perception_tutorial). `cloud` publishes it as it is (its own point_step)
@@ -12,6 +13,10 @@ millimetres (0 where the point is NaN), with the pinhole K fitted to the cloud's
 squares (u = fx·x/z + cx, v = fy·y/z + cy; the residual is printed), on
 <topic namespace>/image_raw and <topic namespace>/camera_info (QoS sensor data: best effort,
 keep last 1). Prints one JSON line: published, answered, latency p50/p99/max (ms), the sizes.
+
+`--transport zenoh` publishes the same messages the way rmw_zenoh does (key
+`<domain>/<topic>/<DDS type>/<type hash>`, CDR payload with its encapsulation header, the rmw_zenoh
+attachment), connected to the router at `--connect`.
 
 DDS discovers by multicast: run it only inside ../shared/tools/netns-run, where loopback is the
 only interface. It refuses to start anywhere else.
@@ -104,6 +109,8 @@ def main():
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--node", default="/ist_monitor")
     ap.add_argument("--wait", type=float, default=3.0, help="discovery time before publishing, s")
+    ap.add_argument("--transport", choices=["dds", "zenoh"], default="dds")
+    ap.add_argument("--connect", default="tcp/localhost:7447")
     args = ap.parse_args()
     refuse_outside_private_network()
     fast_byte_sequences()
@@ -112,9 +119,9 @@ def main():
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.idl import IdlStruct
     from cyclonedds.idl.types import array, float64, int32, sequence, uint8, uint32
-    from cyclonedds.pub import DataWriter
+    from cyclonedds.pub import DataWriter as CycloneWriter
     from cyclonedds.sub import DataReader
-    from cyclonedds.topic import Topic
+    from cyclonedds.topic import Topic as CycloneTopic
 
     @dataclass
     class Time_(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
@@ -189,8 +196,44 @@ def main():
     frame = cloud.header.frame_id
     width, height = cloud.width, cloud.height
     header = lambda stamp_ns: Header_(Time_(stamp_ns // 10**9, stamp_ns % 10**9), frame)
-    dp = DomainParticipant(int(os.environ.get("ROS_DOMAIN_ID", "0")))
+    domain = int(os.environ.get("ROS_DOMAIN_ID", "0"))
     sensor = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1))
+    if args.transport == "dds":
+        dp = DomainParticipant(domain)
+
+        def DataWriter(_, t, qos):  # noqa: N802 (the DDS writer, or the zenoh one below)
+            return CycloneWriter(dp, t, qos=qos)
+
+        def Topic(_, name, ty):  # noqa: N802
+            return CycloneTopic(dp, name, ty)
+    else:
+        import zenoh
+
+        conf = zenoh.Config()
+        conf.insert_json5("mode", '"peer"')
+        conf.insert_json5("connect/endpoints", json.dumps([args.connect]))
+        conf.insert_json5("scouting/multicast/enabled", "false")
+        session = zenoh.open(conf)
+        gid = os.urandom(16)
+        dp = None
+
+        class ZenohWriter:
+            def __init__(self, name, ty):
+                key = f"{domain}/{name[3:]}/{ty.__idl_typename__}/RIHS01_" + "0" * 64
+                self.publisher = session.declare_publisher(key)
+                self.seq = 0
+
+            def write(self, sample):
+                self.seq += 1
+                payload = sample.serialize()  # plain CDR, little endian, with its header
+                attachment = struct.pack("<qq16s", self.seq, time.time_ns(), gid)
+                self.publisher.put(payload, attachment=attachment)
+
+        def DataWriter(_, t, qos):  # noqa: N802
+            return ZenohWriter(*t)
+
+        def Topic(_, name, ty):  # noqa: N802
+            return (name, ty)
     info = {"mode": args.mode, "rate_hz": args.rate, "width": width, "height": height}
     if args.mode == "cloud":
         fields = [PointField_(f.name, f.offset, f.datatype, f.count) for f in cloud.fields]
@@ -227,20 +270,35 @@ def main():
     sent = {}
     latencies = []
     lock = threading.Lock()
-    reader = DataReader(dp, Topic(dp, "rt" + args.node + "/link_distances", JointState_),
-                        qos=Qos(Policy.Reliability.Reliable(1), Policy.History.KeepLast(100)))
     done = threading.Event()
 
-    def listen():
-        while not done.is_set():
-            for m in reader.take(N=100):
-                now = time.monotonic()
-                stamp = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
-                with lock:
-                    at = sent.pop(stamp, None)
-                if at is not None:
-                    latencies.append((now - at) * 1e3)
-            time.sleep(0.0005)
+    def answered(stamp):
+        now = time.monotonic()
+        with lock:
+            at = sent.pop(stamp, None)
+        if at is not None:
+            latencies.append((now - at) * 1e3)
+
+    if args.transport == "dds":
+        reader = DataReader(dp, CycloneTopic(dp, "rt" + args.node + "/link_distances", JointState_),
+                            qos=Qos(Policy.Reliability.Reliable(1), Policy.History.KeepLast(100)))
+
+        def listen():
+            while not done.is_set():
+                for m in reader.take(N=100):
+                    answered(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec)
+                time.sleep(0.0005)
+    else:
+        def on_sample(sample):
+            # sensor_msgs/JointState CDR: the header's stamp first (sec int32, nanosec uint32).
+            sec, nanosec = struct.unpack_from("<iI", bytes(sample.payload.to_bytes()), 4)
+            answered(sec * 10**9 + nanosec)
+
+        subscriber = session.declare_subscriber(
+            f"{domain}/{args.node.strip('/')}/link_distances/**", on_sample)
+
+        def listen():
+            done.wait()
 
     listener = threading.Thread(target=listen)
     listener.start()

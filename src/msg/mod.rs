@@ -215,7 +215,8 @@ owned_as_is!(
     DiagnosticArray,
     TfMessage,
     SpeedScalingFactor,
-    CameraInfo
+    CameraInfo,
+    StringMessage
 );
 
 /// `data` copied out of the sample.

@@ -14,6 +14,9 @@
 
 pub mod play;
 pub mod record;
+pub mod transport;
+
+pub use transport::{Pub, RosNode, Transport};
 
 use std::any::Any;
 use std::collections::HashMap;
@@ -21,19 +24,16 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use futures::StreamExt;
-use ros2_client::{
-    Context, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Subscription,
-};
-use serde::de::DeserializeOwned;
+use ros2_client::dds::{Context, Node, Subscription};
+use ros2_client::{MessageTypeName, Name, NodeName};
 
 use crate::config::Config;
 use crate::config::{RobotSource, SourceKind};
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::{Frame, Monitor, Outputs};
 use crate::msg::{
-    CameraInfo, Image, JointState, Owned, OwnedMessage, PointCloud2, RosMessage, StringMessage,
-    TfMessage, Time,
+    CameraInfo, Image, JointState, OwnedMessage, PointCloud2, RosMessage, StringMessage, TfMessage,
+    Time,
 };
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -102,6 +102,9 @@ pub enum NodeError {
     BuildLost,
     #[error(transparent)]
     Config(#[from] crate::config::ConfigError),
+    /// The transport (`RMW_IMPLEMENTATION`, zenoh's session config or router).
+    #[error("{0}")]
+    Transport(String),
 }
 
 type Result<T, E = NodeError> = std::result::Result<T, E>;
@@ -138,68 +141,6 @@ pub fn context() -> Result<Context> {
 /// A ROS 2 name from a fully qualified topic name.
 pub fn topic_name(full: &str) -> Result<Name> {
     Name::parse(full).map_err(|e| entity("topic", full, e))
-}
-
-/// The DDS topic of `T` named `topic`.
-fn topic<T: RosMessage>(
-    node: &mut Node,
-    topic: &str,
-    qos: &QosProfile,
-) -> Result<ros2_client::dds::rustdds::Topic> {
-    node.create_topic(&topic_name(topic)?, type_name::<T>(), qos)
-        .map_err(|e| entity("topic", topic, e))
-}
-
-/// Creates a publisher of `T` on `topic`.
-pub fn publisher<T: RosMessage>(
-    node: &mut Node,
-    name: &str,
-    qos: QosProfile,
-) -> Result<Publisher<T>> {
-    let t = topic::<T>(node, name, &qos)?;
-    node.create_publisher(&t, Some(qos))
-        .map_err(|e| entity("publisher", name, e))
-}
-
-/// The node of a command-line tool, `/<prefix>_<pid>`; see [`spinning_node`].
-pub fn tool_node(prefix: &str, executor: &smol::Executor<'static>) -> Result<(Context, Node)> {
-    spinning_node("/", &format!("{prefix}_{}", std::process::id()), executor)
-}
-
-/// A node `namespace`/`name` on a new context, its spinner spawned on `executor`. The context
-/// is returned too: it must outlive the node.
-pub fn spinning_node(
-    namespace: &str,
-    name: &str,
-    executor: &smol::Executor<'static>,
-) -> Result<(Context, Node)> {
-    let ctx = context()?;
-    let mut node = ctx
-        .new_node(
-            NodeName::new(namespace, name)
-                .map_err(|e| entity("node name", &format!("{namespace} {name}"), e))?,
-            NodeOptions::new().enable_rosout(false),
-        )
-        .map_err(|e| entity("node", name, e))?;
-    executor
-        .spawn(
-            node.spinner()
-                .map_err(|e| entity("spinner of node", name, e))?
-                .spin(),
-        )
-        .detach();
-    Ok((ctx, node))
-}
-
-/// Creates a subscription of `T` on `topic`.
-pub fn subscription<T: RosMessage + 'static>(
-    node: &mut Node,
-    name: &str,
-    qos: QosProfile,
-) -> Result<Subscription<T>> {
-    let t = topic::<T>(node, name, &qos)?;
-    node.create_subscription(&t, Some(qos))
-        .map_err(|e| entity("subscription", name, e))
 }
 
 /// Samples a source's DDS topic cache may hold: the newest, and the one being handed over.
@@ -242,39 +183,6 @@ pub fn source_subscription<T: RosMessage + 'static>(
         .map_err(|e| entity("topic", topic, e))?;
     node.create_subscription(&t, Some(qos))
         .map_err(|e| entity("subscription", topic, e))
-}
-
-/// Forwards each message of `sub`, as `wrap` makes it, to `tx` (the processing thread); a
-/// message that fails to decode is counted and skipped.
-fn forward<T, U>(
-    executor: &smol::Executor<'static>,
-    sub: Subscription<T>,
-    what: &'static str,
-    tx: std::sync::mpsc::Sender<U>,
-    wrap: impl Fn(T) -> U + Send + 'static,
-    shared: &Arc<Shared>,
-) -> smol::Task<()>
-where
-    T: RosMessage + DeserializeOwned + Send + Sync + 'static,
-    U: Send + 'static,
-{
-    let shared = shared.clone();
-    executor.spawn(async move {
-        let mut stream = std::pin::pin!(sub.async_stream());
-        while let Some(item) = stream.next().await {
-            match item {
-                Ok((m, _)) => {
-                    if tx.send(wrap(m)).is_err() {
-                        break;
-                    }
-                }
-                Err(e) => {
-                    log::warn!("{what}: {e:?}");
-                    shared.input_errors.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        }
-    })
 }
 
 /// What the kernel grants a socket that asks for `requested` receive-buffer bytes with
@@ -410,44 +318,65 @@ struct Slot {
 
 /// Subscribes to source `k`'s messages of type `T`: each replaces the slot's unprocessed one
 /// (counted as dropped), and gaps in each writer's sequence numbers count as dropped too.
-fn source_task<T>(
+fn source_task<T: OwnedMessage>(
+    node: &mut RosNode,
+    topic: &str,
+    qos: QosProfile,
     executor: &smol::Executor<'static>,
-    sub: Subscription<T>,
     k: usize,
     shared: &Arc<Shared>,
     wrap: fn(T) -> SourceMessage,
-) -> smol::Task<()>
-where
-    T: OwnedMessage,
-{
+) -> Result<smol::Task<()>> {
     let shared = shared.clone();
-    executor.spawn(async move {
-        let mut stream = std::pin::pin!(sub.async_stream_seed(Owned::<T>::default()));
-        let mut gaps = SequenceGaps::default();
-        while let Some(item) = stream.next().await {
-            match item {
-                Ok((m, info)) => {
-                    let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
-                    shared.dropped.fetch_add(lost, Ordering::Relaxed);
-                    let now = Instant::now();
-                    let mut slot = lock(&shared.slots[k]);
-                    if slot
-                        .cloud
-                        .replace((wrap(m), now, Time::now_nanos()))
-                        .is_some()
-                    {
-                        shared.dropped.fetch_add(1, Ordering::Relaxed);
-                    }
-                    slot.last_received = Some(now);
-                    drop(slot);
-                    *lock(&shared.wake_lock) = true;
-                    shared.wake.notify_one();
+    let mut gaps = SequenceGaps::default();
+    node.subscribe::<T>(topic, qos, true, executor, move |item| {
+        match item {
+            Ok((m, info)) => {
+                let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
+                shared.dropped.fetch_add(lost, Ordering::Relaxed);
+                let now = Instant::now();
+                let mut slot = lock(&shared.slots[k]);
+                if slot
+                    .cloud
+                    .replace((wrap(m), now, Time::now_nanos()))
+                    .is_some()
+                {
+                    shared.dropped.fetch_add(1, Ordering::Relaxed);
                 }
-                Err(e) => {
-                    log::warn!("source message: {e:?}");
-                    shared.input_errors.fetch_add(1, Ordering::Relaxed);
-                }
+                slot.last_received = Some(now);
+                drop(slot);
+                *lock(&shared.wake_lock) = true;
+                shared.wake.notify_one();
             }
+            Err(e) => {
+                log::warn!("source message: {e}");
+                shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        true
+    })
+}
+
+/// Forwards each message on `topic`, as `wrap` makes it, to `tx` (the processing thread); a
+/// message that fails to decode is counted and skipped.
+#[allow(clippy::too_many_arguments)]
+fn forward<T: OwnedMessage, U: Send + 'static>(
+    node: &mut RosNode,
+    topic: &str,
+    qos: QosProfile,
+    executor: &smol::Executor<'static>,
+    what: &'static str,
+    tx: std::sync::mpsc::Sender<U>,
+    wrap: impl Fn(T) -> U + Send + 'static,
+    shared: &Arc<Shared>,
+) -> Result<smol::Task<()>> {
+    let shared = shared.clone();
+    node.subscribe::<T>(topic, qos, false, executor, move |item| match item {
+        Ok((m, _)) => tx.send(wrap(m)).is_ok(),
+        Err(e) => {
+            log::warn!("{what}: {e}");
+            shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            true
         }
     })
 }
@@ -461,19 +390,19 @@ struct Shared {
 }
 
 /// The node's publishers, one per row of the output table (`OutputTopic`), each a
-/// `Publisher<T>` of that row's message type.
+/// [`Pub<T>`] of that row's message type.
 struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
 
 impl Publishers {
     /// A publisher for every output topic of the node at `node_path`.
     fn new(
-        node: &mut Node,
+        node: &mut RosNode,
         node_path: &str,
         remaps: &[(String, String)],
         qos: QosProfile,
     ) -> Result<Self> {
         struct Create<'a> {
-            node: &'a mut Node,
+            node: &'a mut RosNode,
             node_path: &'a str,
             remaps: &'a [(String, String)],
             qos: QosProfile,
@@ -492,7 +421,7 @@ impl Publishers {
                     self.qos.clone()
                 };
                 let name = remap_topic(&topic.topic(self.node_path), self.remaps, self.node_path);
-                let p = publisher::<T>(self.node, &name, qos)?;
+                let p = self.node.publisher::<T>(&name, qos)?;
                 self.made.push((topic, Box::new(p)));
                 Ok(())
             }
@@ -543,11 +472,11 @@ impl Publishers {
                     .0
                     .iter()
                     .find(|(t, _)| *t == topic)
-                    .and_then(|(_, p)| p.downcast_ref::<Publisher<T>>())
+                    .and_then(|(_, p)| p.downcast_ref::<Pub<T>>())
                     .ok_or_else(|| format!("{}: no publisher", topic.name()))?;
                 publisher
                     .publish(m)
-                    .map_err(|e| format!("{}: {e:?}", topic.name()))
+                    .map_err(|e| format!("{}: {e}", topic.name()))
             }
         }
         if let Err(e) = o.visit(&mut Publish(self)) {
@@ -579,27 +508,35 @@ fn warn_burst(source: &str, what: &str, bytes: usize) {
 
 /// The one line that says the node is up and what it watches, and a warning when the kernel
 /// grants less socket buffer than a cloud burst needs.
-fn log_up(config: &Config, monitor: &Monitor) {
+fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
     let sources: Vec<String> = config
         .sources
         .iter()
         .filter(|s| s.enabled)
         .map(|s| format!("{} on {}", s.name, s.topic))
         .collect();
+    let dds = node.transport() == Transport::Dds;
     let granted = granted_receive_buffer(SOCKET_BUFFER);
+    let buffer = if dds {
+        format!(
+            "; socket receive buffer {} asked, {} granted",
+            mib(SOCKET_BUFFER),
+            granted.map_or("unknown".into(), mib)
+        )
+    } else {
+        String::new()
+    };
     log::info!(
         "up: node {} (outputs on ~/ and /diagnostics), robot '{}' ({} links monitored), mode {}, \
-         sources: {}; DDS (RustDDS) on domain {}; socket receive buffer {} asked, {} granted",
+         sources: {}; {}{buffer}",
         config.node_path(),
         monitor.model.name,
         monitor.links(),
         format!("{:?}", config.query.mode).to_lowercase(),
         sources.join(", "),
-        std::env::var("ROS_DOMAIN_ID").unwrap_or_else(|_| "0".into()),
-        mib(SOCKET_BUFFER),
-        granted.map_or("unknown".into(), mib),
+        node.describe,
     );
-    if let Some(g) = granted.filter(|&g| g < SOCKET_BUFFER) {
+    if let Some(g) = granted.filter(|&g| dds && g < SOCKET_BUFFER) {
         log::warn!(
             "the kernel grants {} of socket receive buffer (net.core.rmem_max): a cloud larger \
              than that arriving in one burst loses datagrams and is dropped whole; raise it once \
@@ -616,7 +553,7 @@ fn log_up(config: &Config, monitor: &Monitor) {
 fn wait_for_monitor(
     config: &Config,
     stop: &AtomicBool,
-    node: &mut Node,
+    node: &mut RosNode,
     executor: &smol::Executor<'static>,
     outputs: &Publishers,
 ) -> Result<(Option<Monitor>, Option<smol::Task<()>>)> {
@@ -631,20 +568,23 @@ fn wait_for_monitor(
     let task = match &source {
         RobotSource::Topic(topic) => {
             say(format!("waiting for the robot description on {topic}"));
-            let sub = subscription::<StringMessage>(node, topic, ROBOT_DESCRIPTION_QOS)?;
-            let topic = topic.clone();
-            Some(executor.spawn(async move {
-                let mut stream = std::pin::pin!(sub.async_stream());
-                while let Some(item) = stream.next().await {
-                    match item {
-                        Ok((m, _)) => {
-                            let _ = urdf_tx.send(m.data);
-                            break;
-                        }
-                        Err(e) => log::warn!("{topic}: {e:?}"),
+            let name = topic.clone();
+            Some(node.subscribe::<StringMessage>(
+                topic,
+                ROBOT_DESCRIPTION_QOS,
+                false,
+                executor,
+                move |item| match item {
+                    Ok((m, _)) => {
+                        let _ = urdf_tx.send(m.data);
+                        false
                     }
-                }
-            }))
+                    Err(e) => {
+                        log::warn!("{name}: {e}");
+                        true
+                    }
+                },
+            )?)
         }
         _ => None,
     };
@@ -702,11 +642,9 @@ fn wait_for_monitor(
 /// Runs the node until `stop` is set. The node is on the network from the start: while `build`
 /// makes the monitor (loads the robot, builds or loads its trees) it reports "not monitoring"
 /// (ERROR with the reason, the safety stop), and a stop during the build ends it at once.
-pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
+pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Result<()> {
     let executor = Arc::new(smol::Executor::new());
-    let (ctx, mut node) = spinning_node(&config.namespace, &config.node_name, &executor)?;
-    let node_name = NodeName::new(&config.namespace, &config.node_name)
-        .map_err(|e| entity("node name", &config.node_path(), e))?;
+    let mut node = RosNode::new(transport, &config.namespace, &config.node_name, &executor)?;
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });
@@ -724,15 +662,16 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
                 }
             }))
         })?;
-    let shutdown = move |tasks: Vec<smol::Task<()>>, outputs: Publishers, node: Node| {
+    let shutdown = move |tasks: Vec<smol::Task<()>>, outputs: Publishers, node: RosNode| {
         for task in tasks {
             smol::block_on(task.cancel());
         }
         drop(outputs);
-        drop(node);
+        let ctx = node.close();
         std::thread::sleep(Duration::from_millis(50));
         stop_spinner.store(true, Ordering::Relaxed);
         let _ = spin_thread.join();
+        drop(ctx);
     };
     let mut monitor = match wait_for_monitor(&config, &stop, &mut node, &executor, &outputs) {
         Ok((Some(m), task)) => {
@@ -777,45 +716,38 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
             SENSOR_QOS
         };
         match s.kind {
-            SourceKind::PointCloud => {
-                let sub = source_subscription::<PointCloud2<'static>>(
-                    &ctx, &mut node, &node_name, &s.topic, qos,
-                )?;
-                tasks.push(source_task(
-                    &executor,
-                    sub,
-                    k,
-                    &shared,
-                    SourceMessage::Cloud,
-                ));
-            }
+            SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
+                &mut node,
+                &s.topic,
+                qos,
+                &executor,
+                k,
+                &shared,
+                SourceMessage::Cloud,
+            )?),
             SourceKind::DepthImage => {
-                let sub = source_subscription::<Image<'static>>(
-                    &ctx,
+                tasks.push(source_task::<Image<'static>>(
                     &mut node,
-                    &node_name,
                     &s.topic,
                     qos.clone(),
-                )?;
-                tasks.push(source_task(
                     &executor,
-                    sub,
                     k,
                     &shared,
                     SourceMessage::Depth,
-                ));
+                )?);
                 // The camera model, with the image's QoS as image_transport's CameraSubscriber
                 // gives both; a latched (transient local) publisher is matched too.
                 let topic = s.camera_info_topic.clone().unwrap_or_default();
-                let sub = subscription::<CameraInfo>(&mut node, &topic, qos)?;
                 tasks.push(forward(
+                    &mut node,
+                    &topic,
+                    qos,
                     &executor,
-                    sub,
                     "camera info",
                     info_tx.clone(),
-                    move |m| (k, m),
+                    move |m: CameraInfo| (k, m),
                     &shared,
-                ));
+                )?);
             }
         }
     }
@@ -825,29 +757,31 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
         } else {
             RELIABLE_QOS.history(History::KeepLast { depth: 100 })
         };
-        let sub = subscription::<TfMessage>(&mut node, name, qos)?;
         tasks.push(forward(
+            &mut node,
+            name,
+            qos,
             &executor,
-            sub,
             name,
             tf_tx.clone(),
-            move |m| (m, is_static),
+            move |m: TfMessage| (m, is_static),
             &shared,
-        ));
+        )?);
     }
     let joint_qos = QosProfile::subscription_default()
         .reliability_best_effort()
         .history(History::KeepLast { depth: 100 });
-    let sub = subscription::<JointState>(&mut node, &config.joint_states_topic, joint_qos)?;
     tasks.push(forward(
+        &mut node,
+        &config.joint_states_topic,
+        joint_qos,
         &executor,
-        sub,
         "joint states",
         js_tx,
-        |m| m,
+        |m: JointState| m,
         &shared,
-    ));
-    log_up(&config, &monitor);
+    )?);
+    log_up(&config, &monitor, &node);
     let mut heard = vec![false; sources.len()];
     let mut silent_logged = vec![false; sources.len()];
     let started = Instant::now();
@@ -909,7 +843,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>) -> Result<()> {
                         s.topic,
                         mib(bytes),
                     );
-                    if !heard[k] {
+                    if !heard[k] && transport == Transport::Dds {
                         warn_burst(&s.name, what, bytes);
                     }
                     (heard[k], silent_logged[k]) = (true, false);

@@ -12,18 +12,15 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use futures::StreamExt;
-use ros2_client::Publisher;
 use serde::Serialize;
 
-use super::{
-    publisher, subscription, tool_node, History, NodeError, QosProfile, RELIABLE_QOS, TF_STATIC_QOS,
-};
+use super::{History, NodeError, Pub, QosProfile, RosNode, Transport, RELIABLE_QOS, TF_STATIC_QOS};
 use crate::bag::read_messages;
 use crate::msg::{self, CameraInfo, Image, JointState, PointCloud2, RosMessage, TfMessage, Time};
 
 #[derive(Debug, Clone)]
 pub struct PlayOptions {
+    pub transport: Transport,
     pub rate: f64,
     pub loops: usize,
     /// Wait for discovery before the first message, s.
@@ -48,11 +45,11 @@ pub struct PlaySummary {
 }
 
 enum Out {
-    Cloud(Publisher<PointCloud2<'static>>),
-    Depth(Publisher<Image<'static>>),
-    CameraInfo(Publisher<CameraInfo>),
-    Joints(Publisher<JointState>),
-    Tf(Publisher<TfMessage>),
+    Cloud(Pub<PointCloud2<'static>>),
+    Depth(Pub<Image<'static>>),
+    CameraInfo(Pub<CameraInfo>),
+    Joints(Pub<JointState>),
+    Tf(Pub<TfMessage>),
 }
 
 /// How a loop moves the bag's stamps onto the clock: the bag's first log time `t0` becomes
@@ -92,7 +89,7 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
         messages.last().map_or(0, |m| m.log_time_ns),
     );
     let executor = Arc::new(smol::Executor::new());
-    let (_ctx, mut node) = tool_node("ist_monitor_play", &executor)?;
+    let mut node = RosNode::tool(options.transport, "ist_monitor_play", &executor)?;
     let mut outs: HashMap<String, Out> = HashMap::new();
     for m in &messages {
         if outs.contains_key(&*m.topic) {
@@ -103,37 +100,37 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
             .reliability_best_effort()
             .history(History::KeepLast { depth: 1 });
         let out = match &*m.schema {
-            s if s == PointCloud2::TYPE => Out::Cloud(publisher(&mut node, &m.topic, sensor)?),
-            s if s == Image::TYPE => Out::Depth(publisher(&mut node, &m.topic, sensor)?),
-            s if s == CameraInfo::TYPE => Out::CameraInfo(publisher(&mut node, &m.topic, sensor)?),
-            s if s == JointState::TYPE => {
-                Out::Joints(publisher(&mut node, &m.topic, RELIABLE_QOS)?)
-            }
-            _ if &*m.topic == "/tf_static" => {
-                Out::Tf(publisher(&mut node, &m.topic, TF_STATIC_QOS)?)
-            }
-            _ => Out::Tf(publisher(&mut node, &m.topic, RELIABLE_QOS)?),
+            s if s == PointCloud2::TYPE => Out::Cloud(node.publisher(&m.topic, sensor)?),
+            s if s == Image::TYPE => Out::Depth(node.publisher(&m.topic, sensor)?),
+            s if s == CameraInfo::TYPE => Out::CameraInfo(node.publisher(&m.topic, sensor)?),
+            s if s == JointState::TYPE => Out::Joints(node.publisher(&m.topic, RELIABLE_QOS)?),
+            _ if &*m.topic == "/tf_static" => Out::Tf(node.publisher(&m.topic, TF_STATIC_QOS)?),
+            _ => Out::Tf(node.publisher(&m.topic, RELIABLE_QOS)?),
         };
         outs.insert(m.topic.to_string(), out);
     }
     // Published clouds by stamp, and the latencies of the outputs that answer them.
     let sent: Arc<Mutex<HashMap<i64, Instant>>> = Arc::default();
     let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
+    let mut measuring = None;
     if let Some(measure) = &options.measure {
-        let sub = subscription::<JointState>(&mut node, measure, RELIABLE_QOS)?;
         let (sent, latencies) = (sent.clone(), latencies.clone());
-        executor
-            .spawn(async move {
-                let mut stream = std::pin::pin!(sub.async_stream());
-                while let Some(Ok((m, _))) = stream.next().await {
+        measuring = Some(node.subscribe::<JointState>(
+            measure,
+            RELIABLE_QOS,
+            false,
+            &executor,
+            move |item| {
+                if let Ok((m, _)) = item {
                     let now = Instant::now();
                     let at = super::lock(&sent).get(&m.header.stamp.as_nanos()).copied();
                     if let Some(at) = at {
                         super::lock(&latencies).push(now.duration_since(at).as_secs_f64() * 1e3);
                     }
                 }
-            })
-            .detach();
+                true
+            },
+        )?);
     }
     let ex = executor.clone();
     let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -170,7 +167,7 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
                     };
                     super::lock(&sent).insert(c.header.stamp.as_nanos(), Instant::now());
                     summary.clouds_published += 1;
-                    p.publish(c).map_err(|e| format!("{e:?}"))
+                    p.publish(c)
                 }
                 Out::Depth(p) => {
                     let mut i: Image = msg::decode(&m.data)?;
@@ -181,24 +178,24 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
                     };
                     super::lock(&sent).insert(i.header.stamp.as_nanos(), Instant::now());
                     summary.clouds_published += 1;
-                    p.publish(i).map_err(|e| format!("{e:?}"))
+                    p.publish(i)
                 }
                 Out::CameraInfo(p) => {
                     let mut c: CameraInfo = msg::decode(&m.data)?;
                     shift(&mut c.header.stamp, offset);
-                    p.publish(c).map_err(|e| format!("{e:?}"))
+                    p.publish(c)
                 }
                 Out::Joints(p) => {
                     let mut j: JointState = msg::decode(&m.data)?;
                     shift(&mut j.header.stamp, offset);
-                    p.publish(j).map_err(|e| format!("{e:?}"))
+                    p.publish(j)
                 }
                 Out::Tf(p) => {
                     let mut t: TfMessage = msg::decode(&m.data)?;
                     for ts in &mut t.transforms {
                         shift(&mut ts.header.stamp, offset);
                     }
-                    p.publish(t).map_err(|e| format!("{e:?}"))
+                    p.publish(t)
                 }
             };
             match published {
@@ -214,11 +211,15 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
     }
     let played = started.elapsed().as_secs_f64();
     std::thread::sleep(Duration::from_secs_f64(options.linger_s));
+    if let Some(task) = measuring {
+        smol::block_on(task.cancel());
+    }
     drop(outs);
-    drop(node);
+    let ctx = node.close();
     std::thread::sleep(Duration::from_millis(50));
     done.store(true, std::sync::atomic::Ordering::Relaxed);
     let _ = spin.join();
+    drop(ctx);
     let mut l = super::lock(&latencies).clone();
     l.sort_by(f64::total_cmp);
     summary.outputs_received = l.len();

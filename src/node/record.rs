@@ -1,25 +1,23 @@
 //! `ist_monitor record`: the node's outputs, every topic of the output table
 //! (`monitor::outputs::OutputTopic`: `~/min_distance`, `~/link_distances`, `~/closest_points`,
-//! `/diagnostics`, `~/safety_stop`), received from DDS and written to an MCAP, each at its
+//! `/diagnostics`, `~/safety_stop`), received over DDS or zenoh and written to an MCAP, each at its
 //! receive time, for tests and for looking at a live node afterwards.
 
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use futures::StreamExt;
-
-use super::{subscription, tool_node, NodeError, RELIABLE_QOS};
+use super::{NodeError, RosNode, Transport, RELIABLE_QOS};
 use crate::bag::{writer::Compression, BagWriter};
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
-use crate::msg::{Owned, OwnedMessage, Time};
+use crate::msg::{OwnedMessage, Time};
 
 /// The bag being written and how many messages went into it.
 type Sink = Arc<Mutex<(Option<BagWriter>, usize)>>;
 
 /// Subscribes to every output topic, each message written to the sink.
 struct Subscribe<'a> {
-    node: &'a mut ros2_client::Node,
+    node: &'a mut RosNode,
     executor: &'a smol::Executor<'static>,
     node_path: &'a str,
     sink: Sink,
@@ -33,12 +31,11 @@ impl OutputVisitor for Subscribe<'_> {
         _: Option<T>,
     ) -> Result<(), NodeError> {
         let name = topic.topic(self.node_path);
-        let sub = subscription::<T>(self.node, &name, RELIABLE_QOS)?;
         let sink = self.sink.clone();
-        self.executor
-            .spawn(async move {
-                let mut stream = std::pin::pin!(sub.async_stream_seed(Owned::<T>::default()));
-                while let Some(Ok((m, _))) = stream.next().await {
+        let topic = name.clone();
+        self.node
+            .subscribe::<T>(&topic, RELIABLE_QOS, false, self.executor, move |item| {
+                if let Ok((m, _)) = item {
                     let now = Time::now_nanos().max(0) as u64;
                     let mut sink = sink.lock().unwrap_or_else(|p| p.into_inner());
                     let (writer, count) = &mut *sink;
@@ -49,7 +46,8 @@ impl OutputVisitor for Subscribe<'_> {
                         }
                     }
                 }
-            })
+                true
+            })?
             .detach();
         Ok(())
     }
@@ -57,12 +55,17 @@ impl OutputVisitor for Subscribe<'_> {
 
 /// Records the outputs of the node `node_path` (`/ns/name`) for `duration_s` into `out`;
 /// returns how many messages were written.
-pub fn record(node_path: &str, out: &Path, duration_s: f64) -> Result<usize, NodeError> {
+pub fn record(
+    transport: Transport,
+    node_path: &str,
+    out: &Path,
+    duration_s: f64,
+) -> Result<usize, NodeError> {
     // The executor runs the subscriptions' tasks, which borrow it for as long as they live:
     // it lives in a static for the rest of the process (one recording per process).
     static EXECUTOR: std::sync::OnceLock<smol::Executor<'static>> = std::sync::OnceLock::new();
     let executor = EXECUTOR.get_or_init(smol::Executor::new);
-    let (_ctx, mut node) = tool_node("ist_monitor_record", executor)?;
+    let mut node = RosNode::tool(transport, "ist_monitor_record", executor)?;
     let sink: Sink = Arc::new(Mutex::new((
         Some(BagWriter::create(out, Compression::Zstd)?),
         0,
@@ -74,7 +77,7 @@ pub fn record(node_path: &str, out: &Path, duration_s: f64) -> Result<usize, Nod
         sink: sink.clone(),
     })?;
     smol::block_on(executor.run(smol::Timer::after(Duration::from_secs_f64(duration_s))));
-    drop(node);
+    let _ctx = node.close();
     smol::block_on(executor.run(smol::Timer::after(Duration::from_millis(50))));
     let (writer, count) = {
         let mut sink = sink.lock().unwrap_or_else(|p| p.into_inner());

@@ -44,10 +44,13 @@ enum Command {
     Replay(replay::ReplayArgs),
     /// Run the live ROS 2 node.
     Node(ros::NodeArgs),
-    /// Publish a bag's clouds, joint states and transforms on DDS at their recorded pace.
+    /// Publish a bag's clouds, depth images, joint states and transforms on DDS or zenoh at their
+    /// recorded pace.
     Play(ros::PlayArgs),
-    /// Record the node's outputs from DDS into an MCAP.
+    /// Record the node's outputs from DDS or zenoh into an MCAP.
     Record(ros::RecordArgs),
+    /// Run a zenoh router (as rmw_zenohd does) for nodes on the zenoh transport.
+    ZenohRouter(ros::RouterArgs),
     /// Print the node's parameters (name, default, unit, meaning) as a Markdown table.
     Params,
     /// Make a bag: a simulated depth camera watching the robot and an obstacle, with the exact
@@ -68,6 +71,7 @@ pub fn run() -> Result<()> {
         Command::Node(args) => ros::node(args),
         Command::Play(args) => ros::play(args),
         Command::Record(args) => ros::record(args),
+        Command::ZenohRouter(args) => ros::zenoh_router(args),
         Command::Params => {
             print!("{}", ist_monitor::config::markdown_table());
             Ok(())

@@ -1,5 +1,6 @@
-//! The ROS 2 commands: `node` (the live monitor), `play` (a bag onto DDS, optionally measuring
-//! the node) and `record` (the node's outputs into an MCAP).
+//! The ROS 2 commands: `node` (the live monitor), `play` (a bag onto DDS or zenoh, optionally
+//! measuring the node), `record` (the node's outputs into an MCAP) and `zenoh-router` (a router
+//! for rmw_zenoh-style sessions, where no `rmw_zenohd` runs).
 
 use std::path::PathBuf;
 
@@ -14,6 +15,10 @@ use crate::demo;
 
 #[derive(Args)]
 pub struct NodeArgs {
+    /// Middleware: dds or zenoh (default: from RMW_IMPLEMENTATION, rmw_zenoh_cpp for zenoh;
+    /// DDS when unset).
+    #[arg(long, value_enum)]
+    transport: Option<node::Transport>,
     /// ROS 2 parameters file (default: config/demo_arm.yaml).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -25,6 +30,10 @@ pub struct NodeArgs {
 
 #[derive(Args)]
 pub struct PlayArgs {
+    /// Middleware: dds or zenoh (default: from RMW_IMPLEMENTATION, rmw_zenoh_cpp for zenoh;
+    /// DDS when unset).
+    #[arg(long, value_enum)]
+    transport: Option<node::Transport>,
     /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag).
     bag: Option<PathBuf>,
     /// Playback rate (1 = recorded pace).
@@ -50,6 +59,10 @@ pub struct PlayArgs {
 
 #[derive(Args)]
 pub struct RecordArgs {
+    /// Middleware: dds or zenoh (default: from RMW_IMPLEMENTATION, rmw_zenoh_cpp for zenoh;
+    /// DDS when unset).
+    #[arg(long, value_enum)]
+    transport: Option<node::Transport>,
     /// Output MCAP (.mcap file, or a rosbag2 folder).
     #[arg(long)]
     out: PathBuf,
@@ -76,12 +89,30 @@ pub fn node(args: NodeArgs) -> Result<()> {
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
     }
-    Ok(node::run(config, stop)?)
+    let transport = node::Transport::choose(args.transport)?;
+    Ok(node::run(config, stop, transport)?)
+}
+
+#[derive(Args)]
+pub struct RouterArgs {
+    /// Endpoint to listen on.
+    #[arg(long, default_value = node::transport::ZENOH_ROUTER)]
+    listen: String,
+}
+
+/// A zenoh router until SIGINT or SIGTERM.
+pub fn zenoh_router(args: RouterArgs) -> Result<()> {
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        signal_hook::flag::register(signal, stop.clone())?;
+    }
+    Ok(node::transport::zenoh_router(&args.listen, &stop)?)
 }
 
 pub fn play(args: PlayArgs) -> Result<()> {
     let bag = demo::or_demo(&args.bag, demo::BAG)?;
     let options = node::play::PlayOptions {
+        transport: node::Transport::choose(args.transport)?,
         rate: args.rate,
         loops: args.loops,
         wait_s: args.wait,
@@ -108,7 +139,8 @@ pub fn play(args: PlayArgs) -> Result<()> {
 }
 
 pub fn record(args: RecordArgs) -> Result<()> {
-    let n = node::record::record(&args.node, &args.out, args.duration)?;
+    let transport = node::Transport::choose(args.transport)?;
+    let n = node::record::record(transport, &args.node, &args.out, args.duration)?;
     println!("{n} messages recorded to {}", args.out.display());
     Ok(())
 }
