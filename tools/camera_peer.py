@@ -322,7 +322,10 @@ def main():
     q = lambda f: round(lat[min(len(lat) - 1, int(f * len(lat)))], 2) if lat else None
     info.update(published=count, answered=len(lat), p50_ms=q(0.5), p99_ms=q(0.99),
                 max_ms=round(lat[-1], 2) if lat else None)
-    print(json.dumps(info))
+    print(json.dumps(info), flush=True)
+    if args.transport == "zenoh":
+        subscriber.undeclare()
+        session.close()
 
 
 if __name__ == "__main__":
