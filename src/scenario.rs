@@ -515,7 +515,7 @@ impl<'a> Renderer<'a> {
                     &depths,
                     encoding,
                 );
-                points_from_depth(&image, &self.camera()?, (0.0, None), &mut points)?;
+                points_from_depth(&image, &self.camera()?, None, &mut points)?;
                 Some(image)
             }
             None => None,

@@ -12,6 +12,7 @@ use common::{DEMO_CONFIG, DEMO_URDF};
 use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
 use ist_monitor::cloud::depth::{encode_depth, points_from_depth, DepthEncoding, PinholeCamera};
 use ist_monitor::cloud::pointcloud2::{encode, Layout};
+use ist_monitor::cloud::RangeLimits;
 use ist_monitor::config::Config;
 use ist_monitor::monitor::replay::{replay, Clock, ReplayFrame, Summary};
 use ist_monitor::monitor::{Level, Monitor};
@@ -146,7 +147,7 @@ proptest! {
         let info = camera_info(width, height, fx, fy, cx, cy);
         let camera = PinholeCamera::from_camera_info(&info).unwrap();
         let mut points = Vec::new();
-        points_from_depth(&image, &camera, (0.0, None), &mut points).unwrap();
+        points_from_depth(&image, &camera, None, &mut points).unwrap();
         let want = depth_image_proc_reference(&depths, width as usize, encoding, &info.p);
         prop_assert_eq!(points.len(), n);
         for i in 0..n {
@@ -154,7 +155,7 @@ proptest! {
         }
         // Range limits drop exactly the points outside them.
         let (lo, hi) = (0.5, 3.0);
-        points_from_depth(&image, &camera, (lo, Some(hi)), &mut points).unwrap();
+        points_from_depth(&image, &camera, RangeLimits::new(lo, Some(hi)), &mut points).unwrap();
         for i in 0..n {
             let p = want[i];
             let r2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
@@ -181,7 +182,7 @@ fn one_pixel_by_hand() {
         DepthEncoding::Millimetres16,
     );
     let mut points = Vec::new();
-    points_from_depth(&image, &camera, (0.0, None), &mut points).unwrap();
+    points_from_depth(&image, &camera, None, &mut points).unwrap();
     let p = points[0];
     assert!((p[0] + 0.007).abs() < 1e-7 && (p[1] + 0.006).abs() < 1e-7 && p[2] == 1.0);
     assert!(points[1..].iter().all(|p| p[0].is_nan()));
@@ -232,7 +233,7 @@ fn clouds_from_depth_bag(bag: &Path, out: &Path) {
         }
         let image: Image = msg::decode(&m.data).unwrap();
         let mut points = Vec::new();
-        points_from_depth(&image, &camera.unwrap(), (0.0, None), &mut points).unwrap();
+        points_from_depth(&image, &camera.unwrap(), None, &mut points).unwrap();
         let layout = Layout {
             width: image.width,
             height: image.height,

@@ -593,7 +593,7 @@ fn zenoh_transport_serves_the_node() {
     let expected_cloud = lower(&patch, camera_link);
     let mut depth_points = Vec::new();
     let camera = PinholeCamera::from_camera_info(&info).unwrap();
-    points_from_depth(&image, &camera, (0.0, None), &mut depth_points).unwrap();
+    points_from_depth(&image, &camera, None, &mut depth_points).unwrap();
     let expected_depth = lower(&depth_points, camera_link * optical);
 
     let zenoh = |c: &mut Command| {

@@ -34,7 +34,7 @@ use rayon::prelude::*;
 
 use crate::msg::{CameraInfo, Image};
 
-use super::CloudError;
+use super::{CloudError, RangeLimits};
 
 /// How a depth image stores its depths.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -213,12 +213,12 @@ fn layout(image: &Image, camera: &PinholeCamera) -> Result<Layout, CloudError> {
 }
 
 /// The points of `image` seen by `camera`, row by row into `points` (resized to width ×
-/// height; its allocation is kept). A point whose squared range lies outside
-/// `[min_range², max_range²]` is NaN, as the monitor drops out-of-range cloud points.
+/// height; its allocation is kept). A point outside `range` is NaN, as the monitor drops
+/// out-of-range cloud points.
 pub fn points_from_depth(
     image: &Image,
     camera: &PinholeCamera,
-    range_m: (f64, Option<f64>),
+    range: Option<RangeLimits>,
     points: &mut Vec<[f32; 3]>,
 ) -> Result<(), CloudError> {
     let l = layout(image, camera)?;
@@ -235,11 +235,6 @@ pub fn points_from_depth(
         (f64::from(unit) / camera.fx) as f32,
         (f64::from(unit) / camera.fy) as f32,
     );
-    let (lo, hi) = (
-        (range_m.0 * range_m.0) as f32,
-        range_m.1.map_or(f32::INFINITY, |m| (m * m) as f32),
-    );
-    let ranged = range_m.0 > 0.0 || range_m.1.is_some();
     let data: &[u8] = &image.data;
     points
         .par_chunks_mut(l.width)
@@ -251,13 +246,9 @@ pub fn points_from_depth(
                 let d = depth_at(bytes, u, l.encoding, l.big_endian);
                 let Some(d) = d else { continue };
                 let q = [(u as f32 - cx) * d * kx, dy * d * ky, d * unit];
-                if ranged {
-                    let r2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
-                    if !(r2 >= lo && r2 <= hi) {
-                        continue;
-                    }
+                if range.is_none_or(|r| r.keeps(q)) {
+                    *p = q;
                 }
-                *p = q;
             }
         });
     Ok(())
@@ -357,7 +348,7 @@ mod tests {
             DepthEncoding::Millimetres16,
         );
         let mut out = Vec::new();
-        points_from_depth(&good, &camera, (0.0, None), &mut out).unwrap();
+        points_from_depth(&good, &camera, None, &mut out).unwrap();
         assert_eq!(out.len(), 8);
         let cases: Vec<(Image, &str)> = vec![
             (
@@ -408,7 +399,7 @@ mod tests {
             ),
         ];
         for (image, want) in cases {
-            let e = points_from_depth(&image, &camera, (0.0, None), &mut out)
+            let e = points_from_depth(&image, &camera, None, &mut out)
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(want), "{e} lacks {want}");

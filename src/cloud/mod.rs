@@ -32,6 +32,31 @@ use crate::msg::RosMessage;
 /// depth image, a hundred times a 64-beam lidar's sweep.
 pub const MAX_POINTS: u64 = 100_000_000;
 
+/// A source's range limits (`min_range`, `max_range`): a point whose distance from the sensor
+/// lies outside them is dropped (made invalid), compared as squared f32 ranges.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeLimits {
+    min2: f32,
+    max2: f32,
+}
+
+impl RangeLimits {
+    /// The limits of `min_m` and `max_m` (none: unbounded); `None` when they drop nothing.
+    pub fn new(min_m: f64, max_m: Option<f64>) -> Option<Self> {
+        (min_m > 0.0 || max_m.is_some()).then(|| Self {
+            min2: (min_m * min_m) as f32,
+            max2: max_m.map_or(f32::INFINITY, |m| (m * m) as f32),
+        })
+    }
+
+    /// Whether `p` lies within the limits (NaN does not).
+    #[inline]
+    pub fn keeps(&self, p: [f32; 3]) -> bool {
+        let r2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+        r2 >= self.min2 && r2 <= self.max2
+    }
+}
+
 /// A point cloud in its sensor frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cloud {

@@ -29,7 +29,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 
 use crate::cloud::depth::{self, PinholeCamera};
-use crate::cloud::{pointcloud2, CloudError};
+use crate::cloud::{pointcloud2, CloudError, RangeLimits};
 use crate::config::{Config, RobotSource, SourceKind};
 use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::msg::{self, CameraInfo, Image, JointState, MsgError, PointCloud2, TfMessage};
@@ -384,15 +384,23 @@ impl Monitor {
             .collect()
     }
 
+    /// The range limits of source `source`.
+    fn range(&self, source: usize) -> Option<RangeLimits> {
+        let s = &self.config.sources[source];
+        RangeLimits::new(s.min_range_m, s.max_range_m)
+    }
+
+    /// The CameraInfo topic of depth image source `source` (for messages).
+    fn camera_info_topic(&self, source: usize) -> String {
+        let s = &self.config.sources[source];
+        s.camera_info_topic.clone().unwrap_or_default()
+    }
+
     /// Takes a `sensor_msgs/CameraInfo` of depth image source `source`, from its CDR payload.
     pub fn on_camera_info(&mut self, source: usize, payload: &[u8]) -> Result<(), InputError> {
-        let topic = self.config.sources[source]
-            .camera_info_topic
-            .clone()
-            .unwrap_or_default();
-        let m: CameraInfo = msg::decode(payload).map_err(|source| InputError::Msg {
-            topic: topic.clone(),
-            source,
+        let m: CameraInfo = msg::decode(payload).map_err(|e| InputError::Msg {
+            topic: self.camera_info_topic(source),
+            source: e,
         })?;
         self.on_camera_info_message(source, &m)
     }
@@ -405,14 +413,10 @@ impl Monitor {
         source: usize,
         m: &CameraInfo,
     ) -> Result<(), InputError> {
-        let topic = self.config.sources[source]
-            .camera_info_topic
-            .clone()
-            .unwrap_or_default();
         let camera = PinholeCamera::from_camera_info(m);
         self.cameras[source] = Some(camera.as_ref().map_err(|e| e.to_string()).copied());
         camera.map(|_| ()).map_err(|e| InputError::Camera {
-            topic,
+            topic: self.camera_info_topic(source),
             source: Box::new(e),
         })
     }
@@ -624,15 +628,9 @@ impl Monitor {
         let mut cloud = message.to_cloud()?;
         let frame = cloud.frame_id.take().filter(|f| !f.is_empty());
         let frame = frame.ok_or(Fault::NoFrame)?;
-        let s = &self.config.sources[source];
-        if s.min_range_m > 0.0 || s.max_range_m.is_some() {
-            let (lo, hi) = (
-                (s.min_range_m * s.min_range_m) as f32,
-                s.max_range_m.map_or(f32::INFINITY, |m| (m * m) as f32),
-            );
+        if let Some(range) = self.range(source) {
             for p in &mut cloud.points {
-                let r2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
-                if !(r2 >= lo && r2 <= hi) {
+                if !range.keeps(*p) {
                     *p = [f32::NAN; 3];
                 }
             }
@@ -653,12 +651,11 @@ impl Monitor {
         self.check_stamp(source, stamp_ns, now_ns)?;
         let frame = Some(image.header.frame_id.clone()).filter(|f| !f.is_empty());
         let frame = frame.ok_or(Fault::NoFrame)?;
-        let s = &self.config.sources[source];
         let camera = match &self.cameras[source] {
             Some(Ok(c)) => *c,
             other => {
                 return Err(Fault::NoCameraInfo {
-                    topic: s.camera_info_topic.clone().unwrap_or_default(),
+                    topic: self.camera_info_topic(source),
                     reason: match other {
                         Some(Err(e)) => format!("the last CameraInfo was refused: {e}"),
                         _ => "no CameraInfo received yet".into(),
@@ -666,7 +663,7 @@ impl Monitor {
                 })
             }
         };
-        let range = (s.min_range_m, s.max_range_m);
+        let range = self.range(source);
         let mut points = std::mem::take(&mut self.depth_points);
         let result = depth::points_from_depth(image, &camera, range, &mut points)
             .map_err(Fault::Decode)

@@ -69,20 +69,39 @@ impl Transport {
     }
 }
 
-/// rmw_zenoh's default session config of a node (see the module's documentation).
-fn rmw_zenoh_default_config() -> Result<zenoh::Config, NodeError> {
+/// Sets `key` to the JSON5 `value` in `config`; an error names `what` config and the key.
+fn set_json5(
+    config: &mut zenoh::Config,
+    what: &str,
+    key: &str,
+    value: &str,
+) -> Result<(), NodeError> {
+    config
+        .insert_json5(key, value)
+        .map_err(|e| NodeError::Transport(format!("{what} {key}: {e}")))
+}
+
+/// A zenoh config of these keys set, over zenoh's defaults.
+fn zenoh_config(what: &str, keys: &[(&str, String)]) -> Result<zenoh::Config, NodeError> {
     let mut c = zenoh::Config::default();
-    for (key, value) in [
-        ("mode", "\"peer\"".to_string()),
-        ("connect/endpoints", format!("[\"{ZENOH_ROUTER}\"]")),
-        ("listen/endpoints", "[\"tcp/localhost:0\"]".to_string()),
-        ("scouting/multicast/enabled", "false".to_string()),
-        ("scouting/gossip/enabled", "true".to_string()),
-    ] {
-        c.insert_json5(key, &value)
-            .map_err(|e| NodeError::Transport(format!("zenoh config {key}: {e}")))?;
+    for (key, value) in keys {
+        set_json5(&mut c, what, key, value)?;
     }
     Ok(c)
+}
+
+/// rmw_zenoh's default session config of a node (see the module's documentation).
+fn rmw_zenoh_default_config() -> Result<zenoh::Config, NodeError> {
+    zenoh_config(
+        "zenoh config",
+        &[
+            ("mode", "\"peer\"".into()),
+            ("connect/endpoints", format!("[\"{ZENOH_ROUTER}\"]")),
+            ("listen/endpoints", "[\"tcp/localhost:0\"]".into()),
+            ("scouting/multicast/enabled", "false".into()),
+            ("scouting/gossip/enabled", "true".into()),
+        ],
+    )
 }
 
 /// The session config by rmw_zenoh's rules, and where it came from.
@@ -108,9 +127,12 @@ pub fn zenoh_session_config() -> Result<(zenoh::Config, String), NodeError> {
             let (key, value) = entry.split_once('=').ok_or_else(|| {
                 NodeError::Transport(format!("ZENOH_CONFIG_OVERRIDE: '{entry}' is not key=value"))
             })?;
-            config.insert_json5(key.trim(), value.trim()).map_err(|e| {
-                NodeError::Transport(format!("ZENOH_CONFIG_OVERRIDE {}: {e}", key.trim()))
-            })?;
+            set_json5(
+                &mut config,
+                "ZENOH_CONFIG_OVERRIDE",
+                key.trim(),
+                value.trim(),
+            )?;
         }
         from.push_str(&format!(", with ZENOH_CONFIG_OVERRIDE '{overrides}'"));
     }
@@ -462,15 +484,14 @@ fn check_router(ctx: &ros2_client::zenoh::Context) -> Result<usize, NodeError> {
 /// to each other. Runs until `stop` is set.
 pub fn zenoh_router(listen: &str, stop: &std::sync::atomic::AtomicBool) -> Result<(), NodeError> {
     use zenoh::Wait;
-    let mut c = zenoh::Config::default();
-    for (key, value) in [
-        ("mode", "\"router\"".to_string()),
-        ("listen/endpoints", format!("[\"{listen}\"]")),
-        ("scouting/multicast/enabled", "false".to_string()),
-    ] {
-        c.insert_json5(key, &value)
-            .map_err(|e| NodeError::Transport(format!("zenoh router config {key}: {e}")))?;
-    }
+    let c = zenoh_config(
+        "zenoh router config",
+        &[
+            ("mode", "\"router\"".into()),
+            ("listen/endpoints", format!("[\"{listen}\"]")),
+            ("scouting/multicast/enabled", "false".into()),
+        ],
+    )?;
     let session = zenoh::open(c)
         .wait()
         .map_err(|e| NodeError::Transport(format!("zenoh router on {listen}: {e}")))?;
