@@ -493,8 +493,10 @@ fn depth_images_feed_the_node() {
 
 /// The zenoh transport, as rmw_zenoh speaks it, through a router (`ist_monitor zenoh-router`,
 /// at rmw_zenoh's default endpoint): an independent zenoh peer (Python `eclipse-zenoh`) publishes
-/// a PointCloud2, then a depth image with its CameraInfo, the rmw_zenoh way, and receives the
-/// node's `~/min_distance`, which equals the library's answer on the same data; then the demo
+/// a PointCloud2, then a depth image with its CameraInfo, the rmw_zenoh way (keys with ROS 2's
+/// type hashes, attachments), and receives the node's `~/min_distance` and `/diagnostics` by
+/// their exact keys; the distances equal the library's answer on the same data, and the node,
+/// its publishers and subscriptions are in the graph (liveliness tokens); then the demo
 /// bag is played twice over zenoh (every cloud answered), the source's silence between the plays
 /// is reported as ERROR and the node recovers; SIGTERM ends it cleanly.
 #[test]
@@ -528,7 +530,6 @@ fn zenoh_transport_serves_the_node() {
     let poses = k.link_poses(&vec![0.0; k.variables().len()]);
     let camera_link = poses[k.link_index("camera_link").unwrap()];
     let optical = ist_monitor::scenario::link_from_optical();
-    let q = optical.rotation.quaternion();
     let header = |frame: &str| Header {
         stamp: Time::from_nanos(1),
         frame_id: frame.into(),
@@ -573,7 +574,26 @@ fn zenoh_transport_serves_the_node() {
             msg::encode(&image).unwrap(),
         ),
     ];
-    let mut plan = Vec::new();
+    // The optical frame, from the peer's transient-local /tf_static, published before the
+    // node starts: the node has it only if it fetches the history, as rmw_zenoh does.
+    let tf_static = ist_monitor::msg::TfMessage {
+        transforms: vec![ist_monitor::msg::TransformStamped {
+            header: header("camera_link"),
+            child_frame_id: "camera_optical_frame".into(),
+            transform: ist_monitor::msg::Transform::from_isometry(&optical),
+        }],
+    };
+    let tf_path = dir.path().join("tf_static.cdr");
+    std::fs::write(&tf_path, msg::encode(&tf_static).unwrap()).unwrap();
+    let mut plan = vec![
+        "--latched".to_string(),
+        format!(
+            "/tf_static={},tf2_msgs::msg::dds_::TFMessage_",
+            tf_path.display()
+        ),
+        "--delay".into(),
+        "3".into(),
+    ];
     for (i, (topic, ty, bytes)) in files.iter().enumerate() {
         let path = dir.path().join(format!("{i}.cdr"));
         std::fs::write(&path, bytes).unwrap();
@@ -601,9 +621,18 @@ fn zenoh_transport_serves_the_node() {
     };
     let mut router = spawn(&["zenoh-router"]);
     std::thread::sleep(Duration::from_millis(500));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/zenoh_interop.py");
+    let peer = Command::new(&python)
+        .arg(script)
+        .arg("tcp/localhost:7447")
+        .args(&plan)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1000));
     let joints =
         "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
-    let rotation = format!("optical.rotation:=[{}, {}, {}, {}]", q.i, q.j, q.k, q.w);
     let mut node = ist_monitor();
     zenoh(&mut node);
     let node = node
@@ -624,33 +653,24 @@ fn zenoh_transport_serves_the_node() {
             "depth.type:=depth_image",
             "-p",
             "depth.topic:=/camera/depth/image_raw",
-            "-p",
-            "static_transforms:=[optical]",
-            "-p",
-            "optical.parent_frame:=camera_link",
-            "-p",
-            "optical.child_frame:=camera_optical_frame",
-            "-p",
-            &rotation,
         ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let _reap = Reap(vec![router.id(), node.id()]);
-    std::thread::sleep(Duration::from_millis(1500));
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/zenoh_interop.py");
-    let peer = common::json_output(
-        Command::new(&python)
-            .arg(script)
-            .arg("tcp/localhost:7447")
-            .args(&plan),
+    let _reap = Reap(vec![router.id(), node.id(), peer.id()]);
+    let out = peer.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "zenoh_interop.py: {}",
+        String::from_utf8_lossy(&out.stderr)
     );
+    let peer: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for (topic, expected) in [
         ("/camera/depth/points", expected_cloud),
         ("/camera/depth/image_raw", expected_depth),
     ] {
-        let got: Vec<f64> = peer[topic]
+        let got: Vec<f64> = peer["distances"][topic]
             .as_array()
             .unwrap_or_else(|| panic!("{peer}"))
             .iter()
@@ -663,6 +683,53 @@ fn zenoh_transport_serves_the_node() {
                 "{topic}: the node published {d}, the library gives {expected}"
             );
         }
+    }
+    // The peer subscribed by the exact keys, with ROS 2's type hashes, as rmw_zenoh does: the
+    // distances above reached it that way, and so did the diagnostics.
+    assert!(peer["diagnostics"].as_u64().unwrap() >= 10, "{peer}");
+    // Every distance carried rmw_zenoh's 32-byte attachment, its sequence numbers rising.
+    let seqs: Vec<i64> = peer["attachments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| {
+            assert_eq!(a[0].as_u64(), Some(32), "{a}");
+            a[1].as_i64().unwrap()
+        })
+        .collect();
+    assert!(seqs.windows(2).all(|w| w[0] < w[1]), "{seqs:?}");
+    // A late-joining transient-local subscriber of the speed-scaling factor gets the last one
+    // from the node's cache (0: the node had faults, e.g. the depth source before its images).
+    let cached = peer["speed_scaling"].as_array().unwrap();
+    assert_eq!(cached.len(), 1, "{peer}");
+    assert!((0.0..=1.0).contains(&cached[0].as_f64().unwrap()), "{peer}");
+    // The node, its publishers and its subscriptions are in the ROS graph (liveliness tokens),
+    // with their types' hashes and QoS.
+    let tokens: Vec<&str> = peer["liveliness"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_str().unwrap())
+        .collect();
+    for (kind, tail) in [
+        ("NN", "/%/%/ist_monitor"),
+        (
+            "MP",
+            "/%/%/ist_monitor/%ist_monitor%min_distance/std_msgs::msg::dds_::Float64_/\
+             RIHS01_705ba9c3d1a09df43737eb67095534de36fd426c0587779bda2bc51fe790182a/",
+        ),
+        (
+            "MS",
+            "/%/%/ist_monitor/%camera%depth%points/sensor_msgs::msg::dds_::PointCloud2_/\
+             RIHS01_9198cabf7da3796ae6fe19c4cb3bdd3525492988c70522628af5daa124bae2b5/2::,1:,:,:,,",
+        ),
+    ] {
+        assert!(
+            tokens
+                .iter()
+                .any(|k| k.starts_with("@ros2_lv/0/") && k.contains(&format!("/{kind}{tail}"))),
+            "no {kind} token ending {tail}: {tokens:#?}"
+        );
     }
     // The demo bag over zenoh, twice, recorded over zenoh.
     let record = dir.path().join("outputs.mcap");

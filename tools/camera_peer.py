@@ -217,9 +217,19 @@ def main():
         gid = os.urandom(16)
         dp = None
 
+        # The RIHS01 type hashes of ROS 2 Jazzy, as an rmw_zenoh camera driver keys its topics.
+        hashes = {
+            "PointCloud2_":
+                "RIHS01_9198cabf7da3796ae6fe19c4cb3bdd3525492988c70522628af5daa124bae2b5",
+            "Image_": "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47",
+            "CameraInfo_":
+                "RIHS01_b3dfd68ff46c9d56c80fd3bd4ed22c7a4ddce8c8348f2f59c299e73118e7e275",
+        }
+
         class ZenohWriter:
             def __init__(self, name, ty):
-                key = f"{domain}/{name[3:]}/{ty.__idl_typename__}/RIHS01_" + "0" * 64
+                dds = ty.__idl_typename__
+                key = f"{domain}/{name[3:]}/{dds}/{hashes[dds.rsplit('::', 1)[1]]}"
                 self.publisher = session.declare_publisher(key)
                 self.seq = 0
 

@@ -19,6 +19,7 @@ mod control;
 mod diagnostic;
 mod geometry;
 mod sensor;
+mod type_hash;
 mod visualization;
 
 pub use builtin::*;
@@ -26,6 +27,7 @@ pub use control::*;
 pub use diagnostic::*;
 pub use geometry::*;
 pub use sensor::*;
+pub use type_hash::{hashed_description, type_hash};
 pub use visualization::*;
 
 use byteorder::{BigEndian, LittleEndian};
@@ -98,6 +100,7 @@ const OWN_DEFINITIONS: &[(&str, &str)] = &[
     (Duration::TYPE, Duration::OWN_DEFINITION),
     (Header::TYPE, Header::OWN_DEFINITION),
     (Float64::TYPE, Float64::OWN_DEFINITION),
+    (StringMessage::TYPE, StringMessage::OWN_DEFINITION),
     (Bool::TYPE, Bool::OWN_DEFINITION),
     (ColorRgba::TYPE, ColorRgba::OWN_DEFINITION),
     (Vector3::TYPE, Vector3::OWN_DEFINITION),

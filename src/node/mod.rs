@@ -1,6 +1,6 @@
-//! The live ROS 2 node (ros2-client over RustDDS): the monitor fed from DDS, its outputs
-//! published, stale sources reported. `play` and `record` are the bag tools that drive and
-//! observe it (tests, benchmarks, demos).
+//! The live ROS 2 node (ros2-client over RustDDS, or zenoh as rmw_zenoh speaks it): the monitor
+//! fed from its sources, its outputs published, stale sources reported. `play` and `record` are
+//! the bag tools that drive and observe it (tests, benchmarks, demos).
 //!
 //! Threads: an executor thread runs the ros2-client spinner and one task per subscription.
 //! `/tf`, `/tf_static`, the joint states and depth sources' CameraInfo go to the processing
@@ -14,6 +14,7 @@
 
 pub mod play;
 pub mod record;
+pub mod rmw_zenoh;
 pub mod transport;
 
 pub use transport::{Pub, RosNode, Transport};

@@ -1,15 +1,22 @@
 """Interop with an independent zenoh peer (the `eclipse-zenoh` package) that speaks to
-ist_monitor the way rmw_zenoh does: key expressions `<domain>/<topic>/<DDS type>/<type hash>`,
-CDR payloads with their encapsulation header, and the rmw_zenoh attachment (sequence number,
-source timestamp, source gid).
+ist_monitor the way rmw_zenoh does: key expressions `<domain>/<topic>/<DDS type>/<type hash>`
+with each type's REP-2016 hash as ROS 2 Jazzy computes it (the table below, copied from the
+code ROS 2 generates, not from ist_monitor), CDR payloads with their encapsulation header, and
+the rmw_zenoh attachment (sequence number, source timestamp, source gid).
 
-    zenoh_interop.py ENDPOINT TOPIC=FILE,TYPE ...
+    zenoh_interop.py ENDPOINT [--latched TOPIC=FILE,TYPE] [--delay S] TOPIC=FILE,TYPE ...
 
-Connects to ENDPOINT (a router, tcp/localhost:7447), then, for each TOPIC=FILE in order,
+Connects to ENDPOINT (a router, tcp/localhost:7447). `--latched` publishes that message once, at
+once, as rmw_zenoh publishes a transient-local topic (`/tf_static`): from a cache that
+late-joining subscribers query. After `--delay` seconds (default 0), for each TOPIC=FILE in order,
 publishes the CDR payload in FILE on TOPIC at 10 Hz for 2 s with its header stamp set to now
-(bytes 4..12 of the payload: sec, nanosec), while listening on
-`0/ist_monitor/min_distance/**`. TYPE is the DDS type name (`sensor_msgs::msg::dds_::Image_`).
-Prints, as JSON, {topic: [distances received while it was published]}.
+(bytes 4..12 of the payload: sec, nanosec), while subscribed, as an rmw_zenoh subscriber is, to
+the exact keys of `/ist_monitor/min_distance` (Float64) and `/diagnostics` (DiagnosticArray).
+TYPE is the DDS type name (`sensor_msgs::msg::dds_::Image_`). Prints, as JSON:
+{"distances": {topic: [distances received while it was published]}, "diagnostics": count,
+"attachments": [[length, sequence number], ...] of the distances, "liveliness": [the keys of
+the liveliness tokens under @ros2_lv/0/**], "speed_scaling": [the factors in the node's
+`~/speed_scaling` cache that a late-joining rmw_zenoh subscriber receives]}.
 
 Zenoh may scout by multicast: run it only inside ../shared/tools/netns-run (only loopback). It
 refuses to start anywhere else.
@@ -29,23 +36,72 @@ def refuse_outside_private_network():
         sys.exit(f"zenoh_interop.py: interfaces {interfaces}: run it inside netns-run")
 
 
+# RIHS01 hashes of ROS 2 Jazzy (rosidl_generator_c's `<type>__description.c`).
+ROS_2_HASH = {
+    "std_msgs::msg::dds_::Float64_":
+        "RIHS01_705ba9c3d1a09df43737eb67095534de36fd426c0587779bda2bc51fe790182a",
+    "diagnostic_msgs::msg::dds_::DiagnosticArray_":
+        "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e",
+    "sensor_msgs::msg::dds_::PointCloud2_":
+        "RIHS01_9198cabf7da3796ae6fe19c4cb3bdd3525492988c70522628af5daa124bae2b5",
+    "sensor_msgs::msg::dds_::Image_":
+        "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47",
+    "sensor_msgs::msg::dds_::CameraInfo_":
+        "RIHS01_b3dfd68ff46c9d56c80fd3bd4ed22c7a4ddce8c8348f2f59c299e73118e7e275",
+    "tf2_msgs::msg::dds_::TFMessage_":
+        "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+    "control_msgs::msg::dds_::SpeedScalingFactor_":
+        "RIHS01_0c240f349f2b74e33e8741f83e0f196ddeb6585923663876ed3c1f51f0566037",
+}
+
+
+def key(topic, dds_type):
+    return f"0/{topic.strip('/')}/{dds_type}/{ROS_2_HASH[dds_type]}"
+
+
 def main():
     refuse_outside_private_network()
     import zenoh
+    import zenoh.ext
 
     endpoint = sys.argv[1]
     plan = []
-    for arg in sys.argv[2:]:
+    latched = []
+    delay = 0.0
+    args = iter(sys.argv[2:])
+    for arg in args:
+        if arg == "--delay":
+            delay = float(next(args))
+            continue
+        target = latched if arg == "--latched" else plan
+        if arg == "--latched":
+            arg = next(args)
         topic, rest = arg.split("=", 1)
         path, dds_type = rest.split(",", 1)
         with open(path, "rb") as f:
-            plan.append((topic, dds_type, bytearray(f.read())))
+            target.append((topic, dds_type, bytearray(f.read())))
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    # As rmw_zenoh's default session config: a transient-local cache orders by timestamp.
+    conf.insert_json5("timestamping/enabled", "true")
     session = zenoh.open(conf)
+    gid = os.urandom(16)
+    keep = []
+    for topic, dds_type, payload in latched:
+        pub = zenoh.ext.declare_advanced_publisher(
+            session,
+            key(topic, dds_type),
+            cache=zenoh.ext.CacheConfig(max_samples=1),
+            publisher_detection=True,
+        )
+        pub.put(bytes(payload), attachment=struct.pack("<qq16s", 1, time.time_ns(), gid))
+        keep.append(pub)
+    time.sleep(delay)
     received = []
+    attachments = []
+    diagnostics = [0]
     lock = threading.Lock()
 
     def on_distance(sample):
@@ -53,17 +109,32 @@ def main():
         # CDR: 4-byte encapsulation header, then the float64 (little endian for 00 01).
         little = payload[1] == 1
         (value,) = struct.unpack("<d" if little else ">d", payload[4:12])
+        a = sample.attachment
+        a = bytes(a.to_bytes()) if a is not None else b""
+        seq = struct.unpack("<q", a[:8])[0] if len(a) >= 8 else None
         with lock:
             received.append((time.monotonic(), value))
+            attachments.append([len(a), seq])
 
-    sub = session.declare_subscriber("0/ist_monitor/min_distance/**", on_distance)
+    def on_diagnostics(sample):
+        with lock:
+            diagnostics[0] += 1
+
+    sub = session.declare_subscriber(
+        key("/ist_monitor/min_distance", "std_msgs::msg::dds_::Float64_"), on_distance
+    )
+    diag = session.declare_subscriber(
+        key("/diagnostics", "diagnostic_msgs::msg::dds_::DiagnosticArray_"), on_diagnostics
+    )
     time.sleep(1.0)
-    gid = os.urandom(16)
+    liveliness = [
+        str(reply.ok.key_expr)
+        for reply in session.liveliness().get("@ros2_lv/0/**", timeout=2.0)
+        if reply.ok is not None
+    ]
     out = {}
     for topic, dds_type, payload in plan:
-        # A concrete key as a publisher must use; subscribers take any hash.
-        key = f"0/{topic.strip('/')}/{dds_type}/RIHS01_" + "0" * 64
-        pub = session.declare_publisher(key)
+        pub = session.declare_publisher(key(topic, dds_type))
         time.sleep(0.5)
         start = time.monotonic()
         for seq in range(1, 21):
@@ -77,9 +148,43 @@ def main():
             out[topic] = [v for (t, v) in received if t >= start]
             received.clear()
         pub.undeclare()
+    # What a late joiner gets: a transient-local subscription as rmw_zenoh makes one (an
+    # advanced subscriber that fetches the history of the publishers it detects) receives the
+    # node's last speed-scaling factors from its publisher's cache: the samples stamped (source
+    # timestamp, in the attachment) before the subscription was made.
+    scaling = key("/ist_monitor/speed_scaling", "control_msgs::msg::dds_::SpeedScalingFactor_")
+    speed_scaling = []
+    joined = time.time_ns()
+
+    def on_scaling(sample):
+        p = bytes(sample.payload.to_bytes())
+        a = bytes(sample.attachment.to_bytes()) if sample.attachment is not None else b""
+        if len(a) >= 16 and struct.unpack("<q", a[8:16])[0] < joined:
+            with lock:
+                speed_scaling.append(struct.unpack("<d" if p[1] == 1 else ">d", p[4:12])[0])
+
+    late = zenoh.ext.declare_advanced_subscriber(
+        session,
+        scaling,
+        on_scaling,
+        history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+    )
+    time.sleep(1.0)
+    late.undeclare()
     sub.undeclare()
+    diag.undeclare()
     session.close()
-    print(json.dumps(out))
+    print(
+        json.dumps(
+            {
+                "distances": out,
+                "diagnostics": diagnostics[0],
+                "attachments": attachments,
+                "liveliness": liveliness,
+                "speed_scaling": speed_scaling,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

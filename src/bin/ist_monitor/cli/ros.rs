@@ -96,7 +96,7 @@ pub fn node(args: NodeArgs) -> Result<()> {
 #[derive(Args)]
 pub struct RouterArgs {
     /// Endpoint to listen on.
-    #[arg(long, default_value = node::transport::ZENOH_ROUTER)]
+    #[arg(long, default_value = node::rmw_zenoh::ZENOH_ROUTER)]
     listen: String,
 }
 
@@ -106,7 +106,7 @@ pub fn zenoh_router(args: RouterArgs) -> Result<()> {
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
     }
-    Ok(node::transport::zenoh_router(&args.listen, &stop)?)
+    Ok(node::rmw_zenoh::zenoh_router(&args.listen, &stop)?)
 }
 
 pub fn play(args: PlayArgs) -> Result<()> {

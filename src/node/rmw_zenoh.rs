@@ -1,0 +1,590 @@
+//! ROS 2 over zenoh as `rmw_zenoh` speaks it: the session, the keys, the liveliness tokens and
+//! the attachments by which rmw_zenoh nodes see each other and exchange messages.
+//!
+//! **Sessions.** The session config is the file named by `ZENOH_SESSION_CONFIG_URI`, else
+//! rmw_zenoh's default for a node: a peer that connects to a router at `tcp/localhost:7447`,
+//! listens on a free loopback port, learns the other peers from the router's gossip and never
+//! scouts by multicast; `ZENOH_CONFIG_OVERRIDE` (`key=value;…`, JSON5 values) is applied on top.
+//! Without a router, peers find each other only where the config says (`connect/endpoints`).
+//! `ZENOH_ROUTER_CHECK_ATTEMPTS` as in rmw_zenoh: N > 0 waits up to N seconds for a router and
+//! fails without one; a negative value skips the check; unset or 0 checks once and warns (a
+//! safety node starts and reports rather than hang).
+//!
+//! **Keys.** A message of type `pkg/msg/T` on topic `/a/b` in domain `d` is put on the key
+//! `d/a/b/pkg::msg::dds_::T_/RIHS01_<hash>`, the hash being the type's REP-2016 hash
+//! ([`crate::msg::type_hash`]): an rmw_zenoh subscriber declares exactly that key, so a
+//! publisher with another hash reaches nobody. The node's subscribers take any hash (`*`), so
+//! that peers which write none (ros2-client, Humble) still reach it; a type that does not decode
+//! is an input error, as on DDS.
+//!
+//! **Liveliness tokens** make the node and its publishers and subscriptions visible to
+//! `ros2 node list` and `ros2 topic info`: `@ros2_lv/<domain>/<session id>/<node id>/<entity
+//! id>/<kind>/<enclave>/<namespace>/<node>[/<topic>/<type>/<hash>/<qos>]`, names with `/` written
+//! as `%`, kind `NN` (node), `MP` (publisher) or `MS` (subscription), the QoS in rmw_zenoh's
+//! compact form (only what differs from ROS 2's default profile).
+//!
+//! **Transient local** (the speed-scaling output; `/tf_static` and `/robot_description` in) is
+//! rmw_zenoh's: such a publisher keeps its last `depth` messages in a zenoh-ext cache that
+//! late-joining subscribers query, and announces itself so that they find it; such a
+//! subscription asks every publisher it detects, early or late, for that history (reliable
+//! ones also recover missed samples by heartbeat).
+//!
+//! **Messages** are CDR with the encapsulation header, as on DDS and in bags; each carries an
+//! attachment of 32 bytes: sequence number and source timestamp (ns), little-endian `i64`, then
+//! the publisher's 16-byte gid.
+//!
+//! On zenoh, samples travel over the TCP connections between sessions (the router only
+//! introduces them), so a camera-sized message is neither fragmented into datagrams nor lost in
+//! a kernel buffer, and nothing is reassembled: the DDS host setup does not apply.
+
+use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use ros2_client::qos::{Durability, History, Liveliness, Reliability};
+use ros2_client::MessageInfo;
+use zenoh::Wait;
+use zenoh_ext::{
+    AdvancedPublisherBuilderExt, AdvancedSubscriberBuilderExt, CacheConfig, HistoryConfig,
+    MissDetectionConfig, RecoveryConfig,
+};
+
+use super::{entity, type_name, NodeError, QosProfile};
+use crate::msg::{OwnedMessage, RosMessage};
+
+/// rmw_zenoh's router endpoint.
+pub const ZENOH_ROUTER: &str = "tcp/localhost:7447";
+
+/// Sets `key` to the JSON5 `value` in `config`; an error names `what` config and the key.
+fn set_json5(
+    config: &mut zenoh::Config,
+    what: &str,
+    key: &str,
+    value: &str,
+) -> Result<(), NodeError> {
+    config
+        .insert_json5(key, value)
+        .map_err(|e| NodeError::Transport(format!("{what} {key}: {e}")))
+}
+
+/// A zenoh config of these keys set, over zenoh's defaults.
+fn zenoh_config(what: &str, keys: &[(&str, String)]) -> Result<zenoh::Config, NodeError> {
+    let mut c = zenoh::Config::default();
+    for (key, value) in keys {
+        set_json5(&mut c, what, key, value)?;
+    }
+    Ok(c)
+}
+
+/// rmw_zenoh's default session config of a node (see the module's documentation).
+fn rmw_zenoh_default_config() -> Result<zenoh::Config, NodeError> {
+    zenoh_config(
+        "zenoh config",
+        &[
+            ("mode", "\"peer\"".into()),
+            ("connect/endpoints", format!("[\"{ZENOH_ROUTER}\"]")),
+            ("listen/endpoints", "[\"tcp/localhost:0\"]".into()),
+            ("scouting/multicast/enabled", "false".into()),
+            ("scouting/gossip/enabled", "true".into()),
+            // Samples are timestamped: a transient-local cache orders by them.
+            ("timestamping/enabled", "true".into()),
+        ],
+    )
+}
+
+/// The session config by rmw_zenoh's rules, and where it came from.
+pub fn zenoh_session_config() -> Result<(zenoh::Config, String), NodeError> {
+    let (mut config, mut from) = match std::env::var("ZENOH_SESSION_CONFIG_URI") {
+        Ok(uri) if !uri.trim().is_empty() => (
+            zenoh::Config::from_file(uri.trim()).map_err(|e| {
+                NodeError::Transport(format!("ZENOH_SESSION_CONFIG_URI {uri}: {e}"))
+            })?,
+            format!("session config {uri}"),
+        ),
+        _ => (
+            rmw_zenoh_default_config()?,
+            format!("rmw_zenoh's default session config (router at {ZENOH_ROUTER})"),
+        ),
+    };
+    if let Ok(overrides) = std::env::var("ZENOH_CONFIG_OVERRIDE") {
+        for entry in overrides
+            .split(';')
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+        {
+            let (key, value) = entry.split_once('=').ok_or_else(|| {
+                NodeError::Transport(format!("ZENOH_CONFIG_OVERRIDE: '{entry}' is not key=value"))
+            })?;
+            set_json5(
+                &mut config,
+                "ZENOH_CONFIG_OVERRIDE",
+                key.trim(),
+                value.trim(),
+            )?;
+        }
+        from.push_str(&format!(", with ZENOH_CONFIG_OVERRIDE '{overrides}'"));
+    }
+    Ok((config, from))
+}
+
+/// The node id in this session's liveliness tokens (one node per session).
+const NODE_ID: u64 = 0;
+
+/// How often a reliable transient-local publisher announces its last sequence number, so that
+/// subscribers notice missed samples and fetch them from its cache (rmw_zenoh's period).
+const HEARTBEAT: Duration = Duration::from_millis(500);
+
+/// The depth of a QoS profile's history (keep all: 1000).
+fn depth(q: &QosProfile) -> usize {
+    match q.history {
+        History::KeepLast { depth } => depth.max(1),
+        History::KeepAll => 1000,
+    }
+}
+
+/// `name` as rmw_zenoh writes names in liveliness keys: `/` as `%`, empty as `%`.
+fn mangle(name: &str) -> String {
+    if name.is_empty() {
+        "%".into()
+    } else {
+        name.replace('/', "%")
+    }
+}
+
+/// A QoS profile in rmw_zenoh's compact form:
+/// `reliability:durability:history,depth:deadline:lifespan:liveliness,lease`, each policy empty
+/// where it is ROS 2's default (reliable, volatile, keep last; infinite durations; automatic).
+pub fn qos_key(q: &QosProfile) -> String {
+    let reliability = match q.reliability {
+        Reliability::Reliable { .. } => "",
+        Reliability::BestEffort => "2",
+    };
+    let durability = match q.durability {
+        Durability::Volatile => "",
+        Durability::TransientLocal => "1",
+    };
+    let (history, depth) = match q.history {
+        History::KeepLast { depth } => ("", depth.to_string()),
+        History::KeepAll => ("2", String::new()),
+    };
+    let duration = |d: Option<Duration>| match d {
+        None => ",".to_string(),
+        Some(d) => format!("{},{}", d.as_secs(), d.subsec_nanos()),
+    };
+    let liveliness = match q.liveliness {
+        Liveliness::Automatic => "",
+        Liveliness::ManualByTopic => "3",
+    };
+    format!(
+        "{reliability}:{durability}:{history},{depth}:{}:{}:{liveliness},{}",
+        duration(q.deadline),
+        duration(q.lifespan),
+        duration(q.liveliness_lease)
+    )
+}
+
+/// The 32-byte attachment of a message (see the module's documentation).
+fn attachment(sequence_number: i64, gid: &[u8; 16]) -> Vec<u8> {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as i64)
+        .unwrap_or(0);
+    let mut a = Vec::with_capacity(32);
+    a.extend_from_slice(&sequence_number.to_le_bytes());
+    a.extend_from_slice(&now.to_le_bytes());
+    a.extend_from_slice(gid);
+    a
+}
+
+/// A node on a zenoh session, as rmw_zenoh makes one: the session and the node's liveliness
+/// token, and the publishers and subscriptions made on it.
+pub struct ZenohNode {
+    session: zenoh::Session,
+    domain: u16,
+    /// The start of every entity's liveliness key: `@ros2_lv/<domain>/<zid>/<node id>`.
+    lv_prefix: String,
+    /// The end of it: `<enclave>/<namespace>/<node>`.
+    lv_node: String,
+    next_entity: AtomicU64,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+/// What a publisher or subscription is keyed by.
+struct Keys {
+    /// The data key (with the type's hash, or `*`).
+    data: String,
+    /// The liveliness key of the entity.
+    liveliness: String,
+}
+
+impl ZenohNode {
+    /// Opens a session by rmw_zenoh's rules and declares node `namespace`/`name` on it; also
+    /// returns what the node runs on, for its start line.
+    pub fn open(namespace: &str, name: &str) -> Result<(Self, String), NodeError> {
+        let domain = match std::env::var("ROS_DOMAIN_ID") {
+            Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d))?,
+            Err(_) => 0,
+        };
+        let (config, from) = zenoh_session_config()?;
+        let session = zenoh::open(config)
+            .wait()
+            .map_err(|e| NodeError::Transport(format!("zenoh session ({from}): {e}")))?;
+        let routers = check_router(&session)?;
+        let zid = session.zid().to_string();
+        let lv_prefix = format!("@ros2_lv/{domain}/{zid}/{NODE_ID}");
+        let namespace = if namespace == "/" { "" } else { namespace };
+        let lv_node = format!("%/{}/{}", mangle(namespace), mangle(name));
+        let token = session
+            .liveliness()
+            .declare_token(format!("{lv_prefix}/{NODE_ID}/NN/{lv_node}"))
+            .wait()
+            .map_err(|e| entity("node", name, e))?;
+        let describe =
+            format!("zenoh (rmw_zenoh) on domain {domain}, {from}, {routers} router(s) connected");
+        Ok((
+            Self {
+                session,
+                domain,
+                lv_prefix,
+                lv_node,
+                next_entity: AtomicU64::new(NODE_ID + 1),
+                _token: token,
+            },
+            describe,
+        ))
+    }
+
+    /// Declares the liveliness token `key` of the `what` (publisher, subscription) on `topic`.
+    fn token(
+        &self,
+        key: String,
+        what: &'static str,
+        topic: &str,
+    ) -> Result<zenoh::liveliness::LivelinessToken, NodeError> {
+        self.session
+            .liveliness()
+            .declare_token(key)
+            .wait()
+            .map_err(|e| entity(what, topic, e))
+    }
+
+    /// The keys of an entity of `kind` (`MP`, `MS`) for `T` on `topic` (absolute).
+    fn keys<T: RosMessage>(
+        &self,
+        kind: &str,
+        topic: &str,
+        qos: &QosProfile,
+        any_hash: bool,
+    ) -> Result<Keys, NodeError> {
+        let hash = crate::msg::type_hash(T::TYPE).ok_or_else(|| {
+            NodeError::Transport(format!("{}: no type description for its hash", T::TYPE))
+        })?;
+        let dds_type = type_name::<T>().dds_msg_type();
+        let topic = format!("/{}", topic.trim_matches('/'));
+        let id = self.next_entity.fetch_add(1, Ordering::Relaxed);
+        Ok(Keys {
+            data: format!(
+                "{}{topic}/{dds_type}/{}",
+                self.domain,
+                if any_hash { "*" } else { &hash }
+            ),
+            liveliness: format!(
+                "{}/{id}/{kind}/{}/{}/{dds_type}/{hash}/{}",
+                self.lv_prefix,
+                self.lv_node,
+                mangle(&topic),
+                qos_key(qos)
+            ),
+        })
+    }
+
+    /// A publisher of `T` on `topic` (absolute).
+    pub fn publisher<T: RosMessage>(
+        &self,
+        topic: &str,
+        qos: &QosProfile,
+    ) -> Result<ZenohPub<T>, NodeError> {
+        let keys = self.keys::<T>("MP", topic, qos, false)?;
+        let reliability = match qos.reliability {
+            Reliability::Reliable { .. } => zenoh::qos::Reliability::Reliable,
+            Reliability::BestEffort => zenoh::qos::Reliability::BestEffort,
+        };
+        let builder = self
+            .session
+            .declare_publisher(keys.data)
+            .reliability(reliability);
+        let publisher = if qos.durability == Durability::TransientLocal {
+            let mut b = builder
+                .cache(CacheConfig::default().max_samples(depth(qos)))
+                .publisher_detection();
+            if matches!(qos.reliability, Reliability::Reliable { .. }) {
+                b = b.sample_miss_detection(
+                    MissDetectionConfig::default().sporadic_heartbeat(HEARTBEAT),
+                );
+            }
+            b.wait().map(Put::Latched)
+        } else {
+            builder.wait().map(Put::Plain)
+        }
+        .map_err(|e| entity("publisher", topic, e))?;
+        let gid: [u8; 16] = blake3::hash(keys.liveliness.as_bytes()).as_bytes()[..16]
+            .try_into()
+            .unwrap_or_default();
+        let token = self.token(keys.liveliness, "publisher", topic)?;
+        Ok(ZenohPub {
+            publisher,
+            gid,
+            sequence: AtomicI64::new(0),
+            _token: token,
+            _type: std::marker::PhantomData,
+        })
+    }
+
+    /// Subscribes to `T` on `topic` (absolute), any type hash, into a ring of `ring` samples
+    /// that keeps the newest (a slow reader never blocks the session, nothing queues without
+    /// bound); each message (or decoding error) goes to `on` in a task on `executor`, until `on`
+    /// returns false.
+    pub fn subscribe<T: OwnedMessage>(
+        &self,
+        topic: &str,
+        qos: &QosProfile,
+        ring: usize,
+        executor: &smol::Executor<'static>,
+        mut on: impl FnMut(Result<(T, MessageInfo), String>) -> bool + Send + 'static,
+    ) -> Result<smol::Task<()>, NodeError> {
+        let keys = self.keys::<T>("MS", topic, qos, true)?;
+        let ring = zenoh::handlers::RingChannel::new(ring);
+        let sub = if qos.durability == Durability::TransientLocal {
+            let mut b = self
+                .session
+                .declare_subscriber(keys.data)
+                .with(ring)
+                .history(
+                    HistoryConfig::default()
+                        .detect_late_publishers()
+                        .max_samples(depth(qos)),
+                )
+                .subscriber_detection();
+            if matches!(qos.reliability, Reliability::Reliable { .. }) {
+                b = b.recovery(RecoveryConfig::default().heartbeat());
+            }
+            b.wait().map(Take::Latched)
+        } else {
+            self.session
+                .declare_subscriber(keys.data)
+                .with(ring)
+                .wait()
+                .map(Take::Plain)
+        }
+        .map_err(|e| entity("subscription", topic, e))?;
+        let token = self.token(keys.liveliness, "subscription", topic)?;
+        Ok(executor.spawn(async move {
+            let _token = token;
+            while let Ok(sample) = sub.recv_async().await {
+                let item = decode_owned::<T>(&sample.payload().to_bytes())
+                    .map(|m| (m, attachment_info(&sample)));
+                if !on(item) {
+                    break;
+                }
+            }
+        }))
+    }
+
+    /// Closes the session (its tokens go with it: peers see the node leave at once).
+    pub fn close(self) {
+        let _ = self.session.close().wait();
+    }
+}
+
+/// A zenoh publisher: plain, or with the cache of a transient-local one.
+enum Put {
+    Plain(zenoh::pubsub::Publisher<'static>),
+    Latched(zenoh_ext::AdvancedPublisher<'static>),
+}
+
+type Ring = zenoh::handlers::RingChannelHandler<zenoh::sample::Sample>;
+
+/// A zenoh subscriber: plain, or querying the history of transient-local publishers.
+enum Take {
+    Plain(zenoh::pubsub::Subscriber<Ring>),
+    Latched(zenoh_ext::AdvancedSubscriber<Ring>),
+}
+
+impl Take {
+    async fn recv_async(&self) -> zenoh::Result<zenoh::sample::Sample> {
+        match self {
+            Take::Plain(s) => s.recv_async().await,
+            Take::Latched(s) => s.handler().recv_async().await,
+        }
+    }
+}
+
+/// A publisher of `T` on zenoh.
+pub struct ZenohPub<T> {
+    publisher: Put,
+    gid: [u8; 16],
+    sequence: AtomicI64,
+    _token: zenoh::liveliness::LivelinessToken,
+    _type: std::marker::PhantomData<fn(T)>,
+}
+
+impl<T: RosMessage> ZenohPub<T> {
+    pub fn publish(&self, m: &T) -> Result<(), String> {
+        let payload = crate::msg::encode(m).map_err(|e| e.to_string())?;
+        let seq = self.sequence.fetch_add(1, Ordering::Relaxed) + 1;
+        let a = attachment(seq, &self.gid);
+        match &self.publisher {
+            Put::Plain(p) => p.put(payload).attachment(a).wait(),
+            Put::Latched(p) => p.put(payload).attachment(a).wait(),
+        }
+        .map_err(|e| e.to_string())
+    }
+}
+
+/// `T` decoded into its owned form.
+struct OwnedDe<T>(T);
+
+/// A CDR payload (with its encapsulation header, either byte order) decoded into `T`'s owned
+/// form.
+fn decode_owned<T: OwnedMessage>(payload: &[u8]) -> Result<T, String> {
+    use byteorder::{BigEndian, LittleEndian};
+    if payload.len() < 4 {
+        return Err(format!("{}: payload of {} bytes", T::TYPE, payload.len()));
+    }
+    let body = &payload[4..];
+    let decoded = match payload[1] {
+        1 => cdr_encoding::from_bytes::<OwnedDe<T>, LittleEndian>(body),
+        0 => cdr_encoding::from_bytes::<OwnedDe<T>, BigEndian>(body),
+        k => {
+            return Err(format!(
+                "{}: encapsulation {k:#04x} is not plain CDR",
+                T::TYPE
+            ))
+        }
+    };
+    decoded
+        .map(|(m, _)| m.0)
+        .map_err(|e| format!("{}: CDR: {e}", T::TYPE))
+}
+
+/// The rmw_zenoh attachment of a sample: sequence number, source timestamp (ns), source gid,
+/// little endian.
+fn attachment_info(sample: &zenoh::sample::Sample) -> MessageInfo {
+    let parsed = sample.attachment().and_then(|a| {
+        let b = a.to_bytes();
+        (b.len() >= 32).then(|| {
+            let seq = i64::from_le_bytes(b[0..8].try_into().unwrap_or_default());
+            let gid: [u8; 16] = b[16..32].try_into().unwrap_or_default();
+            (seq, gid)
+        })
+    });
+    let (seq, gid) = parsed.unwrap_or((0, [0; 16]));
+    MessageInfo::new(None, None, seq, ros2_client::Gid::from(gid), None)
+}
+
+impl<'de, T: OwnedMessage> serde::Deserialize<'de> for OwnedDe<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        T::deserialize_owned(d).map(OwnedDe)
+    }
+}
+
+/// How many routers the session is connected to, by `ZENOH_ROUTER_CHECK_ATTEMPTS` (see the
+/// module's documentation).
+fn check_router(session: &zenoh::Session) -> Result<usize, NodeError> {
+    let count = || session.info().routers_zid().wait().count();
+    let attempts: i64 = match std::env::var("ZENOH_ROUTER_CHECK_ATTEMPTS") {
+        Ok(v) => v.trim().parse().map_err(|_| {
+            NodeError::Transport(format!(
+                "ZENOH_ROUTER_CHECK_ATTEMPTS '{v}' is not an integer"
+            ))
+        })?,
+        Err(_) => 0,
+    };
+    if attempts < 0 {
+        return Ok(count());
+    }
+    let deadline = Instant::now() + Duration::from_secs(attempts as u64);
+    loop {
+        let n = count();
+        if n > 0 {
+            return Ok(n);
+        }
+        if Instant::now() >= deadline {
+            if attempts > 0 {
+                return Err(NodeError::Transport(format!(
+                    "no zenoh router after {attempts} s (ZENOH_ROUTER_CHECK_ATTEMPTS): start \
+                     one (rmw_zenohd, or `ist_monitor zenoh-router`) at {ZENOH_ROUTER}"
+                )));
+            }
+            log::warn!(
+                "no zenoh router connected: other nodes are found only through a router at \
+                 {ZENOH_ROUTER} (rmw_zenohd, or `ist_monitor zenoh-router`) or the endpoints \
+                 the session config names (README, 'The live node')"
+            );
+            return Ok(0);
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+/// A zenoh router, as `rmw_zenohd` runs one for ROS 2: listens on `listen` (default
+/// [`ZENOH_ROUTER`]), never scouts by multicast, and introduces the peers that connect to it
+/// to each other. Runs until `stop` is set.
+pub fn zenoh_router(listen: &str, stop: &std::sync::atomic::AtomicBool) -> Result<(), NodeError> {
+    let c = zenoh_config(
+        "zenoh router config",
+        &[
+            ("mode", "\"router\"".into()),
+            ("listen/endpoints", format!("[\"{listen}\"]")),
+            ("scouting/multicast/enabled", "false".into()),
+        ],
+    )?;
+    let session = zenoh::open(c)
+        .wait()
+        .map_err(|e| NodeError::Transport(format!("zenoh router on {listen}: {e}")))?;
+    log::info!("zenoh router {} listening on {listen}", session.zid());
+    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = session.close().wait();
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_session_config_is_rmw_zenohs() {
+        let c = rmw_zenoh_default_config().unwrap();
+        let connect = c.get_json("connect/endpoints").unwrap();
+        assert!(connect.contains("tcp/localhost:7447"), "{connect}");
+        assert_eq!(c.get_json("scouting/multicast/enabled").unwrap(), "false");
+    }
+
+    #[test]
+    fn qos_keys_are_rmw_zenohs() {
+        // ROS 2's default profile (reliable, volatile, keep last 10) is all defaults.
+        let default = QosProfile::subscription_default()
+            .reliability_reliable(ros2_client::qos::WhenFull::DEFAULT)
+            .history(History::KeepLast { depth: 10 });
+        assert_eq!(qos_key(&default), "::,10:,:,:,,");
+        assert_eq!(qos_key(&super::super::SENSOR_QOS), "2::,1:,:,:,,");
+        let latched = default
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth: 1 });
+        assert_eq!(qos_key(&latched), ":1:,1:,:,:,,");
+        assert_eq!(
+            mangle("/ist_monitor/min_distance"),
+            "%ist_monitor%min_distance"
+        );
+        assert_eq!(mangle(""), "%");
+    }
+
+    #[test]
+    fn attachments_are_32_bytes() {
+        let a = attachment(7, &[0xab; 16]);
+        assert_eq!(a.len(), 32);
+        assert_eq!(&a[..8], &7i64.to_le_bytes());
+        assert_eq!(&a[16..], &[0xab; 16]);
+    }
+}
