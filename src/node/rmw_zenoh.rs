@@ -380,8 +380,15 @@ impl ZenohNode {
         Ok(executor.spawn(async move {
             let _token = token;
             while let Ok(sample) = sub.recv_async().await {
-                let item = decode_owned::<T>(&sample.payload().to_bytes())
-                    .map(|m| (m, attachment_info(&sample)));
+                // A large message arrives in fragments: joined into one buffer, which the
+                // message then keeps (`from_payload`); a small one is one slice, copied out.
+                let decoded = match sample.payload().to_bytes() {
+                    std::borrow::Cow::Owned(payload) => T::from_payload(payload),
+                    std::borrow::Cow::Borrowed(payload) => crate::msg::decode_owned(payload),
+                };
+                let item = decoded
+                    .map(|m| (m, attachment_info(&sample)))
+                    .map_err(|e| e.to_string());
                 if !on(item) {
                     break;
                 }
@@ -440,32 +447,6 @@ impl<T: RosMessage> ZenohPub<T> {
     }
 }
 
-/// `T` decoded into its owned form.
-struct OwnedDe<T>(T);
-
-/// A CDR payload (with its encapsulation header, either byte order) decoded into `T`'s owned
-/// form.
-fn decode_owned<T: OwnedMessage>(payload: &[u8]) -> Result<T, String> {
-    use byteorder::{BigEndian, LittleEndian};
-    if payload.len() < 4 {
-        return Err(format!("{}: payload of {} bytes", T::TYPE, payload.len()));
-    }
-    let body = &payload[4..];
-    let decoded = match payload[1] {
-        1 => cdr_encoding::from_bytes::<OwnedDe<T>, LittleEndian>(body),
-        0 => cdr_encoding::from_bytes::<OwnedDe<T>, BigEndian>(body),
-        k => {
-            return Err(format!(
-                "{}: encapsulation {k:#04x} is not plain CDR",
-                T::TYPE
-            ))
-        }
-    };
-    decoded
-        .map(|(m, _)| m.0)
-        .map_err(|e| format!("{}: CDR: {e}", T::TYPE))
-}
-
 /// The rmw_zenoh attachment of a sample: sequence number, source timestamp (ns), source gid,
 /// little endian.
 fn attachment_info(sample: &zenoh::sample::Sample) -> MessageInfo {
@@ -479,12 +460,6 @@ fn attachment_info(sample: &zenoh::sample::Sample) -> MessageInfo {
     });
     let (seq, gid) = parsed.unwrap_or((0, [0; 16]));
     MessageInfo::new(None, None, seq, ros2_client::Gid::from(gid), None)
-}
-
-impl<'de, T: OwnedMessage> serde::Deserialize<'de> for OwnedDe<T> {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        T::deserialize_owned(d).map(OwnedDe)
-    }
 }
 
 /// How many routers the session is connected to, by `ZENOH_ROUTER_CHECK_ATTEMPTS` (see the
