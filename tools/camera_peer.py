@@ -12,7 +12,9 @@ on its topic; `depth` publishes the depth image a driver would have sent: each p
 millimetres (0 where the point is NaN), with the pinhole K fitted to the cloud's points by least
 squares (u = fx·x/z + cx, v = fy·y/z + cy; the residual is printed), on
 <topic namespace>/image_raw and <topic namespace>/camera_info (QoS sensor data: best effort,
-keep last 1). Prints one JSON line: published, answered, latency p50/p99/max (ms), the sizes.
+keep last 1). Prints one JSON line: published, answered, latency p50/p99/max (ms), the
+publisher's own share of it (from the stamp until write/put returned) and the rest (from then
+to the answer: middleware and node), p50/p99, the sizes.
 
 `--transport zenoh` publishes the same messages the way rmw_zenoh does (key
 `<domain>/<topic>/<DDS type>/<type hash>`, CDR payload with its encapsulation header, the rmw_zenoh
@@ -282,12 +284,18 @@ def main():
     lock = threading.Lock()
     done = threading.Event()
 
+    handed = {}  # stamp -> when write/put returned
+    after_handover = []  # ms from then to the answer: the middleware's and the node's share
+
     def answered(stamp):
         now = time.monotonic()
         with lock:
             at = sent.pop(stamp, None)
+            out = handed.pop(stamp, None)
         if at is not None:
             latencies.append((now - at) * 1e3)
+        if out is not None:
+            after_handover.append((now - out) * 1e3)
 
     if args.transport == "dds":
         reader = DataReader(dp, CycloneTopic(dp, "rt" + args.node + "/link_distances", JointState_),
@@ -316,15 +324,24 @@ def main():
     period = 1.0 / args.rate
     count = int(args.duration * args.rate)
     start = time.monotonic()
+    # The publisher's own share of the latency: from the stamp until the write/put returned
+    # (the message built, serialised and handed to the middleware).
+    publishing = []
     for i in range(count):
         due = start + i * period
         delay = due - time.monotonic()
         if delay > 0:
             time.sleep(delay)
         stamp_ns = time.time_ns()
+        t0 = time.monotonic()
         with lock:
-            sent[stamp_ns] = time.monotonic()
+            sent[stamp_ns] = t0
         publish(stamp_ns)
+        t1 = time.monotonic()
+        with lock:
+            if stamp_ns in sent:  # not answered yet
+                handed[stamp_ns] = t1
+        publishing.append((t1 - t0) * 1000.0)
     time.sleep(1.0)
     done.set()
     listener.join()
@@ -332,6 +349,11 @@ def main():
     q = lambda f: round(lat[min(len(lat) - 1, int(f * len(lat)))], 2) if lat else None
     info.update(published=count, answered=len(lat), p50_ms=q(0.5), p99_ms=q(0.99),
                 max_ms=round(lat[-1], 2) if lat else None)
+    pub = sorted(publishing)
+    rest = sorted(after_handover)
+    share = lambda v, f: round(v[min(len(v) - 1, int(f * len(v)))], 2) if v else None
+    info.update(publish_p50_ms=share(pub, 0.5), publish_p99_ms=share(pub, 0.99),
+                after_publish_p50_ms=share(rest, 0.5), after_publish_p99_ms=share(rest, 0.99))
     print(json.dumps(info), flush=True)
     if args.transport == "zenoh":
         subscriber.undeclare()
