@@ -8,7 +8,9 @@
 //! Without a router, peers find each other only where the config says (`connect/endpoints`).
 //! `ZENOH_ROUTER_CHECK_ATTEMPTS` as in rmw_zenoh: N > 0 waits up to N seconds for a router and
 //! fails without one; a negative value skips the check; unset or 0 checks once and warns (a
-//! safety node starts and reports rather than hang).
+//! safety node starts and reports rather than hang). The router (`ist_monitor zenoh-router`)
+//! reads its config as `rmw_zenohd` does: `ZENOH_ROUTER_CONFIG_URI`, else listening on
+//! `tcp/localhost:7447`, with `ZENOH_CONFIG_OVERRIDE` on top.
 //!
 //! **Keys.** A message of type `pkg/msg/T` on topic `/a/b` in domain `d` is put on the key
 //! `d/a/b/pkg::msg::dds_::T_/RIHS01_<hash>`, the hash being the type's REP-2016 hash
@@ -91,21 +93,58 @@ fn rmw_zenoh_default_config() -> Result<zenoh::Config, NodeError> {
     )
 }
 
-/// The session config by rmw_zenoh's rules, and where it came from.
-pub fn zenoh_session_config() -> Result<(zenoh::Config, String), NodeError> {
-    let (mut config, mut from) = match std::env::var("ZENOH_SESSION_CONFIG_URI") {
-        Ok(uri) if !uri.trim().is_empty() => (
-            zenoh::Config::from_file(uri.trim()).map_err(|e| {
-                NodeError::Transport(format!("ZENOH_SESSION_CONFIG_URI {uri}: {e}"))
-            })?,
-            format!("session config {uri}"),
+/// Which zenoh config: a node's session, or the router's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigFor {
+    Session,
+    Router,
+}
+
+impl ConfigFor {
+    /// The variable that names its config file, as rmw_zenoh reads it.
+    pub fn uri_variable(self) -> &'static str {
+        match self {
+            ConfigFor::Session => "ZENOH_SESSION_CONFIG_URI",
+            ConfigFor::Router => "ZENOH_ROUTER_CONFIG_URI",
+        }
+    }
+}
+
+/// A config by rmw_zenoh's rules, and where it came from: the file named by `uri` (the value of
+/// [`ConfigFor::uri_variable`]), else rmw_zenoh's default (a node's: see the module's
+/// documentation; the router's: listens on [`ZENOH_ROUTER`], no multicast scouting), then the
+/// `key=value;…` entries of `overrides` (`ZENOH_CONFIG_OVERRIDE`) on top.
+pub fn rmw_zenoh_config(
+    what: ConfigFor,
+    uri: Option<&str>,
+    overrides: Option<&str>,
+) -> Result<(zenoh::Config, String), NodeError> {
+    let (mut config, mut from) = match uri.map(str::trim).filter(|u| !u.is_empty()) {
+        Some(uri) => (
+            zenoh::Config::from_file(uri)
+                .map_err(|e| NodeError::Transport(format!("{} {uri}: {e}", what.uri_variable())))?,
+            format!("config {uri} ({})", what.uri_variable()),
         ),
-        _ => (
-            rmw_zenoh_default_config()?,
-            format!("rmw_zenoh's default session config (router at {ZENOH_ROUTER})"),
-        ),
+        None => match what {
+            ConfigFor::Session => (
+                rmw_zenoh_default_config()?,
+                format!("rmw_zenoh's default session config (router at {ZENOH_ROUTER})"),
+            ),
+            ConfigFor::Router => (
+                zenoh_config(
+                    "zenoh router config",
+                    &[
+                        ("mode", "\"router\"".into()),
+                        ("listen/endpoints", format!("[\"{ZENOH_ROUTER}\"]")),
+                        ("scouting/multicast/enabled", "false".into()),
+                        ("timestamping/enabled", "true".into()),
+                    ],
+                )?,
+                format!("rmw_zenoh's default router config ({ZENOH_ROUTER})"),
+            ),
+        },
     };
-    if let Ok(overrides) = std::env::var("ZENOH_CONFIG_OVERRIDE") {
+    if let Some(overrides) = overrides {
         for entry in overrides
             .split(';')
             .map(str::trim)
@@ -124,6 +163,13 @@ pub fn zenoh_session_config() -> Result<(zenoh::Config, String), NodeError> {
         from.push_str(&format!(", with ZENOH_CONFIG_OVERRIDE '{overrides}'"));
     }
     Ok((config, from))
+}
+
+/// [`rmw_zenoh_config`] from the environment.
+pub fn config_from_env(what: ConfigFor) -> Result<(zenoh::Config, String), NodeError> {
+    let uri = std::env::var(what.uri_variable()).ok();
+    let overrides = std::env::var("ZENOH_CONFIG_OVERRIDE").ok();
+    rmw_zenoh_config(what, uri.as_deref(), overrides.as_deref())
 }
 
 /// The node id in this session's liveliness tokens (one node per session).
@@ -224,7 +270,7 @@ impl ZenohNode {
             Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d))?,
             Err(_) => 0,
         };
-        let (config, from) = zenoh_session_config()?;
+        let (config, from) = config_from_env(ConfigFor::Session)?;
         let session = zenoh::open(config)
             .wait()
             .map_err(|e| NodeError::Transport(format!("zenoh session ({from}): {e}")))?;
@@ -501,22 +547,31 @@ fn check_router(session: &zenoh::Session) -> Result<usize, NodeError> {
     }
 }
 
-/// A zenoh router, as `rmw_zenohd` runs one for ROS 2: listens on `listen` (default
-/// [`ZENOH_ROUTER`]), never scouts by multicast, and introduces the peers that connect to it
-/// to each other. Runs until `stop` is set.
-pub fn zenoh_router(listen: &str, stop: &std::sync::atomic::AtomicBool) -> Result<(), NodeError> {
-    let c = zenoh_config(
-        "zenoh router config",
-        &[
-            ("mode", "\"router\"".into()),
-            ("listen/endpoints", format!("[\"{listen}\"]")),
-            ("scouting/multicast/enabled", "false".into()),
-        ],
-    )?;
+/// A zenoh router, as `rmw_zenohd` runs one for ROS 2: its config by rmw_zenoh's rules
+/// (`ZENOH_ROUTER_CONFIG_URI`, else listening on [`ZENOH_ROUTER`] without multicast scouting;
+/// `ZENOH_CONFIG_OVERRIDE` on top), `listen` replacing its endpoints where given. It introduces
+/// the peers that connect to it to each other. Runs until `stop` is set.
+pub fn zenoh_router(
+    listen: Option<&str>,
+    stop: &std::sync::atomic::AtomicBool,
+) -> Result<(), NodeError> {
+    let (mut c, from) = config_from_env(ConfigFor::Router)?;
+    if let Some(listen) = listen {
+        set_json5(
+            &mut c,
+            "zenoh router config",
+            "listen/endpoints",
+            &format!("[\"{listen}\"]"),
+        )?;
+    }
+    let endpoints = c.get_json("listen/endpoints").unwrap_or_default();
     let session = zenoh::open(c)
         .wait()
-        .map_err(|e| NodeError::Transport(format!("zenoh router on {listen}: {e}")))?;
-    log::info!("zenoh router {} listening on {listen}", session.zid());
+        .map_err(|e| NodeError::Transport(format!("zenoh router on {endpoints} ({from}): {e}")))?;
+    log::info!(
+        "zenoh router {} listening on {endpoints} ({from})",
+        session.zid()
+    );
     while !stop.load(std::sync::atomic::Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -534,6 +589,42 @@ mod tests {
         let connect = c.get_json("connect/endpoints").unwrap();
         assert!(connect.contains("tcp/localhost:7447"), "{connect}");
         assert_eq!(c.get_json("scouting/multicast/enabled").unwrap(), "false");
+    }
+
+    #[test]
+    fn configs_follow_rmw_zenohs_variables() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("router.json5");
+        std::fs::write(
+            &file,
+            r#"{ mode: "router", listen: { endpoints: ["tcp/127.0.0.1:7455"] } }"#,
+        )
+        .unwrap();
+        let (c, from) =
+            rmw_zenoh_config(ConfigFor::Router, Some(file.to_str().unwrap()), None).unwrap();
+        assert!(c.get_json("listen/endpoints").unwrap().contains("7455"));
+        assert!(from.contains("ZENOH_ROUTER_CONFIG_URI"), "{from}");
+        let (c, _) = rmw_zenoh_config(ConfigFor::Router, None, None).unwrap();
+        assert!(c.get_json("listen/endpoints").unwrap().contains("7447"));
+        assert_eq!(c.get_json("mode").unwrap(), "\"router\"");
+        let (c, from) = rmw_zenoh_config(
+            ConfigFor::Session,
+            Some("  "),
+            Some("connect/endpoints=[\"tcp/127.0.0.1:7450\"]; scouting/gossip/enabled=false"),
+        )
+        .unwrap();
+        assert!(c.get_json("connect/endpoints").unwrap().contains("7450"));
+        assert_eq!(c.get_json("scouting/gossip/enabled").unwrap(), "false");
+        assert!(from.contains("default session config"), "{from}");
+        // A missing file and a malformed override are errors that name the variable.
+        let e = rmw_zenoh_config(ConfigFor::Session, Some("/nonexistent.json5"), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("ZENOH_SESSION_CONFIG_URI"), "{e}");
+        let e = rmw_zenoh_config(ConfigFor::Router, None, Some("mode"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("ZENOH_CONFIG_OVERRIDE"), "{e}");
     }
 
     #[test]

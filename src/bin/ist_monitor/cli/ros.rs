@@ -95,9 +95,10 @@ pub fn node(args: NodeArgs) -> Result<()> {
 
 #[derive(Args)]
 pub struct RouterArgs {
-    /// Endpoint to listen on.
-    #[arg(long, default_value = node::rmw_zenoh::ZENOH_ROUTER)]
-    listen: String,
+    /// Endpoint to listen on (default: from ZENOH_ROUTER_CONFIG_URI's file, else rmw_zenoh's
+    /// tcp/localhost:7447).
+    #[arg(long)]
+    listen: Option<String>,
 }
 
 /// A zenoh router until SIGINT or SIGTERM.
@@ -106,7 +107,10 @@ pub fn zenoh_router(args: RouterArgs) -> Result<()> {
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         signal_hook::flag::register(signal, stop.clone())?;
     }
-    Ok(node::rmw_zenoh::zenoh_router(&args.listen, &stop)?)
+    Ok(node::rmw_zenoh::zenoh_router(
+        args.listen.as_deref(),
+        &stop,
+    )?)
 }
 
 pub fn play(args: PlayArgs) -> Result<()> {
