@@ -73,6 +73,52 @@ fn spawn(args: &[&str]) -> Child {
         .unwrap()
 }
 
+/// `play --json --wait WAIT --measure MEASURE [BAG]` run by `command` (an `ist_monitor()` with
+/// the environment it needs): the summary it prints.
+fn play_measured(
+    mut command: Command,
+    wait: &str,
+    measure: &str,
+    bag: Option<&Path>,
+) -> serde_json::Value {
+    command.args(["play", "--json", "--wait", wait, "--measure", measure]);
+    if let Some(bag) = bag {
+        command.arg(bag);
+    }
+    common::json_output(&mut command)
+}
+
+/// A play published `published` clouds (or images) and at least `at_least` were answered.
+fn assert_answered(run: &serde_json::Value, published: u64, at_least: u64) {
+    assert_eq!(run["clouds_published"], published);
+    let received = run["outputs_received"].as_u64().unwrap();
+    assert!(
+        received >= at_least,
+        "only {received} of {published} answered: {run}"
+    );
+}
+
+/// Stops `node` with SIGTERM; it exits 0. Its log.
+fn stop(node: Child) -> String {
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let out = node.wait_with_output().unwrap();
+    assert!(out.status.success());
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A normal start and stop logs no error line (an operator must not learn to ignore them).
+fn assert_no_error_lines(log: &str) {
+    for line in log.lines() {
+        assert!(
+            !line.starts_with("[ERROR") && !line.to_lowercase().starts_with("error"),
+            "an error line in a normal run: {line}"
+        );
+    }
+}
+
 /// The node serves the demo bag: every cloud gets its outputs, with `--ros-args` remappings;
 /// when the source stops, an ERROR diagnostic comes within `source_timeout` (0.5 s here), and
 /// when it plays again, the node recovers.
@@ -111,43 +157,18 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     ]);
     // The node builds or loads its trees first; the player waits for discovery.
     std::thread::sleep(Duration::from_secs(2));
-    let play = |wait: &str| {
-        common::json_output(ist_monitor().args([
-            "play",
-            "--json",
-            "--wait",
-            wait,
-            "--measure",
-            "/robot1/watch/link_distances",
-        ]))
-    };
+    let play =
+        |wait: &str| play_measured(ist_monitor(), wait, "/robot1/watch/link_distances", None);
     let first = play("1.5");
     std::thread::sleep(Duration::from_millis(1500));
     let second = play("0.2");
     assert!(recorder.wait().unwrap().success());
     // SIGTERM: the node stops cleanly.
-    Command::new("kill")
-        .arg(node.id().to_string())
-        .status()
-        .unwrap();
-    // A normal start and stop logs no error line (an operator must not learn to ignore them).
-    let out = node.wait_with_output().unwrap();
-    assert!(out.status.success());
-    let log = String::from_utf8_lossy(&out.stderr);
+    let log = stop(node);
     assert!(log.contains("up: node /robot1/watch"), "{log}");
-    for line in log.lines() {
-        assert!(
-            !line.starts_with("[ERROR") && !line.to_lowercase().starts_with("error"),
-            "an error line in a normal run: {line}"
-        );
-    }
+    assert_no_error_lines(&log);
     for run in [&first, &second] {
-        assert_eq!(run["clouds_published"], 30);
-        let received = run["outputs_received"].as_u64().unwrap();
-        assert!(
-            received >= 27,
-            "only {received} of 30 clouds answered: {run}"
-        );
+        assert_answered(run, 30, 27);
     }
     // What the node published, in order: every topic of the output table, as the node, replay
     // and record all take it from `OutputTopic`.
@@ -431,33 +452,19 @@ fn depth_images_feed_the_node() {
         record.to_str().unwrap(),
     ]);
     std::thread::sleep(Duration::from_secs(1));
-    let run = common::json_output(ist_monitor().args([
-        "play",
-        "--json",
-        "--wait",
+    let run = play_measured(
+        ist_monitor(),
         "1.5",
-        "--measure",
         "/ist_monitor/link_distances",
-        bag.to_str().unwrap(),
-    ]));
+        Some(&bag),
+    );
     assert!(recorder.wait().unwrap().success());
-    Command::new("kill")
-        .arg(node.id().to_string())
-        .status()
-        .unwrap();
-    let out = node.wait_with_output().unwrap();
-    assert!(out.status.success());
-    let log = String::from_utf8_lossy(&out.stderr);
+    let log = stop(node);
     assert!(
         log.contains("first depth image on /camera/depth/image_raw"),
         "{log}"
     );
-    assert_eq!(run["clouds_published"], 20);
-    let received = run["outputs_received"].as_u64().unwrap();
-    assert!(
-        received >= 18,
-        "only {received} of 20 images answered: {run}"
-    );
+    assert_answered(&run, 20, 18);
     // The library's answers on the same bag.
     let config = ist_monitor::config::Config::load(
         Path::new(common::DEMO_CONFIG),
@@ -750,44 +757,21 @@ fn zenoh_transport_serves_the_node() {
     let play = |wait: &str| {
         let mut c = ist_monitor();
         zenoh(&mut c);
-        common::json_output(c.args([
-            "play",
-            "--json",
-            "--wait",
-            wait,
-            "--measure",
-            "/ist_monitor/link_distances",
-        ]))
+        play_measured(c, wait, "/ist_monitor/link_distances", None)
     };
     let first = play("1.0");
     std::thread::sleep(Duration::from_millis(1500));
     let second = play("0.3");
     assert!(recorder.wait().unwrap().success());
     for run in [&first, &second] {
-        assert_eq!(run["clouds_published"], 30);
-        let received = run["outputs_received"].as_u64().unwrap();
-        assert!(
-            received >= 29,
-            "only {received} of 30 clouds answered over zenoh: {run}"
-        );
+        assert_answered(run, 30, 29);
     }
-    Command::new("kill")
-        .arg(node.id().to_string())
-        .status()
-        .unwrap();
-    let out = node.wait_with_output().unwrap();
-    assert!(out.status.success());
-    let log = String::from_utf8_lossy(&out.stderr);
+    let log = stop(node);
     assert!(
         log.contains("zenoh (rmw_zenoh)") && log.contains("1 router(s)"),
         "{log}"
     );
-    for line in log.lines() {
-        assert!(
-            !line.starts_with("[ERROR"),
-            "an error line in a normal run: {line}"
-        );
-    }
+    assert_no_error_lines(&log);
     Command::new("kill")
         .arg(router.id().to_string())
         .status()

@@ -76,20 +76,37 @@ pub fn encode<T: RosMessage>(message: &T) -> Result<Vec<u8>, MsgError> {
 /// Decodes a CDR payload (either byte order) with its encapsulation header. Byte sequences
 /// borrow from `payload`.
 pub fn decode<'de, T: RosMessage + Deserialize<'de>>(payload: &'de [u8]) -> Result<T, MsgError> {
+    decode_with(T::TYPE, payload, std::marker::PhantomData::<T>)
+}
+
+/// Decodes a CDR payload (either byte order, with its encapsulation header) into `T`'s owned
+/// form: byte data is copied out of `payload`.
+pub fn decode_owned<T: OwnedMessage>(payload: &[u8]) -> Result<T, MsgError> {
+    decode_with(T::TYPE, payload, Owned::<T>::default())
+}
+
+/// Decodes a CDR payload of type `ty` through `seed`.
+fn decode_with<'de, S: serde::de::DeserializeSeed<'de>>(
+    ty: &'static str,
+    payload: &'de [u8],
+    seed: S,
+) -> Result<S::Value, MsgError> {
     if payload.len() < 4 {
         return Err(MsgError::Short {
-            ty: T::TYPE,
+            ty,
             len: payload.len(),
         });
     }
     let body = &payload[4..];
     let decoded = match payload[1] {
-        1 => cdr_encoding::from_bytes::<T, LittleEndian>(body),
-        0 => cdr_encoding::from_bytes::<T, BigEndian>(body),
-        kind => return Err(MsgError::Encapsulation { ty: T::TYPE, kind }),
+        1 => seed.deserialize(&mut cdr_encoding::CdrDeserializer::<LittleEndian>::new(
+            body,
+        )),
+        0 => seed.deserialize(&mut cdr_encoding::CdrDeserializer::<BigEndian>::new(body)),
+        kind => return Err(MsgError::Encapsulation { ty, kind }),
     };
-    decoded.map(|(m, _)| m).map_err(|e| MsgError::Cdr {
-        ty: T::TYPE,
+    decoded.map_err(|e| MsgError::Cdr {
+        ty,
         message: e.to_string(),
     })
 }
@@ -185,32 +202,6 @@ pub trait OwnedMessage: RosMessage + std::fmt::Debug + Send + Sync + Sized + 'st
     }
 }
 
-/// `T` decoded through [`OwnedMessage::deserialize_owned`].
-struct OwnedDe<T>(T);
-
-impl<'de, T: OwnedMessage> Deserialize<'de> for OwnedDe<T> {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        T::deserialize_owned(d).map(OwnedDe)
-    }
-}
-
-/// Decodes a CDR payload (either byte order, with its encapsulation header) into `T`'s owned
-/// form: byte data is copied out of `payload`.
-pub fn decode_owned<T: OwnedMessage>(payload: &[u8]) -> Result<T, MsgError> {
-    decode::<OwnedDe<T>>(payload).map(|m| m.0)
-}
-
-impl<T: OwnedMessage> Serialize for OwnedDe<T> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        self.0.serialize(s)
-    }
-}
-
-impl<T: OwnedMessage> RosMessage for OwnedDe<T> {
-    const TYPE: &'static str = T::TYPE;
-    const OWN_DEFINITION: &'static str = T::OWN_DEFINITION;
-}
-
 /// Where `data` lies in `payload`; `None` when it is not part of it (decoded into its own
 /// allocation).
 fn range_in(payload: &[u8], data: &[u8]) -> Option<std::ops::Range<usize>> {
@@ -229,7 +220,8 @@ fn keep_range(
     std::borrow::Cow::Owned(payload)
 }
 
-/// The seed that decodes an [`OwnedMessage`] (for subscriptions' `async_stream_seed`). It holds
+/// The seed that decodes an [`OwnedMessage`] (for subscriptions' `async_stream_seed` and
+/// [`decode_owned`]). It holds
 /// no `T`, so it is `Copy` whatever `T` is.
 pub struct Owned<T>(std::marker::PhantomData<fn() -> T>);
 

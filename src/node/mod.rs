@@ -124,12 +124,16 @@ fn entity(what: &'static str, name: &str, e: impl std::fmt::Debug) -> NodeError 
     }
 }
 
-/// A DDS context on `ROS_DOMAIN_ID` (0 when unset), with [`SOCKET_BUFFER`] socket buffers.
-pub fn context() -> Result<Context> {
-    let domain = match std::env::var("ROS_DOMAIN_ID") {
-        Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d))?,
-        Err(_) => 0,
-    };
+/// The ROS domain: `ROS_DOMAIN_ID`, 0 when unset.
+pub fn domain_id() -> Result<u16> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d)),
+        Err(_) => Ok(0),
+    }
+}
+
+/// A DDS context on `domain`, with [`SOCKET_BUFFER`] socket buffers.
+pub fn context(domain: u16) -> Result<Context> {
     let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
         .socket_receive_buffer_size(SOCKET_BUFFER)
         .socket_send_buffer_size(SOCKET_BUFFER)
@@ -516,8 +520,9 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
         .filter(|s| s.enabled)
         .map(|s| format!("{} on {}", s.name, s.topic))
         .collect();
+    // The socket buffers are DDS's: zenoh's samples travel over TCP.
     let dds = node.transport() == Transport::Dds;
-    let granted = granted_receive_buffer(SOCKET_BUFFER);
+    let granted = dds.then(|| granted_receive_buffer(SOCKET_BUFFER)).flatten();
     let buffer = if dds {
         format!(
             "; socket receive buffer {} asked, {} granted",
@@ -537,7 +542,7 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
         sources.join(", "),
         node.describe,
     );
-    if let Some(g) = granted.filter(|&g| dds && g < SOCKET_BUFFER) {
+    if let Some(g) = granted.filter(|&g| g < SOCKET_BUFFER) {
         log::warn!(
             "the kernel grants {} of socket receive buffer (net.core.rmem_max): a cloud larger \
              than that arriving in one burst loses datagrams and is dropped whole; raise it once \

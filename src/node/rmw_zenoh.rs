@@ -263,13 +263,9 @@ struct Keys {
 }
 
 impl ZenohNode {
-    /// Opens a session by rmw_zenoh's rules and declares node `namespace`/`name` on it; also
-    /// returns what the node runs on, for its start line.
-    pub fn open(namespace: &str, name: &str) -> Result<(Self, String), NodeError> {
-        let domain = match std::env::var("ROS_DOMAIN_ID") {
-            Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d))?,
-            Err(_) => 0,
-        };
+    /// Opens a session by rmw_zenoh's rules and declares node `namespace`/`name` of ROS domain
+    /// `domain` on it; also returns what the node runs on, for its start line.
+    pub fn open(domain: u16, namespace: &str, name: &str) -> Result<(Self, String), NodeError> {
         let (config, from) = config_from_env(ConfigFor::Session)?;
         let session = zenoh::open(config)
             .wait()
@@ -321,6 +317,7 @@ impl ZenohNode {
         qos: &QosProfile,
         any_hash: bool,
     ) -> Result<Keys, NodeError> {
+        super::topic_name(topic)?; // a ROS name, as on DDS
         let hash = crate::msg::type_hash(T::TYPE).ok_or_else(|| {
             NodeError::Transport(format!("{}: no type description for its hash", T::TYPE))
         })?;

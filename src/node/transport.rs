@@ -96,9 +96,10 @@ impl RosNode {
         let node_name = NodeName::new(namespace, name)
             .map_err(|e| entity("node name", &format!("{namespace} {name}"), e))?;
         let options = || NodeOptions::new().enable_rosout(false);
+        let domain = super::domain_id()?;
         match transport {
             Transport::Dds => {
-                let ctx = super::context()?;
+                let ctx = super::context(domain)?;
                 let mut node = ctx
                     .new_node(node_name.clone(), options())
                     .map_err(|e| entity("node", name, e))?;
@@ -109,7 +110,6 @@ impl RosNode {
                             .spin(),
                     )
                     .detach();
-                let domain = std::env::var("ROS_DOMAIN_ID").unwrap_or_else(|_| "0".into());
                 Ok(Self {
                     describe: format!("DDS (RustDDS) on domain {domain}"),
                     inner: Inner::Dds {
@@ -120,7 +120,7 @@ impl RosNode {
                 })
             }
             Transport::Zenoh => {
-                let (node, describe) = ZenohNode::open(namespace, name)?;
+                let (node, describe) = ZenohNode::open(domain, namespace, name)?;
                 Ok(Self {
                     describe,
                     inner: Inner::Zenoh(Box::new(node)),
@@ -171,12 +171,9 @@ impl RosNode {
         topic: &str,
         qos: QosProfile,
     ) -> Result<Pub<T>, NodeError> {
-        let name = super::topic_name(topic)?;
         match &mut self.inner {
             Inner::Dds { node, .. } => {
-                let t = node
-                    .create_topic(&name, type_name::<T>(), &qos)
-                    .map_err(|e| entity("topic", topic, e))?;
+                let t = dds_topic::<T>(node, topic, &qos)?;
                 node.create_publisher(&t, Some(qos))
                     .map(Pub::Dds)
                     .map_err(|e| entity("publisher", topic, e))
@@ -201,9 +198,7 @@ impl RosNode {
                 let sub: Subscription<T> = if bounded {
                     super::source_subscription(ctx, node, name, topic, qos)?
                 } else {
-                    let t = node
-                        .create_topic(&super::topic_name(topic)?, type_name::<T>(), &qos)
-                        .map_err(|e| entity("topic", topic, e))?;
+                    let t = dds_topic::<T>(node, topic, &qos)?;
                     node.create_subscription(&t, Some(qos))
                         .map_err(|e| entity("subscription", topic, e))?
                 };
@@ -226,6 +221,16 @@ impl RosNode {
             }
         }
     }
+}
+
+/// The DDS topic of `T` named `topic`.
+fn dds_topic<T: RosMessage>(
+    node: &mut ros2_client::dds::Node,
+    topic: &str,
+    qos: &QosProfile,
+) -> Result<ros2_client::dds::rustdds::Topic, NodeError> {
+    node.create_topic(&super::topic_name(topic)?, type_name::<T>(), qos)
+        .map_err(|e| entity("topic", topic, e))
 }
 
 #[cfg(test)]
