@@ -244,7 +244,9 @@ impl Monitor {
         trees: &[LinkTree],
     ) -> Result<Self, MonitorError> {
         config.query.validate()?;
-        let engine = Engine::new(&model, trees, &config.selection)?;
+        let mut engine = Engine::new(&model, trees, &config.selection)?;
+        // The self-filter's grids now, not on the first cloud.
+        engine.prepare_self_filter(&config.query);
         let (tf, joints) = Self::inputs(&config, &model)?;
         let level = LevelTracker::new(&config);
         let scaler = Self::scaler(&config);

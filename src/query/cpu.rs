@@ -2,9 +2,10 @@
 //! `pose.rs`; steps 4 and 5, exact refinement and the result, are `exact.rs` and `result.rs`,
 //! shared with the GPU).
 //!
-//! 2. **Seeds** (parallel over links): a sample of the cloud (every `SEED_STRIDE`-th point)
-//!    gives each link the point nearest to its root sphere; the block around it is descended for
-//!    that link, so that the shared bounds are tight before the main pass.
+//! 2. **Seeds**: one pass over a sample of the cloud (every `SEED_STRIDE`-th point, eight
+//!    links' root centres at a time) gives each link the `SEEDS` valid points nearest to its
+//!    root sphere that are not the robot, in distinct blocks; those blocks are descended for
+//!    that link (in parallel), so that the shared bounds are tight before the main pass.
 //! 3. **Main pass** (parallel over groups of blocks, rayon; the one sweep over the whole
 //!    cloud). The cloud's hierarchy, bottom up: points; **sub-blocks** of `SUB` = 8 points;
 //!    **blocks** of `BLOCK` = 32 points, runs of consecutive points or, for an organized cloud,
@@ -13,15 +14,16 @@
 //!    sphere of its valid points (eight lanes at a time, SIMD). A block is dropped whole when
 //!    its sphere lies outside the region of interest or farther from the robot's box than
 //!    every link's bound. Otherwise it is taken in two phases:
-//!    - **the robot** (self-filter), only for a block that some link's inner sphere comes
-//!      within the padding of: each link's tree is cut at the block with the padding as the
+//!    - **the robot** (self-filter), only for a block within the padding of some link's root
+//!      sphere: each point is looked up in that link's self-filter grid ([`SelfGrid`]: cells
+//!      wholly within the padding of the inner spheres, wholly beyond it, or across it), the
+//!      link that took the point before it first; only a point in a cell across the padding
+//!      descends the tree (stopping at the first sphere within the padding). A block that is
+//!      all robot ends here.
+//!    - **the obstacles**: each link's tree is cut at the block with the link's bound as the
 //!      limit (the **frontier**: the nodes no larger than the block whose lower bound over the
-//!      block is within the limit), and each point is tested first against the sphere that
-//!      took the point before it, then by a descent from the frontier that stops at the first
-//!      sphere within the padding; a block within the padding of one sphere is the robot
-//!      whole. A block that is all robot ends here.
-//!    - **the obstacles**: the frontier again, cut at each link's bound (most links end with
-//!      an empty frontier and cost the block nothing more); each sub-block is tested against
+//!      block is within the limit; most links end with an empty one and cost the block nothing
+//!      more); each sub-block is tested against
 //!      the frontier nodes, and a link it reaches only through them is confirmed by a descent
 //!      of its centre that stops at the first inner sphere within the bound plus its radius:
 //!      the links that remain are the only ones its points look at. Each point is tested
@@ -36,7 +38,8 @@
 //! The pruning rule ([`Pass::threshold`]) and the recording rule ([`Pass::record`]) are the
 //! ones the GPU shader implements per point; the blocks, frontiers and SIMD are the CPU's own.
 //! Nothing is allocated per query once the scratch memory has grown (thread-local frontier
-//! buffers, the exact candidates' vector).
+//! buffers, the exact candidates' vector), but the seed lists (a few hundred bytes per rayon
+//! split).
 
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
@@ -47,6 +50,7 @@ use wide::{f32x8, CmpEq, CmpLt};
 use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
 use super::descent::{any_within, dist, dist2, lower_bounds, nearest_from, valid};
 use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
+use super::self_grid::{Cell, SelfGrid};
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts, MAX_LINKS};
 
 /// Sample points (and their blocks) that seed each link.
@@ -237,6 +241,10 @@ struct Pass<'a> {
     max_gap: f32,
     /// Self-filter padding; −∞ when off.
     padding: f32,
+    /// Per link, the self-filter's grid for this padding (empty when off).
+    grids: &'a [SelfGrid],
+    /// Every link's bit.
+    all: u128,
     /// The robot's box, the region of interest (`max_distance`) with it.
     robot_box: RobotBox,
 }
@@ -346,77 +354,57 @@ impl Pass<'_> {
         }
     }
 
-    /// Whether `p` is the robot: within the padding of the sphere `hint` that took the point
-    /// before it (neighbouring points of the robot's surface lie near the same sphere), or of
-    /// any sphere of the links of `mask` (a descent from their frontiers that stops at the
-    /// first). Returns the link, and keeps the sphere as the next hint.
+    /// A link of `mask` with an inner sphere within the self-filter padding of `p`: `hint` (the
+    /// link that took the point before it, kept up to date) first, then the others in engine
+    /// order. Its grid settles most points ([`SelfGrid`]), a descent from its root the points in
+    /// the grid's shell.
     #[inline]
-    fn self_link(
-        &self,
-        p: [f32; 3],
-        mask: u128,
-        frontier: &[u32],
-        spans: &[(u32, u32)],
-        hint: &mut Option<(usize, u32)>,
-    ) -> Option<usize> {
-        if let Some((l, s)) = *hint {
+    fn self_link(&self, p: [f32; 3], mask: u128, hint: &mut usize) -> Option<usize> {
+        let takes = |l: usize| {
             let q = self.posed[l].in_link(p);
-            let sphere = &self.links[l].spheres[s as usize];
-            if dist(q, sphere.center) - sphere.radius <= self.padding {
-                return Some(l);
+            match self.grids[l].at(q) {
+                Cell::SelfPoint => true,
+                Cell::Clear => false,
+                Cell::Shell => any_within(&self.links[l], q, &[0], self.padding).is_some(),
             }
+        };
+        let h = *hint;
+        if h < MAX_LINKS && mask & (1 << h) != 0 && takes(h) {
+            return Some(h);
         }
-        let (l, s) = self.is_self(p, mask, frontier, spans)?;
-        *hint = Some((l, s));
+        let l = bits(mask & !(1u128.checked_shl(h as u32).unwrap_or(0))).find(|&l| takes(l))?;
+        *hint = l;
         Some(l)
     }
 
-    /// The first link of `mask` with an inner sphere within the self-filter padding of `p`,
-    /// and that sphere.
+    /// Whether `p` is the robot (within the padding of a link; false when the self-filter is
+    /// off).
+    fn is_robot(&self, p: [f32; 3]) -> bool {
+        self.padding >= 0.0
+            && self.robot_box.distance(p) <= self.padding
+            && self
+                .self_link(p, self.near_links(p, 0.0), &mut { usize::MAX })
+                .is_some()
+    }
+
+    /// The links whose root sphere comes within the padding of a block (centre `c`, radius
+    /// `r`, sensor frame): the only ones that may take its points as the robot.
     #[inline]
-    fn is_self(
-        &self,
-        p: [f32; 3],
-        mask: u128,
-        frontier: &[u32],
-        spans: &[(u32, u32)],
-    ) -> Option<(usize, u32)> {
-        if self.padding < 0.0 {
-            return None;
+    fn near_links(&self, c: [f32; 3], r: f32) -> u128 {
+        let mut mask = 0u128;
+        for (l, pl) in self.posed.iter().enumerate() {
+            let reach = self.padding + r + pl.radius;
+            if dist2(c, pl.center) <= reach * reach {
+                mask |= 1 << l;
+            }
         }
-        bits(mask).find_map(|l| {
-            let link = &self.links[l];
-            let q = self.posed[l].in_link(p);
-            any_within(link, q, starts(frontier, spans, l), self.padding).map(|s| (l, s))
-        })
+        mask
     }
 
     /// Whether point `p` of a block that straddles the region of interest lies outside it.
     #[inline(always)]
     fn outside(&self, p: [f32; 3], partial_roi: bool) -> bool {
         partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance
-    }
-
-    /// Whether a block may hold points of the robot: some link has an inner sphere within the
-    /// padding plus the block's radius of its centre (a root test, then a descent that stops at
-    /// the first such sphere). Most blocks of a scene are not near the robot and skip the
-    /// self-filter's frontiers.
-    #[inline]
-    fn may_be_robot(&self, block: &Block) -> bool {
-        let limit = self.padding + block.radius;
-        self.posed.iter().zip(self.links).any(|(pl, link)| {
-            let reach = limit + pl.radius;
-            dist2(block.center, pl.center) <= reach * reach
-                && any_within(link, pl.in_link(block.center), &[0], limit).is_some()
-        })
-    }
-
-    /// Whether every point of a block (centre `c`, radius `r`, sensor frame) lies within the
-    /// padding of sphere `s` of link `l`: the block is then the robot, whole.
-    #[inline]
-    fn block_is_self(&self, c: [f32; 3], r: f32, (l, s): (usize, u32)) -> bool {
-        let sphere = &self.links[l].spheres[s as usize];
-        dist(self.posed[l].in_link(c), sphere.center) + r - sphere.radius <= self.padding
     }
 
     /// Descends the links of `mask` for an obstacle point and records its distances; returns
@@ -443,24 +431,21 @@ impl Pass<'_> {
         inside
     }
 
-    /// The frontiers of a block in every link (`limit`: the link's threshold, at least the
-    /// padding); returns the mask of links with a frontier.
+    /// The frontiers of a block in the links of `links`, cut at the link's threshold; returns
+    /// the mask of links with a frontier.
     fn frontiers(
         &self,
         center: [f32; 3],
         radius: f32,
-        self_filter: bool,
+        links: u128,
         frontier: &mut Vec<u32>,
         spans: &mut [(u32, u32)],
     ) -> u128 {
         frontier.clear();
         let mut mask = 0u128;
-        for (l, pl) in self.posed.iter().enumerate() {
-            let limit = if self_filter {
-                self.padding
-            } else {
-                self.threshold(l)
-            };
+        for l in bits(links) {
+            let pl = &self.posed[l];
+            let limit = self.threshold(l);
             // Root sphere first, in the sensor frame (no transform, no square root).
             let reach = limit + radius + pl.radius;
             if dist2(center, pl.center) > reach * reach {
@@ -557,33 +542,24 @@ impl Pass<'_> {
         let mut robot = 0u32;
         // The robot box bounds every link from below: a block beyond the padding of it holds no
         // robot point.
-        if self.padding >= 0.0 && roi - block.radius <= self.padding && self.may_be_robot(block) {
-            let near = self.frontiers(block.center, block.radius, true, frontier, spans);
+        if self.padding >= 0.0 && roi - block.radius <= self.padding {
+            let near = self.near_links(block.center, block.radius);
             if near != 0 {
-                let mut hint = None;
-                let mut whole_self = None;
+                let mut hint = usize::MAX;
                 for (k, &(start, len)) in subs.iter().enumerate() {
                     for (i, &p) in self.points[start..start + len].iter().enumerate() {
                         if !valid(p) || self.outside(p, partial_roi) {
                             continue;
                         }
-                        let l = match (*last, whole_self) {
-                            (_, Some(l)) => Some(l),
-                            (Some((q, stage)), _) if q == p => match stage {
+                        let l = match *last {
+                            Some((q, stage)) if q == p => match stage {
                                 PointStage::SelfFiltered(l) => Some(l),
                                 _ => None,
                             },
                             _ => {
-                                let l = self.self_link(p, near, frontier, spans, &mut hint);
+                                let l = self.self_link(p, near, &mut hint);
                                 if let Some(l) = l {
                                     *last = Some((p, PointStage::SelfFiltered(l)));
-                                    // The first time a sphere takes a point, it may take the
-                                    // whole block.
-                                    if let Some(h) = hint {
-                                        if self.block_is_self(block.center, block.radius, h) {
-                                            whole_self = Some(h.0);
-                                        }
-                                    }
                                 }
                                 l
                             }
@@ -600,7 +576,7 @@ impl Pass<'_> {
         // Phase 2, the obstacle points: frontiers cut at each link's threshold, then
         // sub-block by sub-block, point by point.
         if counts.self_filtered < u64::from(block.valid) {
-            let mask = self.frontiers(block.center, block.radius, false, frontier, spans);
+            let mask = self.frontiers(block.center, block.radius, self.all, frontier, spans);
             if mask == 0 && !partial_roi {
                 // No link within reach: the rest of the block is pruned whole.
                 counts.pruned = u64::from(block.valid) - counts.self_filtered;
@@ -719,21 +695,26 @@ impl Pass<'_> {
     /// that the robot's own points never become a bound; nothing is counted).
     fn seed(&self, l: usize, b: usize, block: &Block) {
         with_scratch(self.links.len(), |frontier, spans| {
-            let near = self.frontiers(block.center, block.radius, true, frontier, spans);
+            let near = if self.padding >= 0.0 {
+                self.near_links(block.center, block.radius)
+            } else {
+                0
+            };
             // The robot's points (bit k: the k-th point of the block's sub-blocks), which
             // never become a bound.
             let mut robot = 0u32;
+            let mut hint = usize::MAX;
             let points = self
                 .tiling
                 .subs(b)
                 .into_iter()
                 .flat_map(|(start, len)| &self.points[start..start + len]);
             for (k, &p) in points.enumerate() {
-                if valid(p) && near != 0 && self.is_self(p, near, frontier, spans).is_some() {
+                if valid(p) && near != 0 && self.self_link(p, near, &mut hint).is_some() {
                     robot |= 1 << k;
                 }
             }
-            let mask = self.frontiers(block.center, block.radius, false, frontier, spans);
+            let mask = self.frontiers(block.center, block.radius, 1 << l, frontier, spans);
             let mut k = 0;
             for (start, len) in self.tiling.subs(b) {
                 for (i, &p) in self.points[start..start + len].iter().enumerate() {
@@ -741,13 +722,110 @@ impl Pass<'_> {
                         && robot & (1 << k) == 0
                         && self.robot_box.distance(p) <= self.robot_box.max_distance
                     {
-                        self.evaluate((start + i) as u32, p, mask & (1 << l), frontier, spans);
+                        self.evaluate((start + i) as u32, p, mask, frontier, spans);
                     }
                     k += 1;
                 }
             }
         });
     }
+}
+
+/// Per link, the seed samples found so far ([`offer`]), and the links' root-sphere centres eight
+/// at a time with the farthest distance each list still takes (SIMD over links).
+struct SeedLists {
+    lists: Vec<[Seed; SEEDS]>,
+    centres: Vec<[f32x8; 3]>,
+    worst: Vec<f32x8>,
+}
+
+impl SeedLists {
+    fn new(posed: &[PosedLink]) -> Self {
+        let octets = posed.len().div_ceil(8);
+        let lane = |l: usize, k: usize| posed.get(l).map_or(0.0, |p| p.center[k]);
+        Self {
+            lists: vec![[NO_SEED; SEEDS]; posed.len()],
+            centres: (0..octets)
+                .map(|o| {
+                    std::array::from_fn(|k| {
+                        f32x8::from(std::array::from_fn(|j| lane(8 * o + j, k)))
+                    })
+                })
+                .collect(),
+            // Lanes past the last link take nothing.
+            worst: (0..octets)
+                .map(|o| {
+                    f32x8::from(std::array::from_fn(|j| {
+                        if 8 * o + j < posed.len() {
+                            f32::INFINITY
+                        } else {
+                            f32::NEG_INFINITY
+                        }
+                    }))
+                })
+                .collect(),
+        }
+    }
+
+    /// Offers point `i` to every link whose list it enters (a valid point, not the robot).
+    #[inline]
+    fn offer_point(&mut self, i: usize, p: [f32; 3], pass: &Pass, tiling: &Tiling) {
+        if !valid(p) {
+            return;
+        }
+        let (mut robot, mut block) = (None, None);
+        for o in 0..self.centres.len() {
+            let c = &self.centres[o];
+            let d = [0, 1, 2].map(|k| c[k] - f32x8::splat(p[k]));
+            let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let mut takes = d2.cmp_lt(self.worst[o]).move_mask() as u32;
+            if takes == 0 || *robot.get_or_insert_with(|| pass.is_robot(p)) {
+                continue;
+            }
+            let d2 = d2.to_array();
+            let block = *block.get_or_insert_with(|| tiling.block_of(i) as u32);
+            while takes != 0 {
+                let j = takes.trailing_zeros() as usize;
+                takes &= takes - 1;
+                self.offer(8 * o + j, (d2[j], i as u32, block));
+            }
+        }
+    }
+
+    fn offer(&mut self, l: usize, n: Seed) {
+        offer(&mut self.lists[l], n);
+        let mut w = self.worst[l / 8].to_array();
+        w[l % 8] = self.lists[l][SEEDS - 1].0;
+        self.worst[l / 8] = f32x8::from(w);
+    }
+
+    fn merge(&mut self, other: &Self) {
+        for (l, list) in other.lists.iter().enumerate() {
+            for &n in list.iter().filter(|n| n.1 != u32::MAX) {
+                self.offer(l, n);
+            }
+        }
+    }
+}
+
+/// A seed sample: squared distance to the link's root centre, point, block.
+type Seed = (f32, u32, u32);
+
+const NO_SEED: Seed = (f32::INFINITY, u32::MAX, u32::MAX);
+
+/// Offers seed `n` to a link's seed list, sorted nearest first: it takes the place of a farther
+/// sample of its own block, or of the farthest one. The list ends as the `SEEDS` nearest
+/// blocks' nearest samples whatever the order of the offers.
+fn offer(list: &mut [Seed; SEEDS], n: Seed) {
+    let key = |m: &Seed| (m.0.to_bits(), m.1);
+    let slot = match list.iter().position(|m| m.1 != u32::MAX && m.2 == n.2) {
+        Some(k) if key(&n) < key(&list[k]) => k,
+        Some(_) => return,
+        None if key(&n) < key(&list[SEEDS - 1]) => SEEDS - 1,
+        None => return,
+    };
+    list[slot] = n;
+    list.sort_unstable_by_key(key);
 }
 
 /// Whether a node of `starts` lies within `bound` of `q` (link frame): `|q − c| − r ≤ bound`,
@@ -852,12 +930,20 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
                 | (zero & zero >> 1 & zero >> 2))
                 & POINT_BITS;
             invalid += bad.count_ones();
-            let lanes = bad | bad << 1 | bad << 2;
-            for k in 0..3 {
-                let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
-                let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
-                lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
-                hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
+            if bad == 0 {
+                // All eight valid (the common case): no masks.
+                for k in 0..3 {
+                    lo[k] = lo[k].fast_min(v[k]);
+                    hi[k] = hi[k].fast_max(v[k]);
+                }
+            } else if bad != POINT_BITS {
+                let lanes = bad | bad << 1 | bad << 2;
+                for k in 0..3 {
+                    let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
+                    let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
+                    lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
+                    hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
+                }
             }
         }
         for &p in &chunk[8 * groups..] {
@@ -918,6 +1004,7 @@ fn bound_sub(chunk: &[[f32; 3]]) -> ([f32; 3], f32) {
 /// assembly.
 pub(super) fn run(
     links: &[QueryLink],
+    grids: &[SelfGrid],
     bounds: &mut Bounds,
     input: Input,
     robot_box: RobotBox,
@@ -941,31 +1028,39 @@ pub(super) fn run(
         per_link_range: options.per_link_range_m,
         max_gap: bounds.posed.iter().map(|p| p.gap).fold(0.0, f32::max),
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
+        grids,
+        all: u128::MAX >> (MAX_LINKS - links.len()),
         robot_box,
     };
 
     // 2. Seeds: each link from the blocks around the SEEDS sample points nearest to its root
-    // sphere's centre.
-    (0..links.len()).into_par_iter().for_each(|l| {
-        let c = pass.posed[l].center;
-        let mut nearest = [(f32::INFINITY, usize::MAX); SEEDS];
-        for i in (0..points.len()).step_by(SEED_STRIDE as usize) {
-            let p = points[i];
-            let d = dist2(p, c);
-            if d < nearest[SEEDS - 1].0
-                && valid(p)
-                && !nearest
-                    .iter()
-                    .any(|n| n.1 != usize::MAX && tiling.block_of(n.1) == tiling.block_of(i))
-            {
-                nearest[SEEDS - 1] = (d, i);
-                nearest.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-            }
-        }
-        for &(_, i) in nearest.iter().filter(|n| n.1 != usize::MAX) {
-            let b = tiling.block_of(i);
-            pass.seed(l, b, &bound_block(points, tiling.subs(b)));
-        }
+    // sphere's centre (valid, not the robot, in distinct blocks), found in one pass over the
+    // sample.
+    let empty = || SeedLists::new(pass.posed);
+    let nearest = (0..points.len().div_ceil(SEED_STRIDE as usize))
+        .into_par_iter()
+        .with_min_len(1024)
+        .fold(empty, |mut lists, k| {
+            let i = k * SEED_STRIDE as usize;
+            lists.offer_point(i, points[i], &pass, &tiling);
+            lists
+        })
+        .reduce(empty, |mut a, b| {
+            a.merge(&b);
+            a
+        })
+        .lists;
+    let seeds: Vec<(usize, usize)> = nearest
+        .iter()
+        .enumerate()
+        .flat_map(|(l, list)| {
+            list.iter()
+                .filter(|n| n.1 != u32::MAX)
+                .map(move |n| (l, n.2 as usize))
+        })
+        .collect();
+    seeds.into_par_iter().for_each(|(l, b)| {
+        pass.seed(l, b, &bound_block(points, tiling.subs(b)));
     });
 
     // 3. Main pass, one sweep over the cloud in groups of `GROUP` blocks (parallel over the

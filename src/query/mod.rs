@@ -72,6 +72,7 @@ pub mod layout;
 pub mod peers;
 mod pose;
 mod result;
+mod self_grid;
 
 pub use descent::valid as is_valid_point;
 
@@ -363,6 +364,8 @@ pub struct Engine {
     /// The points in the working frame, for clouds far from their frame's origin (kept to
     /// avoid an allocation per query).
     work: Vec<[f32; 3]>,
+    /// The self-filter's grids of the links (CPU), for the padding they were built for.
+    self_grids: Option<(f32, Vec<self_grid::SelfGrid>)>,
 }
 
 /// The GPU backend, created on first use.
@@ -431,6 +434,7 @@ impl Engine {
             bounds,
             gpu: GpuSlot::Untried,
             work: Vec::new(),
+            self_grids: None,
         })
     }
 
@@ -541,7 +545,48 @@ impl Engine {
                 }
             }
         }
-        cpu::run(&self.links, &mut self.bounds, input, robot_box)
+        if let Some(padding) = options.self_filter_padding_m {
+            self.self_grids(padding);
+        }
+        let grids = match (&self.self_grids, options.self_filter_padding_m) {
+            (Some((_, grids)), Some(_)) => grids.as_slice(),
+            _ => &[],
+        };
+        cpu::run(&self.links, grids, &mut self.bounds, input, robot_box)
+    }
+
+    /// The links' self-filter grids for `padding`, built on the first CPU query with it (a few
+    /// hundred milliseconds for a robot, once; [`Engine::prepare_self_filter`] builds them
+    /// ahead).
+    fn self_grids(&mut self, padding: f32) {
+        if self.self_grids.as_ref().is_none_or(|(p, _)| *p != padding) {
+            let start = std::time::Instant::now();
+            let grids: Vec<_> = self
+                .links
+                .iter()
+                .map(|l| self_grid::SelfGrid::new(l, padding))
+                .collect();
+            let cells = grids
+                .iter()
+                .map(|g| g.census())
+                .fold([0; 3], |a, c| [a[0] + c[0], a[1] + c[1], a[2] + c[2]]);
+            log::debug!(
+                "self-filter grids for padding {padding} m: {} cells ({} self, {} shell) in {:.0} ms",
+                cells.iter().sum::<usize>(),
+                cells[2],
+                cells[1],
+                start.elapsed().as_secs_f64() * 1e3
+            );
+            self.self_grids = Some((padding, grids));
+        }
+    }
+
+    /// Builds the self-filter's grids for the padding of `options` now, so that the first
+    /// query does not (the node does this before it takes its first cloud).
+    pub fn prepare_self_filter(&mut self, options: &QueryOptions) {
+        if let Some(padding) = options.self_filter_padding_m {
+            self.self_grids(padding);
+        }
     }
 
     /// The GPU backend, created on first use; `None` (said once) when there is no usable GPU.
@@ -679,8 +724,9 @@ pub struct QueryResult {
     /// Per-link minima (only when `per_link`), in the engine's link order.
     pub links: Vec<LinkDistance>,
     pub counts: StageCounts,
-    /// The links the self-filtered points were taken as (the first link, in engine order,
-    /// within the padding), with their counts; links with none are left out.
+    /// The links the self-filtered points were taken as (a link within the padding: on the CPU
+    /// the one that took the point before it if it does, else the first in engine order; on the
+    /// GPU the first in engine order), with their counts; links with none are left out.
     pub self_filtered_by_link: Vec<(String, u64)>,
     /// The spacing of the cloud's f32 coordinates where the robot is, m: every point is known to
     /// within √3/2 of it, and the interval holds for the points as given.
