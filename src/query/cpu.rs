@@ -48,7 +48,7 @@ use rayon::prelude::*;
 use wide::{f32x8, CmpEq, CmpLt};
 
 use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
-use super::descent::{any_within, dist, dist2, lower_bounds, nearest_from, valid};
+use super::descent::{any_within, dist, dist2, lower_bounds, nearest_from, nearest_sphere, valid};
 use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
 use super::self_grid::{Cell, SelfGrid};
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts, MAX_LINKS};
@@ -1050,16 +1050,27 @@ pub(super) fn run(
             a
         })
         .lists;
-    let seeds: Vec<(usize, usize)> = nearest
+    let seeds: Vec<(usize, Seed)> = nearest
         .iter()
         .enumerate()
         .flat_map(|(l, list)| {
             list.iter()
                 .filter(|n| n.1 != u32::MAX)
-                .map(move |n| (l, n.2 as usize))
+                .map(move |&n| (l, n))
         })
         .collect();
-    seeds.into_par_iter().for_each(|(l, b)| {
+    // The sample points first (one descent each, the first bounds), then their blocks.
+    seeds.par_iter().for_each(|&(l, (_, i, _))| {
+        let p = points[i as usize];
+        if pass.robot_box.distance(p) <= pass.robot_box.max_distance {
+            let q = pass.posed[l].in_link(p);
+            if let Some((d, _)) = nearest_sphere(&links[l], q, pass.threshold(l)) {
+                pass.record(l, i, d);
+            }
+        }
+    });
+    seeds.into_par_iter().for_each(|(l, (_, _, b))| {
+        let b = b as usize;
         pass.seed(l, b, &bound_block(points, tiling.subs(b)));
     });
 
