@@ -733,6 +733,7 @@ impl Pass<'_> {
 
 /// Per link, the seed samples found so far ([`offer`]), and the links' root-sphere centres eight
 /// at a time with the farthest distance each list still takes (SIMD over links).
+#[derive(Clone)]
 struct SeedLists {
     lists: Vec<[Seed; SEEDS]>,
     centres: Vec<[f32x8; 3]>,
@@ -1036,7 +1037,13 @@ pub(super) fn run(
     // 2. Seeds: each link from the blocks around the SEEDS sample points nearest to its root
     // sphere's centre (valid, not the robot, in distinct blocks), found in one pass over the
     // sample.
-    let empty = || SeedLists::new(pass.posed);
+    // A coarse pass first (every 16th sample), so that the full pass starts from short lists
+    // and offers few samples.
+    let mut coarse = SeedLists::new(pass.posed);
+    for i in (0..points.len()).step_by(16 * SEED_STRIDE as usize) {
+        coarse.offer_point(i, points[i], &pass, &tiling);
+    }
+    let empty = || coarse.clone();
     let nearest = (0..points.len().div_ceil(SEED_STRIDE as usize))
         .into_par_iter()
         .with_min_len(1024)
