@@ -382,8 +382,8 @@ proptest! {
         }
     }
 
-    /// The self-filter on blocks (a block within the padding of one sphere is taken whole, a
-    /// point near the sphere that took the one before it is taken at once) filters exactly the
+    /// The self-filter (each link's grid settles the points in cells wholly within or wholly
+    /// beyond the padding, a descent the points in the cells across it) filters exactly the
     /// points that lie within the padding of an inner sphere: never one farther.
     #[test]
     fn self_filter_takes_exactly_the_points_within_the_padding(seed in 1u64.., padding in 0.005f32..0.05) {
