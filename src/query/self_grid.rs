@@ -17,8 +17,8 @@
 //! would say so. The grid covers the spheres' box grown by the padding and one cell; a point
 //! outside it is farther than the padding from every sphere.
 //!
-//! Cells are 0.4 × padding wide (at most 2²¹ per link: coarser for a large link or a tiny
-//! padding), so that a point on the mesh surface, within the link's gap h of its spheres, falls
+//! Cells are 0.4 × padding wide (at most 2²⁰ per link, a byte each: coarser for a large link
+//! or a tiny padding), so that a point on the mesh surface, within the link's gap h of its spheres, falls
 //! in a `self` cell whenever `h + 2ρ ≤ padding` (h ≤ 3 mm at the default 1 cm padding). The grid
 //! is built once per padding (two levels: bricks of 4³ cells that are all `self` or all `clear`
 //! are settled with one test each), in parallel over slabs.
@@ -41,7 +41,7 @@ pub(crate) enum Cell {
 }
 
 /// Most cells of one link's grid.
-const MAX_CELLS: usize = 1 << 21;
+const MAX_CELLS: usize = 1 << 20;
 
 /// Cell width as a fraction of the padding.
 const CELL_PER_PADDING: f32 = 0.4;
@@ -250,5 +250,11 @@ mod tests {
         assert_eq!(grid.at([1.0, 0.0, 0.0]), Cell::Clear);
         assert_eq!(grid.at([f32::NAN, 0.0, 0.0]), Cell::Clear);
         assert_eq!(grid.at([0.0; 3]), Cell::SelfPoint);
+        // A link of metres: coarser cells, still at most MAX_CELLS, still right.
+        let big = link(&[([0.0; 3], 2.0), ([3.0, 0.0, 0.0], 1.5)]);
+        let grid = SelfGrid::new(&big, 0.01);
+        assert!(grid.cells.len() <= MAX_CELLS);
+        assert_eq!(grid.at([0.0; 3]), Cell::SelfPoint);
+        assert_eq!(grid.at([0.0, 2.5, 0.0]), Cell::Clear);
     }
 }
