@@ -368,11 +368,11 @@ impl Pass<'_> {
                 Cell::Shell => any_within(&self.links[l], q, &[0], self.padding).is_some(),
             }
         };
-        let h = *hint;
-        if h < MAX_LINKS && mask & (1 << h) != 0 && takes(h) {
-            return Some(h);
+        let first = 1u128.checked_shl(*hint as u32).unwrap_or(0) & mask;
+        if first != 0 && takes(*hint) {
+            return Some(*hint);
         }
-        let l = bits(mask & !(1u128.checked_shl(h as u32).unwrap_or(0))).find(|&l| takes(l))?;
+        let l = bits(mask & !first).find(|&l| takes(l))?;
         *hint = l;
         Some(l)
     }
@@ -391,18 +391,21 @@ impl Pass<'_> {
     /// Whether `p` is the robot (within the padding of a link; false when the self-filter is
     /// off).
     fn is_robot(&self, p: [f32; 3]) -> bool {
-        self.padding >= 0.0
-            && self.robot_box.distance(p) <= self.padding
+        self.robot_box.distance(p) <= self.padding
             && self
                 .self_link(p, self.near_links(p, 0.0), &mut { usize::MAX })
                 .is_some()
     }
 
     /// The links whose root sphere comes within the padding of a block (centre `c`, radius
-    /// `r`, sensor frame): the only ones that may take its points as the robot.
+    /// `r`, sensor frame): the only ones that may take its points as the robot (none when the
+    /// self-filter is off).
     #[inline]
     fn near_links(&self, c: [f32; 3], r: f32) -> u128 {
         let mut mask = 0u128;
+        if self.padding < 0.0 {
+            return mask;
+        }
         for (l, pl) in self.posed.iter().enumerate() {
             let reach = self.padding + r + pl.radius;
             if dist2(c, pl.center) <= reach * reach {
@@ -553,7 +556,7 @@ impl Pass<'_> {
         let mut robot = 0u32;
         // The robot box bounds every link from below: a block beyond the padding of it holds no
         // robot point.
-        if self.padding >= 0.0 && roi - block.radius <= self.padding {
+        if roi - block.radius <= self.padding {
             let near = self.near_links(block.center, block.radius);
             if near != 0 {
                 let mut hint = usize::MAX;
@@ -716,11 +719,7 @@ impl Pass<'_> {
     /// that the robot's own points never become a bound; nothing is counted).
     fn seed(&self, l: usize, b: usize, block: &Block) {
         with_scratch(self.links.len(), |frontier, spans| {
-            let near = if self.padding >= 0.0 {
-                self.near_links(block.center, block.radius)
-            } else {
-                0
-            };
+            let near = self.near_links(block.center, block.radius);
             // The robot's points (bit k: the k-th point of the block's sub-blocks), which
             // never become a bound.
             let mut robot = 0u32;

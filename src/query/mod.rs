@@ -548,9 +548,7 @@ impl Engine {
                 }
             }
         }
-        if let Some(padding) = options.self_filter_padding_m {
-            self.self_grids(padding);
-        }
+        self.prepare_self_filter(options);
         let grids = match (&self.self_grids, options.self_filter_padding_m) {
             (Some((_, grids)), Some(_)) => grids.as_slice(),
             _ => &[],
