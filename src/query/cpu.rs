@@ -45,7 +45,7 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use rayon::prelude::*;
-use wide::{f32x8, CmpEq, CmpLt};
+use wide::{f32x8, CmpEq, CmpLt, CmpNe};
 
 use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
 use super::descent::{any_within, dist, dist2, lower_bounds, nearest_from, nearest_sphere, valid};
@@ -941,6 +941,22 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
                 let at = 24 * g + 8 * k;
                 f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
             });
+            // One test for the common case, eight valid points with no zero coordinate: `0 · v`
+            // is 0 for a finite lane and NaN otherwise, so their sum equals itself only when all
+            // 24 lanes are finite; no lane compares equal to zero.
+            let zeros = f32x8::ZERO;
+            let t = v[0] * zeros + v[1] * zeros + v[2] * zeros;
+            let odd = t.cmp_ne(t)
+                | v[0].cmp_eq(f32x8::ZERO)
+                | v[1].cmp_eq(f32x8::ZERO)
+                | v[2].cmp_eq(f32x8::ZERO);
+            if odd.move_mask() == 0 {
+                for k in 0..3 {
+                    lo[k] = lo[k].fast_min(v[k]);
+                    hi[k] = hi[k].fast_max(v[k]);
+                }
+                continue;
+            }
             let mut nonfinite = 0u32;
             let mut zero = 0u32;
             for (k, v) in v.iter().enumerate() {
@@ -952,7 +968,7 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
                 & POINT_BITS;
             invalid += bad.count_ones();
             if bad == 0 {
-                // All eight valid (the common case): no masks.
+                // All eight valid, some coordinate zero: no masks.
                 for k in 0..3 {
                     lo[k] = lo[k].fast_min(v[k]);
                     hi[k] = hi[k].fast_max(v[k]);
@@ -1127,6 +1143,70 @@ pub(super) fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `bound_block` (SIMD, with its one-test path for octets of eight valid points) against a
+    /// point-by-point bound, on blocks whose octets are all valid, all invalid or mixed, with
+    /// every kind of invalid point (NaN, ±∞, the zero point) and valid points with zero
+    /// coordinates.
+    #[test]
+    fn block_bounds_as_point_by_point() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for round in 0..3000 {
+            // Per block a share of invalid points: none, few, half, all.
+            let share = [0, 4, 50, 100][round % 4];
+            let len = if round % 5 == 0 { 29 } else { BLOCK };
+            let points: Vec<[f32; 3]> = (0..len)
+                .map(|_| {
+                    let mut coordinate = || (next() % 20_001) as f32 * 1e-4 - 1.0;
+                    let p = [coordinate(), coordinate(), coordinate()];
+                    if (next() % 100) as u32 >= share {
+                        // Valid, sometimes on a coordinate plane.
+                        match next() % 10 {
+                            0 => [0.0, p[1], p[2]],
+                            1 => [p[0], -0.0, 0.0],
+                            _ => p,
+                        }
+                    } else {
+                        match next() % 4 {
+                            0 => [f32::NAN, p[1], p[2]],
+                            1 => [p[0], f32::INFINITY, p[2]],
+                            2 => [p[0], p[1], f32::NEG_INFINITY],
+                            _ => [0.0; 3],
+                        }
+                    }
+                })
+                .collect();
+            let tiling = Tiling::new(points.len(), None);
+            let block = bound_block(&points, tiling.subs(0));
+            let valid_points: Vec<_> = points.iter().copied().filter(|&p| valid(p)).collect();
+            assert_eq!(block.valid as usize, valid_points.len(), "round {round}");
+            assert_eq!(block.invalid as usize, len - valid_points.len());
+            if valid_points.is_empty() {
+                continue;
+            }
+            let mut l = [f32::INFINITY; 3];
+            let mut h = [f32::NEG_INFINITY; 3];
+            for p in &valid_points {
+                for k in 0..3 {
+                    l[k] = l[k].min(p[k]);
+                    h[k] = h[k].max(p[k]);
+                }
+            }
+            let (center, radius) = sphere_of(l, h);
+            assert_eq!(
+                (block.center, block.radius),
+                (center, radius),
+                "round {round}"
+            );
+            assert_eq!(block.uniform, l == h);
+        }
+    }
 
     /// A seed list ends as the `SEEDS` nearest blocks' nearest samples, whatever the order of
     /// the offers (the parallel scan merges lists in any order).
