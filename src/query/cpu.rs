@@ -922,7 +922,10 @@ const POINT_BITS: u32 = 0x0024_9249;
 /// 24 floats, three 8-lane vectors (SIMD through `wide`: SSE/AVX on x86, NEON on ARM). Per lane:
 /// finite? zero? As bit masks (bit 3k + axis for point k), a point is invalid when any of its
 /// three bits is non-finite or all three are zero; its lanes then take ±∞ in the box.
-#[inline]
+///
+/// Inlined where it is called: passed through memory, the sub-block array stalled every call
+/// on its own loads (the bounding pass alone over the Kinect cloud, timed: 324 → 259 µs).
+#[inline(always)]
 fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block {
     let inf = f32x8::splat(f32::INFINITY);
     let mut lo = [inf; 3];
