@@ -944,34 +944,28 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
                 let at = 24 * g + 8 * k;
                 f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
             });
+            let zero = f32x8::ZERO;
             // One test for the common case, eight valid points with no zero coordinate: `0 · v`
             // is 0 for a finite lane and NaN otherwise, so their sum equals itself only when all
-            // 24 lanes are finite; no lane compares equal to zero.
-            let zeros = f32x8::ZERO;
-            let t = v[0] * zeros + v[1] * zeros + v[2] * zeros;
-            let odd = t.cmp_ne(t)
-                | v[0].cmp_eq(f32x8::ZERO)
-                | v[1].cmp_eq(f32x8::ZERO)
-                | v[2].cmp_eq(f32x8::ZERO);
-            if odd.move_mask() == 0 {
-                for k in 0..3 {
-                    lo[k] = lo[k].fast_min(v[k]);
-                    hi[k] = hi[k].fast_max(v[k]);
+            // 24 lanes are finite; no lane compares equal to zero. The per-point masks only
+            // otherwise.
+            let t = v[0] * zero + v[1] * zero + v[2] * zero;
+            let odd = t.cmp_ne(t) | v[0].cmp_eq(zero) | v[1].cmp_eq(zero) | v[2].cmp_eq(zero);
+            let bad = if odd.move_mask() == 0 {
+                0
+            } else {
+                let mut nonfinite = 0u32;
+                let mut zeros = 0u32;
+                for (k, v) in v.iter().enumerate() {
+                    nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
+                    zeros |= (v.cmp_eq(zero).move_mask() as u32 & 0xff) << (8 * k);
                 }
-                continue;
-            }
-            let mut nonfinite = 0u32;
-            let mut zero = 0u32;
-            for (k, v) in v.iter().enumerate() {
-                nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
-                zero |= (v.cmp_eq(f32x8::ZERO).move_mask() as u32 & 0xff) << (8 * k);
-            }
-            let bad = ((nonfinite | nonfinite >> 1 | nonfinite >> 2)
-                | (zero & zero >> 1 & zero >> 2))
-                & POINT_BITS;
+                ((nonfinite | nonfinite >> 1 | nonfinite >> 2) | (zeros & zeros >> 1 & zeros >> 2))
+                    & POINT_BITS
+            };
             invalid += bad.count_ones();
             if bad == 0 {
-                // All eight valid, some coordinate zero: no masks.
+                // All eight valid (the common case): no masks.
                 for k in 0..3 {
                     lo[k] = lo[k].fast_min(v[k]);
                     hi[k] = hi[k].fast_max(v[k]);
@@ -1147,19 +1141,23 @@ pub(super) fn run(
 mod tests {
     use super::*;
 
+    /// A reproducible xorshift stream for the tests.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+
     /// `bound_block` (SIMD, with its one-test path for octets of eight valid points) against a
     /// point-by-point bound, on blocks whose octets are all valid, all invalid or mixed, with
     /// every kind of invalid point (NaN, ±∞, the zero point) and valid points with zero
     /// coordinates.
     #[test]
     fn block_bounds_as_point_by_point() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         for round in 0..3000 {
             // Per block a share of invalid points: none, few, half, all.
             let share = [0, 4, 50, 100][round % 4];
@@ -1193,21 +1191,16 @@ mod tests {
             if valid_points.is_empty() {
                 continue;
             }
-            let mut l = [f32::INFINITY; 3];
-            let mut h = [f32::NEG_INFINITY; 3];
-            for p in &valid_points {
-                for k in 0..3 {
-                    l[k] = l[k].min(p[k]);
-                    h[k] = h[k].max(p[k]);
-                }
-            }
-            let (center, radius) = sphere_of(l, h);
+            // The scalar bound of a sub-block, point by point, over the whole block.
             assert_eq!(
                 (block.center, block.radius),
-                (center, radius),
+                bound_sub(&points),
                 "round {round}"
             );
-            assert_eq!(block.uniform, l == h);
+            assert_eq!(
+                block.uniform,
+                valid_points.iter().all(|&p| p == valid_points[0])
+            );
         }
     }
 
@@ -1215,13 +1208,7 @@ mod tests {
     /// the offers (the parallel scan merges lists in any order).
     #[test]
     fn seed_lists_do_not_depend_on_the_order_of_offers() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
         for _ in 0..200 {
             // 40 samples in 12 blocks, distances with ties.
             let samples: Vec<Seed> = (0..40)

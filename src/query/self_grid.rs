@@ -18,10 +18,10 @@
 //! outside it is farther than the padding from every sphere.
 //!
 //! Cells are 0.4 × padding wide (at most 2²⁰ per link, a byte each: coarser for a large link
-//! or a tiny padding), so that a point on the mesh surface, within the link's gap h of its spheres, falls
-//! in a `self` cell whenever `h + 2ρ ≤ padding` (h ≤ 3 mm at the default 1 cm padding). The grid
-//! is built once per padding (two levels: bricks of 4³ cells that are all `self` or all `clear`
-//! are settled with one test each), in parallel over slabs.
+//! or a tiny padding), so that a point on the mesh surface, within the link's gap h of its
+//! spheres, falls in a `self` cell whenever `h + 2ρ ≤ padding` (h ≤ 3 mm at the default 1 cm
+//! padding). The grid is built once per padding (two levels: bricks of 4³ cells that are all
+//! `self` or all `clear` are settled with one test each), in parallel over slabs.
 
 use rayon::prelude::*;
 
