@@ -11,9 +11,11 @@
 //!    **blocks** of `BLOCK` = 32 points, runs of consecutive points or, for an organized cloud,
 //!    tiles of 8 × 4 pixels ([`Tiling`]; a tile's sphere is about a third of a row run's);
 //!    groups of 16 blocks, a rayon task. Each block gets its valid count and the bounding
-//!    sphere of its valid points (eight lanes at a time, SIMD). A block is dropped whole when
-//!    its sphere lies outside the region of interest or farther from the robot's box than
-//!    every link's bound. Otherwise it is taken in two phases:
+//!    box of its valid points (eight lanes at a time, SIMD). A block is dropped whole when
+//!    its box lies outside the region of interest or farther from the robot's box than
+//!    every link's bound (squared distances between the boxes: no square root for the blocks
+//!    dropped here, most of them). Otherwise it is taken, as the sphere around its box, in two
+//!    phases:
 //!    - **the robot** (self-filter), only for a block within the padding of some link's root
 //!      sphere: each point is looked up in that link's self-filter grid ([`SelfGrid`]: cells
 //!      wholly within the padding of the inner spheres, wholly beyond it, or across it), the
@@ -27,9 +29,11 @@
 //!      the frontier nodes, and a link it reaches only through them is confirmed by a descent
 //!      of its centre that stops at the first inner sphere within the bound plus its radius:
 //!      the links that remain are the only ones its points look at. Each point is tested
-//!      against their frontier nodes and descends from them, depth first, nearest child
-//!      first, four children tested at once, pruning nodes whose lower bound `|p − c| − r`
-//!      exceeds the bound.
+//!      against their frontier nodes; the points of a sub-block that pass descend from them
+//!      together, a packet of up to eight (`descent::nearest_packet`, SIMD over the points;
+//!      one point alone descends by itself, four children tested at once), depth first,
+//!      nearest child first, pruning nodes whose lower bound `|p − c| − r` exceeds the bound
+//!      of every point of the packet.
 //!
 //!    A point equal to the one before it (within a group, across blocks too) takes its result
 //!    with no work. Minima go into the shared atomics with `fetch_min`, so every thread prunes
@@ -48,7 +52,9 @@ use rayon::prelude::*;
 use wide::{f32x8, CmpEq, CmpLt, CmpNe};
 
 use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
-use super::descent::{any_within, dist, dist2, lower_bounds, nearest_from, nearest_sphere, valid};
+use super::descent::{
+    any_within, dist, dist2, lower_bounds, nearest_from, nearest_packet, nearest_sphere, valid,
+};
 use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
 use super::self_grid::{Cell, SelfGrid};
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts, MAX_LINKS};
@@ -128,17 +134,36 @@ impl Tiling {
     }
 }
 
-/// A block of `BLOCK` points: the bounding sphere of its valid points (the
+/// A block of `BLOCK` points: the bounding box of its valid points (the
 /// levels of the cloud-side hierarchy: run of blocks repeating one point, block, sub-block,
-/// point).
-#[derive(Clone, Copy, Default)]
+/// point). The box culls (no square root); a block that is not culled is taken with the
+/// sphere around it ([`Block::sphere`]).
+#[derive(Clone, Copy)]
 struct Block {
-    center: [f32; 3],
-    radius: f32,
+    lo: [f32; 3],
+    hi: [f32; 3],
     valid: u32,
     invalid: u32,
+}
+
+impl Block {
     /// All valid points are the same point (a degenerate box).
-    uniform: bool,
+    fn uniform(&self) -> bool {
+        self.lo == self.hi
+    }
+
+    /// The sphere around the box: centre, radius.
+    fn sphere(&self) -> Sphere {
+        let (center, radius) = sphere_of(self.lo, self.hi);
+        Sphere { center, radius }
+    }
+}
+
+/// The sphere around a block, for the tests against the links.
+#[derive(Clone, Copy)]
+struct Sphere {
+    center: [f32; 3],
+    radius: f32,
 }
 
 /// Blocks per group of the main pass (a rayon task's unit of work).
@@ -222,6 +247,15 @@ enum PointStage {
     Evaluated {
         inside: bool,
     },
+}
+
+/// A point of a sub-block in phase 2: not measured (invalid, or the robot), ended at a stage,
+/// or waiting in lane `j` of the sub-block's packet.
+#[derive(Clone, Copy, PartialEq)]
+enum Slot {
+    Skip,
+    Done(PointStage),
+    Lane(usize),
 }
 
 struct Pass<'a> {
@@ -320,40 +354,6 @@ impl Pass<'_> {
         }
     }
 
-    /// One valid point inside the region of interest and not the robot; `mask` holds the links
-    /// its sub-block may reach within their bound, with their frontiers in
-    /// `frontier[spans[l]]`. Returns where the point ended.
-    #[inline]
-    fn point(
-        &self,
-        i: u32,
-        p: [f32; 3],
-        mask: u128,
-        frontier: &[u32],
-        spans: &[(u32, u32)],
-    ) -> PointStage {
-        // One look at the frontier nodes per link: which links may hold the point within
-        // their bound.
-        let mut eval = 0u128;
-        for l in bits(mask) {
-            let q = self.posed[l].in_link(p);
-            if reaches(
-                &self.links[l],
-                q,
-                starts(frontier, spans, l),
-                self.threshold(l),
-            ) {
-                eval |= 1 << l;
-            }
-        }
-        if eval == 0 {
-            return PointStage::Pruned;
-        }
-        PointStage::Evaluated {
-            inside: self.evaluate(i, p, eval, frontier, spans),
-        }
-    }
-
     /// A link of `mask` with an inner sphere within the self-filter padding of `p`: `hint` (the
     /// link that took the point before it, kept up to date) first, then the others in engine
     /// order. Its grid settles most points ([`SelfGrid`]), a descent from its root the points in
@@ -380,7 +380,7 @@ impl Pass<'_> {
     /// Whether a block may hold points of the robot: a link of `near` has an inner sphere within
     /// the padding plus the block's radius of its centre (a descent that stops at the first).
     #[inline]
-    fn may_be_robot(&self, block: &Block, near: u128) -> bool {
+    fn may_be_robot(&self, block: &Sphere, near: u128) -> bool {
         let limit = self.padding + block.radius;
         bits(near).any(|l| {
             let c = self.posed[l].in_link(block.center);
@@ -506,10 +506,10 @@ impl Pass<'_> {
 
     /// One block: dropped whole (region of interest, robot box, frontiers), then sub-block by
     /// sub-block (each tested against the block's frontier, which also narrows the links its
-    /// points descend), then point by point. A point equal to the one before it ends where
-    /// that one ended, with no work (same distance, larger index: it cannot change a minimum).
-    /// `last` is the last point measured in this run of blocks and where it ended: a block
-    /// that repeats it is not measured again.
+    /// points descend), then its points, a packet per sub-block. A point equal to the one
+    /// before it ends where that one ended, with no work (same distance, larger index: it
+    /// cannot change a minimum). `last` is the last point measured in this run of blocks and
+    /// where it ended: a block that repeats it is not measured again.
     fn block(
         &self,
         b: usize,
@@ -526,29 +526,34 @@ impl Pass<'_> {
         if block.valid == 0 {
             return counts;
         }
-        // A block that repeats the point before it (its sphere's centre is that point).
+        // A block that repeats the point before it (its box is that point).
+        let uniform = block.uniform();
         if let Some((q, stage)) = *last {
-            if block.uniform && q == block.center {
+            if uniform && q == block.lo {
                 return counts + self.repeat(stage, u64::from(block.valid));
             }
         }
         let whole = |stage: PointStage, last: &mut Option<([f32; 3], PointStage)>| {
-            *last = block.uniform.then_some((block.center, stage));
+            *last = uniform.then_some((block.lo, stage));
         };
-        let roi = self.robot_box.distance(block.center);
-        if roi - block.radius > self.robot_box.max_distance {
+        // The robot's box against the block's, squared distances (no square root for the
+        // blocks culled here, most of them).
+        let (near2, far2) = self.robot_box.box_distances2(block.lo, block.hi);
+        let roi2 = self.robot_box.max_distance * self.robot_box.max_distance;
+        if near2 > roi2 {
             counts.outside_roi = block.valid as u64;
             whole(PointStage::OutsideRoi, last);
             return counts;
         }
-        let partial_roi = roi + block.radius > self.robot_box.max_distance;
+        let partial_roi = far2 > roi2;
         // The robot's bounding box is also a cheap lower bound for every link at once.
         let reach = self.padding.max(self.largest_threshold());
-        if roi - block.radius > reach && !partial_roi {
+        if (reach < 0.0 || near2 > reach * reach) && !partial_roi {
             counts.pruned = block.valid as u64;
             whole(PointStage::Pruned, last);
             return counts;
         }
+        let sphere = block.sphere();
         let subs = self.tiling.subs(b);
         // Phase 1, the self-filter, with frontiers cut at the padding (small, cheap): which
         // points are the robot. A block all robot ends here.
@@ -556,8 +561,8 @@ impl Pass<'_> {
         let mut robot = 0u32;
         // The robot box bounds every link from below: a block beyond the padding of it holds no
         // robot point.
-        if roi - block.radius <= self.padding {
-            let near = self.near_links(block.center, block.radius);
+        if self.padding >= 0.0 && near2 <= self.padding * self.padding {
+            let near = self.near_links(sphere.center, sphere.radius);
             if near != 0 {
                 let mut hint = usize::MAX;
                 // Whether the block was found to lie beyond the padding of every link.
@@ -581,7 +586,7 @@ impl Pass<'_> {
                                     // near link for the whole block, which clears most blocks
                                     // beside the robot (a near obstacle) at once.
                                     checked = true;
-                                    if !self.may_be_robot(block, near) {
+                                    if !self.may_be_robot(&sphere, near) {
                                         break 'points;
                                     }
                                 }
@@ -600,7 +605,7 @@ impl Pass<'_> {
         // Phase 2, the obstacle points: frontiers cut at each link's threshold, then
         // sub-block by sub-block, point by point.
         if counts.self_filtered < u64::from(block.valid) {
-            let mask = self.frontiers(block.center, block.radius, self.all, frontier, spans);
+            let mask = self.frontiers(sphere.center, sphere.radius, self.all, frontier, spans);
             if mask == 0 && !partial_roi {
                 // No link within reach: the rest of the block is pruned whole.
                 counts.pruned = u64::from(block.valid) - counts.self_filtered;
@@ -631,7 +636,8 @@ impl Pass<'_> {
     }
 
     /// Phase 2 of a block: its points that are not the robot (bits of `robot`), sub-block by
-    /// sub-block, point by point, against the links of `mask`.
+    /// sub-block against the links of `mask`: each sub-block's points that pass its tests are
+    /// measured together ([`Pass::packet`]).
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn obstacles(
@@ -645,55 +651,149 @@ impl Pass<'_> {
         last: &mut Option<([f32; 3], PointStage)>,
         counts: &mut StageCounts,
     ) {
-        {
-            for (k, &(start, len)) in subs.iter().enumerate() {
-                let chunk = &self.points[start..start + len];
-                let mut sub = None;
-                for (i, &p) in chunk.iter().enumerate() {
-                    if !valid(p) || robot & (1 << (SUB * k + i)) != 0 {
-                        continue;
-                    }
-                    let stage = match *last {
-                        Some((q, stage)) if q == p => stage,
-                        _ => {
-                            let stage = if self.outside(p, partial_roi) {
-                                PointStage::OutsideRoi
-                            } else {
-                                let sub = *sub.get_or_insert_with(|| {
-                                    let (c, r) = bound_sub(chunk);
-                                    if mask == 0 || r < 0.0 {
-                                        0
-                                    } else {
-                                        self.sub_mask(c, r, mask, frontier, spans)
-                                    }
-                                });
-                                if sub == 0 {
-                                    PointStage::Pruned
+        for (k, &(start, len)) in subs.iter().enumerate() {
+            let chunk = &self.points[start..start + len];
+            let mut sub = None;
+            // Where each point ended, or the lane of the packet it waits in (a point equal to
+            // the one before it ends where that one does).
+            let mut slots = [Slot::Skip; SUB];
+            let mut lanes = [(0u32, [0.0f32; 3]); SUB];
+            let mut n = 0;
+            let mut prev = last.map(|(q, stage)| (q, Slot::Done(stage)));
+            for (i, &p) in chunk.iter().enumerate() {
+                if !valid(p) || robot & (1 << (SUB * k + i)) != 0 {
+                    continue;
+                }
+                slots[i] = match prev {
+                    Some((q, slot)) if q == p => slot,
+                    _ => {
+                        let slot = if self.outside(p, partial_roi) {
+                            Slot::Done(PointStage::OutsideRoi)
+                        } else {
+                            let sub = *sub.get_or_insert_with(|| {
+                                let (c, r) = bound_sub(chunk);
+                                if mask == 0 || r < 0.0 {
+                                    0
                                 } else {
-                                    self.point((start + i) as u32, p, sub, frontier, spans)
+                                    self.sub_mask(c, r, mask, frontier, spans)
                                 }
-                            };
-                            *last = Some((p, stage));
-                            stage
-                        }
-                    };
-                    match stage {
-                        PointStage::OutsideRoi => counts.outside_roi += 1,
-                        // A copy of a robot point of an earlier block, in a block whose phase
-                        // 1 did not run.
-                        PointStage::SelfFiltered(l) => {
-                            counts.self_filtered += 1;
-                            self.self_filtered[l].fetch_add(1, Relaxed);
-                        }
-                        PointStage::Pruned => counts.pruned += 1,
-                        PointStage::Evaluated { inside } => {
-                            counts.evaluated += 1;
-                            counts.inside += inside as u64;
-                        }
+                            });
+                            if sub == 0 {
+                                Slot::Done(PointStage::Pruned)
+                            } else {
+                                lanes[n] = ((start + i) as u32, p);
+                                n += 1;
+                                Slot::Lane(n - 1)
+                            }
+                        };
+                        prev = Some((p, slot));
+                        slot
+                    }
+                };
+            }
+            let measured = if n > 0 {
+                self.packet(&lanes[..n], sub.unwrap_or(0), frontier, spans)
+            } else {
+                [PointStage::Pruned; SUB]
+            };
+            let stage_of = |slot: Slot| match slot {
+                Slot::Done(stage) => stage,
+                Slot::Lane(j) => measured[j],
+                Slot::Skip => unreachable!("skipped points have no stage"),
+            };
+            if let Some((q, slot)) = prev {
+                *last = Some((q, stage_of(slot)));
+            }
+            for &slot in slots.iter().take(len) {
+                if slot == Slot::Skip {
+                    continue;
+                }
+                match stage_of(slot) {
+                    PointStage::OutsideRoi => counts.outside_roi += 1,
+                    // A copy of a robot point of an earlier block, in a block whose phase 1 did
+                    // not run.
+                    PointStage::SelfFiltered(l) => {
+                        counts.self_filtered += 1;
+                        self.self_filtered[l].fetch_add(1, Relaxed);
+                    }
+                    PointStage::Pruned => counts.pruned += 1,
+                    PointStage::Evaluated { inside } => {
+                        counts.evaluated += 1;
+                        counts.inside += inside as u64;
                     }
                 }
             }
         }
+    }
+
+    /// The points of a sub-block that its tests left (point index, point; at most `SUB`),
+    /// against the links of `mask` (the sub-block's): per link, the points within the link's
+    /// bound by its frontier nodes are descended, together ([`nearest_packet`]) when there are
+    /// two or more, and their distances recorded. Returns each point's stage.
+    #[inline]
+    fn packet(
+        &self,
+        lanes: &[(u32, [f32; 3])],
+        mask: u128,
+        frontier: &[u32],
+        spans: &[(u32, u32)],
+    ) -> [PointStage; SUB] {
+        let mut measured = [false; SUB];
+        let mut inside = [false; SUB];
+        for l in bits(mask) {
+            let link = &self.links[l];
+            let bound = self.threshold(l);
+            let st = starts(frontier, spans, l);
+            let mut q = [[0.0f32; 3]; SUB];
+            let mut active = 0u32;
+            for (j, &(_, p)) in lanes.iter().enumerate() {
+                q[j] = self.posed[l].in_link(p);
+                if reaches(link, q[j], st, bound) {
+                    active |= 1 << j;
+                }
+            }
+            if active == 0 {
+                continue;
+            }
+            for j in bits(u128::from(active)) {
+                measured[j] = true;
+            }
+            let mut record = |j: usize, d: f32| {
+                inside[j] |= d == 0.0;
+                self.record(l, lanes[j].0, d);
+            };
+            if active.count_ones() == 1 {
+                let j = active.trailing_zeros() as usize;
+                if let Some((d, _)) = nearest_from(link, q[j], st, bound) {
+                    record(j, d);
+                }
+                continue;
+            }
+            // Lanes not in the packet repeat its first point (they change nothing).
+            let first = q[active.trailing_zeros() as usize];
+            let lane = |k: usize| {
+                f32x8::from(std::array::from_fn::<f32, 8, _>(|j| {
+                    if active & (1 << j) != 0 {
+                        q[j][k]
+                    } else {
+                        first[k]
+                    }
+                }))
+            };
+            let d = nearest_packet(link, &[lane(0), lane(1), lane(2)], st, bound);
+            for j in bits(u128::from(active)) {
+                if d[j] < f32::INFINITY {
+                    record(j, d[j]);
+                }
+            }
+        }
+        std::array::from_fn(|j| {
+            if measured[j] {
+                PointStage::Evaluated { inside: inside[j] }
+            } else {
+                PointStage::Pruned
+            }
+        })
     }
 
     /// The counts of `valid` more copies of a point that ended at `stage` (the rest of a run of
@@ -717,7 +817,7 @@ impl Pass<'_> {
 
     /// Seeds link `l`'s bound from the valid points of block `b` (the self-filter applies, so
     /// that the robot's own points never become a bound; nothing is counted).
-    fn seed(&self, l: usize, b: usize, block: &Block) {
+    fn seed(&self, l: usize, b: usize, block: &Sphere) {
         with_scratch(self.links.len(), |frontier, spans| {
             let near = self.near_links(block.center, block.radius);
             // The robot's points (bit k: the k-th point of the block's sub-blocks), which
@@ -1001,19 +1101,11 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
             h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
         }
     }
-    if invalid == n {
-        return Block {
-            invalid,
-            ..Block::default()
-        };
-    }
-    let (center, radius) = sphere_of(l, h);
     Block {
-        center,
-        radius,
+        lo: l,
+        hi: h,
         valid: n - invalid,
         invalid,
-        uniform: l == h,
     }
 }
 
@@ -1111,7 +1203,7 @@ pub(super) fn run(
     });
     seeds.into_par_iter().for_each(|(l, (_, _, b))| {
         let b = b as usize;
-        pass.seed(l, b, &bound_block(points, tiling.subs(b)));
+        pass.seed(l, b, &bound_block(points, tiling.subs(b)).sphere());
     });
 
     // 3. Main pass, one sweep over the cloud in groups of `GROUP` blocks (parallel over the
@@ -1192,13 +1284,14 @@ mod tests {
                 continue;
             }
             // The scalar bound of a sub-block, point by point, over the whole block.
+            let sphere = block.sphere();
             assert_eq!(
-                (block.center, block.radius),
+                (sphere.center, sphere.radius),
                 bound_sub(&points),
                 "round {round}"
             );
             assert_eq!(
-                block.uniform,
+                block.uniform(),
                 valid_points.iter().all(|&p| p == valid_points[0])
             );
         }

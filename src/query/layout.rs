@@ -140,6 +140,29 @@ impl RobotBox {
         }
         s.sqrt()
     }
+
+    /// The squared distances from the box to the nearest and to the farthest point of a
+    /// sensor-frame box `lo..hi` (a block of points), without a square root: the block's box is
+    /// taken to the root frame as a box around it (its centre moved, its half-extents through
+    /// `|R|`), widened for f32 rounding, so that the first is never too large and the second
+    /// never too small.
+    #[inline(always)]
+    pub fn box_distances2(&self, lo: [f32; 3], hi: [f32; 3]) -> (f32, f32) {
+        let c = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+        let e = [0, 1, 2].map(|k| 0.5 * (hi[k] - lo[k]));
+        let slack = 1e-6 * (1.0 + c[0].abs() + c[1].abs() + c[2].abs());
+        let (mut near, mut far) = (0.0, 0.0);
+        for (k, r) in self.rows.iter().enumerate() {
+            let q = r[0] * c[0] + r[1] * c[1] + r[2] * c[2] + r[3];
+            let w =
+                (r[0].abs() * e[0] + r[1].abs() * e[1] + r[2].abs() * e[2]) * (1.0 + 1e-6) + slack;
+            let n = (self.lo[k] - (q + w)).max((q - w) - self.hi[k]).max(0.0);
+            let f = (self.lo[k] - (q - w)).max((q + w) - self.hi[k]).max(0.0);
+            near += n * n;
+            far += f * f;
+        }
+        (near, far)
+    }
 }
 
 /// One GPU dispatch's options. WGSL `Params` (a uniform).
