@@ -49,11 +49,11 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use rayon::prelude::*;
-use wide::{f32x8, CmpEq, CmpLt, CmpNe};
+use wide::{f32x4, f32x8, CmpEq, CmpLt, CmpNe};
 
 use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
 use super::descent::{
-    any_within, dist, dist2, lower_bounds, nearest_from, nearest_packet, nearest_sphere, valid,
+    any_within, dist, dist2, nearest_from, nearest_packet, nearest_sphere, valid, within_reach,
 };
 use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE};
 use super::self_grid::{Cell, SelfGrid};
@@ -217,15 +217,15 @@ fn frontier(link: &QueryLink, c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32
             refined = true;
             let first = node.first_child as usize;
             let count = node.child_count as usize;
-            let lbs = lower_bounds(&link.node_soa, c, first, count);
-            for (k, &lb) in lbs.iter().enumerate().take(count) {
-                if lb - r <= limit {
-                    if n == FRONTIER {
-                        return true;
-                    }
-                    next[n] = (first + k) as u32;
-                    n += 1;
+            let mut within = within_reach(&link.node_soa, c, first, count, limit + r);
+            while within != 0 {
+                let k = within.trailing_zeros() as usize;
+                within &= within - 1;
+                if n == FRONTIER {
+                    return true;
                 }
+                next[n] = (first + k) as u32;
+                n += 1;
             }
         }
         out.truncate(start);
@@ -998,13 +998,13 @@ fn with_scratch<R>(links: usize, f: impl FnOnce(&mut Vec<u32>, &mut [(u32, u32)]
     })
 }
 
-/// Lane masks for a byte: entry `b` has lane `j` all ones where bit `j` of `b` is set.
-static LANE_MASKS: [[u32; 8]; 256] = {
-    let mut t = [[0u32; 8]; 256];
+/// Lane masks for a nibble: entry `b` has lane `j` all ones where bit `j` of `b` is set.
+static LANE_MASKS: [[u32; 4]; 16] = {
+    let mut t = [[0u32; 4]; 16];
     let mut b = 0;
-    while b < 256 {
+    while b < 16 {
         let mut j = 0;
-        while j < 8 {
+        while j < 4 {
             if (b >> j) & 1 == 1 {
                 t[b][j] = u32::MAX;
             }
@@ -1018,16 +1018,19 @@ static LANE_MASKS: [[u32; 8]; 256] = {
 /// Every third bit (bit 3k stands for point k of a group of eight).
 const POINT_BITS: u32 = 0x0024_9249;
 
-/// The bounding sphere and valid count of a block, read as it lies in memory: eight points are
-/// 24 floats, three 8-lane vectors (SIMD through `wide`: SSE/AVX on x86, NEON on ARM). Per lane:
-/// finite? zero? As bit masks (bit 3k + axis for point k), a point is invalid when any of its
-/// three bits is non-finite or all three are zero; its lanes then take ±∞ in the box.
+/// The bounding box and valid count of a block, read as it lies in memory: eight points are
+/// 24 floats, six 4-lane vectors (SIMD through `wide`: SSE on x86, NEON on ARM). Their lanes
+/// hold the axes in three patterns that repeat every three vectors (x y z x, y z x y,
+/// z x y z), so that three accumulators per bound take them all and fold into the box with
+/// nine comparisons at the end. Per lane: finite? zero? As bit masks (bit 3k + axis for point
+/// k), a point is invalid when any of its three bits is non-finite or all three are zero; its
+/// lanes then take ±∞ in the box.
 ///
 /// Inlined where it is called: passed through memory, the sub-block array stalled every call
 /// on its own loads (the bounding pass alone over the Kinect cloud, timed: 324 → 259 µs).
 #[inline(always)]
 fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block {
-    let inf = f32x8::splat(f32::INFINITY);
+    let inf = f32x4::splat(f32::INFINITY);
     let mut lo = [inf; 3];
     let mut hi = [-inf; 3];
     let mut invalid = 0u32;
@@ -1040,25 +1043,30 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
         let flat: &[f32] = bytemuck::cast_slice(chunk);
         let groups = chunk.len() / 8;
         for g in 0..groups {
-            let v: [f32x8; 3] = std::array::from_fn(|k| {
-                let at = 24 * g + 8 * k;
-                f32x8::from(<[f32; 8]>::try_from(&flat[at..at + 8]).unwrap())
+            let v: [f32x4; 6] = std::array::from_fn(|k| {
+                let at = 24 * g + 4 * k;
+                f32x4::from(<[f32; 4]>::try_from(&flat[at..at + 4]).unwrap())
             });
-            let zero = f32x8::ZERO;
+            let zero = f32x4::ZERO;
             // One test for the common case, eight valid points with no zero coordinate: `0 · v`
             // is 0 for a finite lane and NaN otherwise, so their sum equals itself only when all
             // 24 lanes are finite; no lane compares equal to zero. The per-point masks only
             // otherwise.
-            let t = v[0] * zero + v[1] * zero + v[2] * zero;
-            let odd = t.cmp_ne(t) | v[0].cmp_eq(zero) | v[1].cmp_eq(zero) | v[2].cmp_eq(zero);
+            let t = (v[0] * zero + v[1] * zero)
+                + (v[2] * zero + v[3] * zero)
+                + (v[4] * zero + v[5] * zero);
+            let odd = t.cmp_ne(t)
+                | (v[0].cmp_eq(zero) | v[1].cmp_eq(zero))
+                | (v[2].cmp_eq(zero) | v[3].cmp_eq(zero))
+                | (v[4].cmp_eq(zero) | v[5].cmp_eq(zero));
             let bad = if odd.move_mask() == 0 {
                 0
             } else {
                 let mut nonfinite = 0u32;
                 let mut zeros = 0u32;
                 for (k, v) in v.iter().enumerate() {
-                    nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xff) << (8 * k);
-                    zeros |= (v.cmp_eq(zero).move_mask() as u32 & 0xff) << (8 * k);
+                    nonfinite |= (!v.abs().cmp_lt(inf).move_mask() as u32 & 0xf) << (4 * k);
+                    zeros |= (v.cmp_eq(zero).move_mask() as u32 & 0xf) << (4 * k);
                 }
                 ((nonfinite | nonfinite >> 1 | nonfinite >> 2) | (zeros & zeros >> 1 & zeros >> 2))
                     & POINT_BITS
@@ -1066,17 +1074,17 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
             invalid += bad.count_ones();
             if bad == 0 {
                 // All eight valid (the common case): no masks.
-                for k in 0..3 {
-                    lo[k] = lo[k].fast_min(v[k]);
-                    hi[k] = hi[k].fast_max(v[k]);
+                for (k, v) in v.iter().enumerate() {
+                    lo[k % 3] = lo[k % 3].fast_min(*v);
+                    hi[k % 3] = hi[k % 3].fast_max(*v);
                 }
             } else if bad != POINT_BITS {
                 let lanes = bad | bad << 1 | bad << 2;
-                for k in 0..3 {
-                    let ok = LANE_MASKS[(!(lanes >> (8 * k)) & 0xff) as usize];
-                    let ok = f32x8::from(bytemuck::cast::<[u32; 8], [f32; 8]>(ok));
-                    lo[k] = lo[k].fast_min(ok.blend(v[k], inf));
-                    hi[k] = hi[k].fast_max(ok.blend(v[k], -inf));
+                for (k, v) in v.iter().enumerate() {
+                    let ok = LANE_MASKS[(!(lanes >> (4 * k)) & 0xf) as usize];
+                    let ok = f32x4::from(bytemuck::cast::<[u32; 4], [f32; 4]>(ok));
+                    lo[k % 3] = lo[k % 3].fast_min(ok.blend(*v, inf));
+                    hi[k % 3] = hi[k % 3].fast_max(ok.blend(*v, -inf));
                 }
             }
         }
@@ -1091,12 +1099,12 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
             }
         }
     }
-    // Lane j of vector k holds axis (8k + j) mod 3; the values are finite or ±∞, so plain
+    // Lane j of accumulator m holds axis (4m + j) mod 3; the values are finite or ±∞, so plain
     // comparisons do.
-    for k in 0..3 {
-        let (a, b) = (lo[k].to_array(), hi[k].to_array());
-        for j in 0..8 {
-            let axis = (8 * k + j) % 3;
+    for m in 0..3 {
+        let (a, b) = (lo[m].to_array(), hi[m].to_array());
+        for j in 0..4 {
+            let axis = (4 * m + j) % 3;
             l[axis] = if a[j] < l[axis] { a[j] } else { l[axis] };
             h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
         }

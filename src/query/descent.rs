@@ -18,7 +18,7 @@
 
 use std::mem::MaybeUninit;
 
-use wide::{f32x4, f32x8, CmpLe};
+use wide::{f32x4, f32x8, CmpGe, CmpLe};
 
 use super::layout::{FRONTIER, STACK};
 use super::{QueryLink, SphereSoa};
@@ -63,6 +63,43 @@ pub(super) fn lower_bounds(soa: &SphereSoa, p: [f32; 3], first: usize, count: us
         *v = f32::INFINITY;
     }
     out
+}
+
+/// The spheres `first..first + count` of `soa` (at most four) within `reach` of `p`,
+/// `|p − c| − r ≤ reach`, as a bit mask (bit k: sphere `first + k`), tested as
+/// `|p − c|² ≤ (reach + r)²`: no square root.
+#[inline(always)]
+pub(super) fn within_reach(
+    soa: &SphereSoa,
+    p: [f32; 3],
+    first: usize,
+    count: usize,
+    reach: f32,
+) -> u32 {
+    reach_keys(soa, p, first, count, reach).1
+}
+
+/// [`within_reach`] with a key per sphere that orders them as their lower bounds do on either
+/// side of `reach`: `|p − c|² − (reach + r)²`, negative within.
+#[inline(always)]
+fn reach_keys(
+    soa: &SphereSoa,
+    p: [f32; 3],
+    first: usize,
+    count: usize,
+    reach: f32,
+) -> ([f32; 4], u32) {
+    let load = |v: &[f32]| f32x4::from(<[f32; 4]>::try_from(&v[first..first + 4]).unwrap());
+    let dx = load(&soa.x) - f32x4::splat(p[0]);
+    let dy = load(&soa.y) - f32x4::splat(p[1]);
+    let dz = load(&soa.z) - f32x4::splat(p[2]);
+    let r = load(&soa.r) + f32x4::splat(reach);
+    let d2 = dx * dx + dy * dy + dz * dz;
+    let within = d2.cmp_le(r * r) & r.cmp_ge(f32x4::ZERO);
+    (
+        (d2 - r * r).to_array(),
+        within.move_mask() as u32 & ((1 << count) - 1),
+    )
 }
 
 /// [`nearest_sphere`] over the subtrees rooted at `starts` (a block's frontier, which holds every
@@ -244,8 +281,9 @@ fn push_within(
 }
 
 /// Any inner sphere of the subtrees rooted at `starts` whose signed distance to `p` (link frame)
-/// is at most `bound`: the first found, depth first, nearest child first (the self-filter's
-/// test, which needs one such sphere, not the nearest).
+/// is at most `bound`: the first found, depth first, nearest child first (by
+/// `|p − c|² − (bound + r)²`; no square root), the self-filter's test, which needs one such
+/// sphere, not the nearest.
 #[inline]
 pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f32) -> Option<u32> {
     let nodes = &link.nodes;
@@ -267,22 +305,22 @@ pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f
         let first = node.first_child as usize;
         let count = node.child_count as usize;
         if node.children_are_spheres != 0 {
-            let d = lower_bounds(&link.sphere_soa, p, first, count);
-            if let Some(k) = d.iter().position(|&d| d <= bound) {
-                return Some((first + k) as u32);
+            let within = within_reach(&link.sphere_soa, p, first, count, bound);
+            if within != 0 {
+                return Some((first + within.trailing_zeros() as usize) as u32);
             }
         } else {
-            let lbs = lower_bounds(&link.node_soa, p, first, count);
+            let (keys, mut within) = reach_keys(&link.node_soa, p, first, count, bound);
             // Within the bound, the nearest pushed last so that it is popped next.
             let mut top = (f32::INFINITY, usize::MAX);
-            for (k, &lb) in lbs.iter().enumerate() {
-                if lb <= bound {
-                    stack[sp].write((first + k) as u32);
-                    if lb < top.0 {
-                        top = (lb, sp);
-                    }
-                    sp += 1;
+            while within != 0 {
+                let k = within.trailing_zeros() as usize;
+                within &= within - 1;
+                stack[sp].write((first + k) as u32);
+                if keys[k] < top.0 {
+                    top = (keys[k], sp);
                 }
+                sp += 1;
             }
             if top.1 != usize::MAX {
                 stack.swap(top.1, sp - 1);
