@@ -391,7 +391,7 @@ impl Pass<'_> {
     /// Whether `p` is the robot (within the padding of a link; false when the self-filter is
     /// off).
     fn is_robot(&self, p: [f32; 3]) -> bool {
-        self.robot_box.distance(p) <= self.padding
+        self.robot_box.within(p, self.padding)
             && self
                 .self_link(p, self.near_links(p, 0.0), &mut { usize::MAX })
                 .is_some()
@@ -418,7 +418,7 @@ impl Pass<'_> {
     /// Whether point `p` of a block that straddles the region of interest lies outside it.
     #[inline(always)]
     fn outside(&self, p: [f32; 3], partial_roi: bool) -> bool {
-        partial_roi && self.robot_box.distance(p) > self.robot_box.max_distance
+        partial_roi && !self.robot_box.within(p, self.robot_box.max_distance)
     }
 
     /// Descends the links of `mask` for an obstacle point and records its distances; returns
@@ -840,7 +840,7 @@ impl Pass<'_> {
                 for (i, &p) in self.points[start..start + len].iter().enumerate() {
                     if valid(p)
                         && robot & (1 << k) == 0
-                        && self.robot_box.distance(p) <= self.robot_box.max_distance
+                        && self.robot_box.within(p, self.robot_box.max_distance)
                     {
                         self.evaluate((start + i) as u32, p, mask, frontier, spans);
                     }
@@ -1202,7 +1202,7 @@ pub(super) fn run(
     // The sample points first (one descent each, the first bounds), then their blocks.
     seeds.par_iter().for_each(|&(l, (_, i, _))| {
         let p = points[i as usize];
-        if pass.robot_box.distance(p) <= pass.robot_box.max_distance {
+        if pass.robot_box.within(p, pass.robot_box.max_distance) {
             let q = pass.posed[l].in_link(p);
             if let Some((d, _)) = nearest_sphere(&links[l], q, pass.threshold(l)) {
                 pass.record(l, i, d);

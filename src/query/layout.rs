@@ -129,16 +129,17 @@ pub struct RobotBox {
 const _: () = assert!(size_of::<RobotBox>() == 80);
 
 impl RobotBox {
-    /// Distance from a sensor-frame point to the box.
+    /// Whether a sensor-frame point lies within `distance` of the box (tested in squared
+    /// distances: no square root).
     #[inline(always)]
-    pub fn distance(&self, p: [f32; 3]) -> f32 {
+    pub fn within(&self, p: [f32; 3], distance: f32) -> bool {
         let mut s = 0.0;
         for (k, r) in self.rows.iter().enumerate() {
             let q = r[0] * p[0] + r[1] * p[1] + r[2] * p[2] + r[3];
             let e = (self.lo[k] - q).max(q - self.hi[k]).max(0.0);
             s += e * e;
         }
-        s.sqrt()
+        distance >= 0.0 && s <= distance * distance
     }
 
     /// The squared distances from the box to the nearest and to the farthest point of a
