@@ -59,6 +59,9 @@ use super::layout::{Candidate, PosedLink, RobotBox, BLOCK, FRONTIER, SEED_STRIDE
 use super::self_grid::{Cell, SelfGrid};
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts, MAX_LINKS};
 
+/// Sample points read at once by the seeds' scan.
+const GATHER: usize = 16;
+
 /// Sample points (and their blocks) that seed each link.
 const SEEDS: usize = 3;
 
@@ -913,6 +916,29 @@ impl SeedLists {
         }
     }
 
+    /// Offers the sample points `k · step` for `k` in `run`, read `GATHER` at a time: the
+    /// loads of a batch all in flight at once (each sample is a cache line of its own, seldom
+    /// cached: read one at a time, the scan waited on each), then their offers.
+    fn offer_run(
+        &mut self,
+        points: &[[f32; 3]],
+        step: usize,
+        run: std::ops::Range<usize>,
+        pass: &Pass,
+        tiling: &Tiling,
+    ) {
+        for first in run.clone().step_by(GATHER) {
+            let ks = first..(first + GATHER).min(run.end);
+            let mut batch = [[0.0f32; 3]; GATHER];
+            for (p, k) in batch.iter_mut().zip(ks.clone()) {
+                *p = points[k * step];
+            }
+            for (&p, k) in batch.iter().zip(ks) {
+                self.offer_point(k * step, p, pass, tiling);
+            }
+        }
+    }
+
     fn offer(&mut self, l: usize, n: Seed) {
         offer(&mut self.lists[l], n);
         let mut w = self.worst[l / 8].to_array();
@@ -1172,17 +1198,18 @@ pub(super) fn run(
     // sample.
     // A coarse pass first (every 16th sample), so that the full pass starts from short lists
     // and offers few samples.
+    let stride = SEED_STRIDE as usize;
     let mut coarse = SeedLists::new(pass.posed);
-    for i in (0..points.len()).step_by(16 * SEED_STRIDE as usize) {
-        coarse.offer_point(i, points[i], &pass, &tiling);
-    }
+    let coarse_samples = points.len().div_ceil(16 * stride);
+    coarse.offer_run(points, 16 * stride, 0..coarse_samples, &pass, &tiling);
     let empty = || coarse.clone();
-    let nearest = (0..points.len().div_ceil(SEED_STRIDE as usize))
+    let samples = points.len().div_ceil(stride);
+    let nearest = (0..samples.div_ceil(GATHER))
         .into_par_iter()
-        .with_min_len(1024)
-        .fold(empty, |mut lists, k| {
-            let i = k * SEED_STRIDE as usize;
-            lists.offer_point(i, points[i], &pass, &tiling);
+        .with_min_len(1024 / GATHER)
+        .fold(empty, |mut lists, c| {
+            let run = c * GATHER..((c + 1) * GATHER).min(samples);
+            lists.offer_run(points, stride, run, &pass, &tiling);
             lists
         })
         .reduce(empty, |mut a, b| {
