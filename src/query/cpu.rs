@@ -252,11 +252,10 @@ enum PointStage {
     },
 }
 
-/// A point of a sub-block in phase 2: not measured (invalid, or the robot), ended at a stage,
-/// or waiting in lane `j` of the sub-block's packet.
+/// A point of a sub-block in phase 2 (one that is valid and not the robot): ended at a
+/// stage, or waiting in lane `j` of the sub-block's packet.
 #[derive(Clone, Copy, PartialEq)]
 enum Slot {
-    Skip,
     Done(PointStage),
     Lane(usize),
 }
@@ -658,8 +657,8 @@ impl Pass<'_> {
             let chunk = &self.points[start..start + len];
             let mut sub = None;
             // Where each point ended, or the lane of the packet it waits in (a point equal to
-            // the one before it ends where that one does).
-            let mut slots = [Slot::Skip; SUB];
+            // the one before it ends where that one does); none for the points not measured.
+            let mut slots = [None; SUB];
             let mut lanes = [(0u32, [0.0f32; 3]); SUB];
             let mut n = 0;
             let mut prev = last.map(|(q, stage)| (q, Slot::Done(stage)));
@@ -667,7 +666,7 @@ impl Pass<'_> {
                 if !valid(p) || robot & (1 << (SUB * k + i)) != 0 {
                     continue;
                 }
-                slots[i] = match prev {
+                slots[i] = Some(match prev {
                     Some((q, slot)) if q == p => slot,
                     _ => {
                         let slot = if self.outside(p, partial_roi) {
@@ -692,7 +691,7 @@ impl Pass<'_> {
                         prev = Some((p, slot));
                         slot
                     }
-                };
+                });
             }
             let measured = if n > 0 {
                 self.packet(&lanes[..n], sub.unwrap_or(0), frontier, spans)
@@ -702,15 +701,11 @@ impl Pass<'_> {
             let stage_of = |slot: Slot| match slot {
                 Slot::Done(stage) => stage,
                 Slot::Lane(j) => measured[j],
-                Slot::Skip => unreachable!("skipped points have no stage"),
             };
             if let Some((q, slot)) = prev {
                 *last = Some((q, stage_of(slot)));
             }
-            for &slot in slots.iter().take(len) {
-                if slot == Slot::Skip {
-                    continue;
-                }
+            for &slot in slots.iter().take(len).flatten() {
                 match stage_of(slot) {
                     PointStage::OutsideRoi => counts.outside_roi += 1,
                     // A copy of a robot point of an earlier block, in a block whose phase 1 did
