@@ -345,6 +345,64 @@ proptest! {
         }
     }
 
+    /// A cloud of small patches (blocks of 32 points a few mm across, the coherence of a depth
+    /// image, so that whole blocks are culled by their boxes), many just beyond the inner
+    /// sphere farthest from each link's root centre, where a link's reach is largest: the
+    /// brute-force answer in every mode, with and without per-link minima.
+    #[test]
+    fn coherent_blocks_against_brute_force(seed in 1u64.., links in 1usize..4, per_link: bool) {
+        let mut rng = Rng(seed);
+        let scene = Scene::random(&mut rng, links, 64);
+        let mut engine = scene.engine();
+        // Per link, the inner spheres farthest from the root centre (root frame) and the way out.
+        let mut ends = Vec::new();
+        for (t, pose) in scene.trees.iter().zip(&scene.link_poses) {
+            let root = t.nodes[0].center.map(f64::from);
+            let mut far: Vec<&InnerSphere> = t.spheres.iter().collect();
+            let reach = |s: &InnerSphere| {
+                let c = s.center.map(f64::from);
+                ((c[0] - root[0]).powi(2) + (c[1] - root[1]).powi(2) + (c[2] - root[2]).powi(2)).sqrt()
+                    + f64::from(s.radius)
+            };
+            far.sort_by(|a, b| reach(b).total_cmp(&reach(a)));
+            for s in far.iter().take(3) {
+                let c = s.center.map(f64::from);
+                let out = Vector3::new(c[0] - root[0], c[1] - root[1], c[2] - root[2])
+                    .try_normalize(1e-9).unwrap_or(Vector3::x());
+                let at = Point3::new(c[0], c[1], c[2]) + out * f64::from(s.radius);
+                ends.push((pose * at, pose * out));
+            }
+        }
+        let mut points = Vec::new();
+        for b in 0..48 {
+            let centre = if b % 3 == 2 || ends.is_empty() {
+                Point3::new(rng.range(-0.9, 0.9), rng.range(-0.9, 0.9), rng.range(-0.9, 0.9))
+            } else {
+                let (at, out) = ends[(rng.next() * ends.len() as f64) as usize % ends.len()];
+                at + out * rng.range(0.002, 0.06)
+            };
+            for _ in 0..32 {
+                let q = centre + Vector3::new(rng.range(-0.004, 0.004), rng.range(-0.004, 0.004), rng.range(-0.004, 0.004));
+                points.push([q.x as f32, q.y as f32, q.z as f32]);
+            }
+        }
+        let (exact, spheres) = scene.brute_force(&points, &Isometry3::identity());
+        for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
+            let options = QueryOptions { mode, per_link, ..all_points() };
+            let r = scene.run(&mut engine, &points, &options);
+            let d = distance(&r);
+            match mode {
+                Mode::Exact => prop_assert!((d - exact).abs() < 1e-5, "exact {d} against {exact}"),
+                Mode::Fast => prop_assert!((d - spheres).abs() < 1e-5, "fast {d} against {spheres}"),
+                Mode::Certified => {
+                    let lower = r.nearest.as_ref().unwrap().lower_m.unwrap();
+                    prop_assert!((d - spheres).abs() < 1e-5 && lower <= exact + 1e-5,
+                        "certified [{lower}, {d}] against {exact}, spheres {spheres}");
+                }
+            }
+        }
+    }
+
     /// A cloud whose points repeat (runs of one point over many blocks, and points repeated
     /// inside blocks) gives the answer of the same cloud without the repeats, in every mode,
     /// with the counts of every copy; exact mode refines each repeated point once.

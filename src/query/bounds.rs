@@ -11,6 +11,7 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use nalgebra::Isometry3;
+use wide::f32x8;
 
 use super::layout::{Candidate, PosedLink, RobotBox};
 use super::{pose, Mode, QueryLink, QueryOptions};
@@ -87,6 +88,34 @@ pub(crate) fn threshold(
     }
 }
 
+/// [`threshold`] for eight links at once (lane by lane the same rule and the same arithmetic):
+/// the CPU's test of a block against every link's root sphere.
+#[inline(always)]
+pub(crate) fn threshold_x8(
+    mode: Mode,
+    per_link: bool,
+    range: f32,
+    global: f32,
+    global_lower: f32,
+    link_best: f32x8,
+    gap: f32x8,
+) -> f32x8 {
+    let global_v = f32x8::splat(global);
+    let needed = match mode {
+        Mode::Fast => global_v,
+        Mode::Certified => global_v.max(f32x8::splat(global_lower) + gap),
+        Mode::Exact => global_v + gap,
+    };
+    if !per_link {
+        return needed;
+    }
+    let range = f32x8::splat(range);
+    match mode {
+        Mode::Exact => needed.max(link_best.min(range)),
+        _ => link_best.min(needed.max(range)),
+    }
+}
+
 /// Memory reused from query to query by both backends.
 pub(crate) struct Bounds {
     /// The links posed for this query (`node_base`, `sphere_base`: their offsets in the
@@ -152,5 +181,52 @@ impl Bounds {
         self.candidates
             .get_mut()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The eight-lane rule gives, lane by lane, what the rule for one link gives, in every mode,
+    /// with and without per-link minima, over finite, zero and infinite inputs.
+    #[test]
+    fn eight_links_threshold_as_one() {
+        let values = [0.0f32, 1e-4, 0.0123, 0.05, 0.31, 0.32, 2.5, f32::INFINITY];
+        let mut state = 0x853c_49e6_748f_ea9bu64;
+        let mut pick = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            values[(state % values.len() as u64) as usize]
+        };
+        for _ in 0..2000 {
+            let (range, global, global_lower) = (pick(), pick(), pick());
+            let best: [f32; 8] = std::array::from_fn(|_| pick());
+            let gap: [f32; 8] = std::array::from_fn(|_| pick().min(0.01));
+            for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
+                for per_link in [false, true] {
+                    let v = threshold_x8(
+                        mode,
+                        per_link,
+                        range,
+                        global,
+                        global_lower,
+                        f32x8::from(best),
+                        f32x8::from(gap),
+                    )
+                    .to_array();
+                    for j in 0..8 {
+                        let one =
+                            threshold(mode, per_link, range, global, global_lower, best[j], gap[j]);
+                        assert_eq!(
+                            v[j].to_bits(),
+                            one.to_bits(),
+                            "{mode:?} {per_link} lane {j}"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

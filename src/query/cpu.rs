@@ -4,18 +4,21 @@
 //!
 //! 2. **Seeds**: one pass over a sample of the cloud (every `SEED_STRIDE`-th point, eight
 //!    links' root centres at a time) gives each link the `SEEDS` valid points nearest to its
-//!    root sphere that are not the robot, in distinct blocks; those blocks are descended for
-//!    that link (in parallel), so that the shared bounds are tight before the main pass.
+//!    root sphere that are not the robot, in distinct blocks; those points are descended for
+//!    that link, and with per-link minima their blocks too (in parallel), so that the shared
+//!    bounds are tight before the main pass.
 //! 3. **Main pass** (parallel over groups of blocks, rayon; the one sweep over the whole
 //!    cloud). The cloud's hierarchy, bottom up: points; **sub-blocks** of `SUB` = 8 points;
 //!    **blocks** of `BLOCK` = 32 points, runs of consecutive points or, for an organized cloud,
 //!    tiles of 8 × 4 pixels ([`Tiling`]; a tile's sphere is about a third of a row run's);
 //!    groups of 16 blocks, a rayon task. Each block gets its valid count and the bounding
-//!    box of its valid points (eight lanes at a time, SIMD). A block is dropped whole when
-//!    its box lies outside the region of interest or farther from the robot's box than
-//!    every link's bound (squared distances between the boxes: no square root for the blocks
-//!    dropped here, most of them). Otherwise it is taken, as the sphere around its box, in two
-//!    phases:
+//!    box of its valid points (eight lanes at a time, SIMD). A group, then a block, is dropped
+//!    whole when its box lies outside the region of interest or farther from the robot's box
+//!    than every link's bound (squared distances between the boxes, eight blocks at a time);
+//!    a block, also when its box is beyond every link's root sphere by the link's bound (eight
+//!    links at a time). No square root for the blocks dropped here, nearly all of them (on
+//!    the Kinect scene, global: about 250 of 9600 blocks go further). Otherwise a block is
+//!    taken, as the sphere around its box, in two phases:
 //!    - **the robot** (self-filter), only for a block within the padding of some link's root
 //!      sphere: each point is looked up in that link's self-filter grid ([`SelfGrid`]: cells
 //!      wholly within the padding of the inner spheres, wholly beyond it, or across it), the
@@ -49,9 +52,9 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 use std::sync::Mutex;
 
 use rayon::prelude::*;
-use wide::{f32x4, f32x8, CmpEq, CmpLt, CmpNe};
+use wide::{f32x4, f32x8, CmpEq, CmpGe, CmpLe, CmpLt, CmpNe};
 
-use super::bounds::{load_distance, load_f32, pack_minimum, threshold, Bounds};
+use super::bounds::{load_distance, load_f32, pack_minimum, threshold, threshold_x8, Bounds};
 use super::descent::{
     any_within, dist, dist2, nearest_from, nearest_packet, nearest_sphere, valid, within_reach,
 };
@@ -64,6 +67,10 @@ const GATHER: usize = 16;
 
 /// Sample points (and their blocks) that seed each link.
 const SEEDS: usize = 3;
+
+/// Seed points descended on the query's own thread: up to this many cost less than a parallel
+/// step (eleven links' 33: 11–12 µs against 15–22 µs in parallel, Kinect scene, 2 cores).
+const SERIAL_SEEDS: usize = 48;
 
 /// Points per sub-block: a block that survives its own tests is taken in runs of eight, each
 /// bounded by its own sphere (computed then, since most blocks never need them).
@@ -150,6 +157,14 @@ struct Block {
 }
 
 impl Block {
+    /// No points (the slots past a group's last block).
+    const EMPTY: Self = Self {
+        lo: [f32::INFINITY; 3],
+        hi: [f32::NEG_INFINITY; 3],
+        valid: 0,
+        invalid: 0,
+    };
+
     /// All valid points are the same point (a degenerate box).
     fn uniform(&self) -> bool {
         self.lo == self.hi
@@ -239,6 +254,39 @@ fn frontier(link: &QueryLink, c: [f32; 3], r: f32, limit: f32, out: &mut Vec<u32
     }
 }
 
+/// The links' root spheres in the sensor frame, eight links to a vector (SIMD over links), with
+/// their surface gaps: a block's box is tested against all of them at once. Lanes past the last
+/// link have radius −∞ and take nothing.
+struct LinkRoots {
+    octets: usize,
+    center: [[f32x8; 3]; MAX_LINKS / 8],
+    radius: [f32x8; MAX_LINKS / 8],
+    gap: [f32x8; MAX_LINKS / 8],
+}
+
+impl LinkRoots {
+    fn new(posed: &[PosedLink]) -> Self {
+        let octets = posed.len().div_ceil(8);
+        let lane = |o: usize, f: &dyn Fn(&PosedLink) -> f32, none: f32| {
+            f32x8::from(std::array::from_fn(|j| {
+                posed.get(8 * o + j).map_or(none, f)
+            }))
+        };
+        let mut roots = Self {
+            octets,
+            center: [[f32x8::ZERO; 3]; MAX_LINKS / 8],
+            radius: [f32x8::ZERO; MAX_LINKS / 8],
+            gap: [f32x8::ZERO; MAX_LINKS / 8],
+        };
+        for o in 0..octets {
+            roots.center[o] = [0, 1, 2].map(|k| lane(o, &|p| p.center[k], 0.0));
+            roots.radius[o] = lane(o, &|p| p.radius, f32::NEG_INFINITY);
+            roots.gap[o] = lane(o, &|p| p.gap, 0.0);
+        }
+        roots
+    }
+}
+
 /// Where one point of the main pass ended.
 #[derive(Clone, Copy, PartialEq)]
 enum PointStage {
@@ -279,10 +327,9 @@ struct Pass<'a> {
     padding: f32,
     /// Per link, the self-filter's grid for this padding (empty when off).
     grids: &'a [SelfGrid],
-    /// Every link's bit.
-    all: u128,
     /// The robot's box, the region of interest (`max_distance`) with it.
     robot_box: RobotBox,
+    roots: LinkRoots,
 }
 
 impl Pass<'_> {
@@ -354,6 +401,58 @@ impl Pass<'_> {
             }
             Mode::Fast => {}
         }
+    }
+
+    /// Per eight links, how near to its root sphere's centre a block must come to hold a
+    /// point that matters to the link: its threshold, or the self-filter's padding when that
+    /// is larger, plus the root sphere's radius, widened for f32 rounding (lanes past the last
+    /// link: −∞). Taken once per group of blocks: thresholds only fall, so for the group's
+    /// later blocks it is an upper bound.
+    fn link_reach(&self) -> [f32x8; MAX_LINKS / 8] {
+        let (global, global_lower) = (load_f32(self.global), load_f32(self.global_lower));
+        let padding = f32x8::splat(self.padding);
+        let mut reach = [f32x8::ZERO; MAX_LINKS / 8];
+        for (o, r) in reach[..self.roots.octets].iter_mut().enumerate() {
+            let best = if self.per_link {
+                f32x8::from(std::array::from_fn(|j| {
+                    self.best.get(8 * o + j).map_or(0.0, load_distance)
+                }))
+            } else {
+                f32x8::splat(f32::INFINITY)
+            };
+            let limit = threshold_x8(
+                self.mode,
+                self.per_link,
+                self.per_link_range,
+                global,
+                global_lower,
+                best,
+                self.roots.gap[o],
+            )
+            .max(padding);
+            *r = (limit + self.roots.radius[o]) * f32x8::splat(1.0 + 1e-6) + f32x8::splat(1e-6);
+        }
+        reach
+    }
+
+    /// The links whose root sphere comes within `reach` ([`Pass::link_reach`]) of a block's box
+    /// `lo..hi` (sensor frame): eight links at a time, in squared distances from each centre
+    /// to the box's nearest point. The box lies inside the block's sphere, so this is tighter
+    /// than the spheres' test.
+    #[inline]
+    fn links_near_box(&self, reach: &[f32x8], lo: [f32; 3], hi: [f32; 3]) -> u128 {
+        let lo = lo.map(f32x8::splat);
+        let hi = hi.map(f32x8::splat);
+        let zero = f32x8::ZERO;
+        let mut mask = 0u128;
+        for (o, &reach) in reach[..self.roots.octets].iter().enumerate() {
+            let c = &self.roots.center[o];
+            let e = [0, 1, 2].map(|k| (lo[k] - c[k]).max(c[k] - hi[k]).max(zero));
+            let d2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+            let within = reach.cmp_ge(zero) & d2.cmp_le(reach * reach);
+            mask |= u128::from(within.move_mask() as u8) << (8 * o);
+        }
+        mask
     }
 
     /// A link of `mask` with an inner sphere within the self-filter padding of `p`: `hint` (the
@@ -447,8 +546,9 @@ impl Pass<'_> {
         inside
     }
 
-    /// The frontiers of a block in the links of `links`, cut at the link's threshold; returns
-    /// the mask of links with a frontier.
+    /// The frontiers of a block in the links of `links` (in the main pass, the links whose root
+    /// sphere its box comes near), cut at the link's threshold; returns the mask of links with
+    /// a frontier.
     fn frontiers(
         &self,
         center: [f32; 3],
@@ -462,11 +562,6 @@ impl Pass<'_> {
         for l in bits(links) {
             let pl = &self.posed[l];
             let limit = self.threshold(l);
-            // Root sphere first, in the sensor frame (no transform, no square root).
-            let reach = limit + radius + pl.radius;
-            if dist2(center, pl.center) > reach * reach {
-                continue;
-            }
             let start = frontier.len() as u32;
             let c = pl.in_link(center);
             if self::frontier(&self.links[l], c, radius, limit, frontier) {
@@ -506,33 +601,96 @@ impl Pass<'_> {
         out
     }
 
-    /// One block: dropped whole (region of interest, robot box, frontiers), then sub-block by
-    /// sub-block (each tested against the block's frontier, which also narrows the links its
-    /// points descend), then its points, a packet per sub-block. A point equal to the one
-    /// before it ends where that one ended, with no work (same distance, larger index: it
-    /// cannot change a minimum). `last` is the last point measured in this run of blocks and
-    /// where it ended: a block that repeats it is not measured again.
+    /// One group of `GROUP` blocks (a rayon task): each block bounded; the group's box tested
+    /// against the robot's box (most groups away from the robot end here, as one); else all
+    /// its blocks tested against the robot's box at once ([`robot_distances2`]), then block by
+    /// block ([`Pass::block`]). Within the group the last point measured is carried from block
+    /// to block, so that a point repeated over many blocks is measured once per group.
+    fn group(&self, g: usize, frontier: &mut Vec<u32>, spans: &mut [(u32, u32)]) -> StageCounts {
+        let first = g * GROUP;
+        let n = GROUP.min(self.tiling.blocks() - first);
+        let mut raw = [Raw::empty(); GROUP];
+        let mut all = Raw::empty();
+        for (k, r) in raw[..n].iter_mut().enumerate() {
+            *r = accumulate(self.points, self.tiling.subs(first + k));
+            all.merge(r);
+        }
+        // The counts of a group that ends as one.
+        let mut whole = StageCounts {
+            total: u64::from(all.valid + all.invalid),
+            invalid: u64::from(all.invalid),
+            ..Default::default()
+        };
+        if all.valid == 0 {
+            return whole;
+        }
+        // The group's box first: a group outside the region of interest, or wholly beyond
+        // reach of the robot's box, ends here, its blocks' lanes never folded.
+        let group = all.fold();
+        let (near, far) = self.robot_box.box_distances2(group.lo, group.hi);
+        let roi2 = self.robot_box.max_distance * self.robot_box.max_distance;
+        if near > roi2 {
+            whole.outside_roi = u64::from(all.valid);
+            return whole;
+        }
+        let reach = self.padding.max(self.largest_threshold());
+        if far <= roi2 && (reach < 0.0 || near > reach * reach) {
+            whole.pruned = u64::from(all.valid);
+            return whole;
+        }
+        let mut blocks = [Block::EMPTY; GROUP];
+        for (block, r) in blocks[..n].iter_mut().zip(&raw) {
+            *block = r.fold();
+        }
+        let (near2, far2) = robot_distances2(&self.robot_box, &blocks);
+        let reach = self.link_reach();
+        let mut counts = StageCounts::default();
+        let mut last = None;
+        for k in 0..n {
+            let distances = (near2[k], far2[k], &reach[..]);
+            self.block(
+                first + k,
+                &blocks[k],
+                distances,
+                frontier,
+                spans,
+                &mut last,
+                &mut counts,
+            );
+        }
+        counts
+    }
+
+    /// One block, whose box lies at squared distances `(near2, far2)` from the robot's box
+    /// (`link_reach`: the links' reach, [`Pass::link_reach`]): dropped whole (region of
+    /// interest, robot box, the links' root spheres), or taken ([`Pass::take`]). A block that
+    /// repeats the point before it ends where that one ended, with no work (same distance,
+    /// larger index: it cannot change a minimum). `last` is the last point measured in this
+    /// run of blocks and where it ended.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn block(
         &self,
         b: usize,
         block: &Block,
+        (near2, far2, link_reach): (f32, f32, &[f32x8]),
         frontier: &mut Vec<u32>,
         spans: &mut [(u32, u32)],
         last: &mut Option<([f32; 3], PointStage)>,
-    ) -> StageCounts {
-        let mut counts = StageCounts {
-            total: (block.valid + block.invalid) as u64,
-            invalid: block.invalid as u64,
-            ..Default::default()
-        };
+        counts: &mut StageCounts,
+    ) {
+        counts.total += u64::from(block.valid + block.invalid);
+        counts.invalid += u64::from(block.invalid);
         if block.valid == 0 {
-            return counts;
+            return;
         }
+        let valid = u64::from(block.valid);
         // A block that repeats the point before it (its box is that point).
         let uniform = block.uniform();
         if let Some((q, stage)) = *last {
             if uniform && q == block.lo {
-                return counts + self.repeat(stage, u64::from(block.valid));
+                *counts = *counts + self.repeat(stage, valid);
+                return;
             }
         }
         let whole = |stage: PointStage, last: &mut Option<([f32; 3], PointStage)>| {
@@ -540,21 +698,54 @@ impl Pass<'_> {
         };
         // The robot's box against the block's, squared distances (no square root for the
         // blocks culled here, most of them).
-        let (near2, far2) = self.robot_box.box_distances2(block.lo, block.hi);
         let roi2 = self.robot_box.max_distance * self.robot_box.max_distance;
         if near2 > roi2 {
-            counts.outside_roi = block.valid as u64;
+            counts.outside_roi += valid;
             whole(PointStage::OutsideRoi, last);
-            return counts;
+            return;
         }
         let partial_roi = far2 > roi2;
         // The robot's bounding box is also a cheap lower bound for every link at once.
         let reach = self.padding.max(self.largest_threshold());
         if (reach < 0.0 || near2 > reach * reach) && !partial_roi {
-            counts.pruned = block.valid as u64;
+            counts.pruned += valid;
             whole(PointStage::Pruned, last);
-            return counts;
+            return;
         }
+        // Then every link's root sphere against the block's box (no square root either): most
+        // blocks near the robot's box but away from its links end here.
+        let links = self.links_near_box(link_reach, block.lo, block.hi);
+        if links == 0 && !partial_roi {
+            counts.pruned += valid;
+            whole(PointStage::Pruned, last);
+            return;
+        }
+        *counts = *counts + self.take(b, block, near2, partial_roi, links, frontier, spans, last);
+    }
+
+    /// A block that its box's tests did not drop (`near2`: its squared distance to the robot's
+    /// box; `links`: the links within its reach): phase 1, the self-filter, then phase 2,
+    /// sub-block by sub-block (each tested against the block's frontier, which also narrows the
+    /// links its points descend), then its points, a packet per sub-block. A point equal to the
+    /// one before it ends where that one ended.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn take(
+        &self,
+        b: usize,
+        block: &Block,
+        near2: f32,
+        partial_roi: bool,
+        links: u128,
+        frontier: &mut Vec<u32>,
+        spans: &mut [(u32, u32)],
+        last: &mut Option<([f32; 3], PointStage)>,
+    ) -> StageCounts {
+        let mut counts = StageCounts::default();
+        let uniform = block.uniform();
+        let whole = |stage: PointStage, last: &mut Option<([f32; 3], PointStage)>| {
+            *last = uniform.then_some((block.lo, stage));
+        };
         let sphere = block.sphere();
         let subs = self.tiling.subs(b);
         // Phase 1, the self-filter, with frontiers cut at the padding (small, cheap): which
@@ -607,7 +798,7 @@ impl Pass<'_> {
         // Phase 2, the obstacle points: frontiers cut at each link's threshold, then
         // sub-block by sub-block, point by point.
         if counts.self_filtered < u64::from(block.valid) {
-            let mask = self.frontiers(sphere.center, sphere.radius, self.all, frontier, spans);
+            let mask = self.frontiers(sphere.center, sphere.radius, links, frontier, spans);
             if mask == 0 && !partial_roi {
                 // No link within reach: the rest of the block is pruned whole.
                 counts.pruned = u64::from(block.valid) - counts.self_filtered;
@@ -1039,18 +1230,86 @@ static LANE_MASKS: [[u32; 4]; 16] = {
 /// Every third bit (bit 3k stands for point k of a group of eight).
 const POINT_BITS: u32 = 0x0024_9249;
 
+/// A block's bounding box before its lanes are folded: per bound, three 4-lane accumulators
+/// (lane `j` of accumulator `m` holds axis `(4m + j) mod 3`), the box of the points past the
+/// last whole octet of each sub-block, and the counts. Groups of blocks are merged lane by
+/// lane ([`Raw::merge`]) and folded into a box ([`Raw::fold`]) only when needed.
+#[derive(Clone, Copy)]
+struct Raw {
+    lo: [f32x4; 3],
+    hi: [f32x4; 3],
+    tail_lo: [f32; 3],
+    tail_hi: [f32; 3],
+    valid: u32,
+    invalid: u32,
+}
+
+impl Raw {
+    /// No points.
+    #[inline(always)]
+    fn empty() -> Self {
+        Self {
+            lo: [f32x4::splat(f32::INFINITY); 3],
+            hi: [f32x4::splat(f32::NEG_INFINITY); 3],
+            tail_lo: [f32::INFINITY; 3],
+            tail_hi: [f32::NEG_INFINITY; 3],
+            valid: 0,
+            invalid: 0,
+        }
+    }
+
+    /// Takes in another block's points (box and counts).
+    #[inline(always)]
+    fn merge(&mut self, o: &Raw) {
+        for m in 0..3 {
+            self.lo[m] = self.lo[m].fast_min(o.lo[m]);
+            self.hi[m] = self.hi[m].fast_max(o.hi[m]);
+            self.tail_lo[m] = self.tail_lo[m].min(o.tail_lo[m]);
+            self.tail_hi[m] = self.tail_hi[m].max(o.tail_hi[m]);
+        }
+        self.valid += o.valid;
+        self.invalid += o.invalid;
+    }
+
+    /// The box: the lanes folded into their axes (nine comparisons per bound; the values are
+    /// finite or ±∞, so plain comparisons do).
+    #[inline(always)]
+    fn fold(&self) -> Block {
+        let (mut l, mut h) = (self.tail_lo, self.tail_hi);
+        for m in 0..3 {
+            let (a, b) = (self.lo[m].to_array(), self.hi[m].to_array());
+            for j in 0..4 {
+                let axis = (4 * m + j) % 3;
+                l[axis] = if a[j] < l[axis] { a[j] } else { l[axis] };
+                h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
+            }
+        }
+        Block {
+            lo: l,
+            hi: h,
+            valid: self.valid,
+            invalid: self.invalid,
+        }
+    }
+}
+
+/// The bounding box and valid count of a block ([`accumulate`], folded).
+#[inline(always)]
+fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block {
+    accumulate(points, subs).fold()
+}
+
 /// The bounding box and valid count of a block, read as it lies in memory: eight points are
 /// 24 floats, six 4-lane vectors (SIMD through `wide`: SSE on x86, NEON on ARM). Their lanes
 /// hold the axes in three patterns that repeat every three vectors (x y z x, y z x y,
-/// z x y z), so that three accumulators per bound take them all and fold into the box with
-/// nine comparisons at the end. Per lane: finite? zero? As bit masks (bit 3k + axis for point
-/// k), a point is invalid when any of its three bits is non-finite or all three are zero; its
-/// lanes then take ±∞ in the box.
+/// z x y z), so that three accumulators per bound take them all ([`Raw`]). Per lane: finite?
+/// zero? As bit masks (bit 3k + axis for point k), a point is invalid when any of its three
+/// bits is non-finite or all three are zero; its lanes then take ±∞ in the box.
 ///
 /// Inlined where it is called: passed through memory, the sub-block array stalled every call
 /// on its own loads (the bounding pass alone over the Kinect cloud, timed: 324 → 259 µs).
 #[inline(always)]
-fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block {
+fn accumulate(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Raw {
     let inf = f32x4::splat(f32::INFINITY);
     let mut lo = [inf; 3];
     let mut hi = [-inf; 3];
@@ -1120,22 +1379,56 @@ fn bound_block(points: &[[f32; 3]], subs: [(usize, usize); TILE_ROWS]) -> Block 
             }
         }
     }
-    // Lane j of accumulator m holds axis (4m + j) mod 3; the values are finite or ±∞, so plain
-    // comparisons do.
-    for m in 0..3 {
-        let (a, b) = (lo[m].to_array(), hi[m].to_array());
-        for j in 0..4 {
-            let axis = (4 * m + j) % 3;
-            l[axis] = if a[j] < l[axis] { a[j] } else { l[axis] };
-            h[axis] = if b[j] > h[axis] { b[j] } else { h[axis] };
-        }
-    }
-    Block {
-        lo: l,
-        hi: h,
+    Raw {
+        lo,
+        hi,
+        tail_lo: l,
+        tail_hi: h,
         valid: n - invalid,
         invalid,
     }
+}
+
+/// [`RobotBox::box_distances2`] for a group's blocks, eight at a time ([`box_distances2_x8`]):
+/// (nearest, farthest) per block; the values of empty blocks mean nothing.
+#[inline(always)]
+fn robot_distances2(robot: &RobotBox, blocks: &[Block; GROUP]) -> ([f32; GROUP], [f32; GROUP]) {
+    let mut near2 = [0.0f32; GROUP];
+    let mut far2 = [0.0f32; GROUP];
+    for o in 0..GROUP / 8 {
+        let lanes =
+            |f: &dyn Fn(&Block) -> f32| f32x8::from(std::array::from_fn(|j| f(&blocks[8 * o + j])));
+        let lo = [0, 1, 2].map(|k| lanes(&|b| b.lo[k]));
+        let hi = [0, 1, 2].map(|k| lanes(&|b| b.hi[k]));
+        let (near, far) = box_distances2_x8(robot, lo, hi);
+        near2[8 * o..8 * o + 8].copy_from_slice(&near.to_array());
+        far2[8 * o..8 * o + 8].copy_from_slice(&far.to_array());
+    }
+    (near2, far2)
+}
+
+/// [`RobotBox::box_distances2`] for eight blocks' boxes at once (SIMD over the blocks; lane by
+/// lane the same arithmetic, so the same values).
+#[inline(always)]
+fn box_distances2_x8(rb: &RobotBox, lo: [f32x8; 3], hi: [f32x8; 3]) -> (f32x8, f32x8) {
+    let half = f32x8::splat(0.5);
+    let c = [0, 1, 2].map(|k| half * (lo[k] + hi[k]));
+    let e = [0, 1, 2].map(|k| half * (hi[k] - lo[k]));
+    let slack = f32x8::splat(1e-6) * (f32x8::ONE + c[0].abs() + c[1].abs() + c[2].abs());
+    let zero = f32x8::ZERO;
+    let (mut near, mut far) = (zero, zero);
+    for (k, r) in rb.rows.iter().enumerate() {
+        let [r0, r1, r2, r3] = r.map(f32x8::splat);
+        let q = r0 * c[0] + r1 * c[1] + r2 * c[2] + r3;
+        let w = (r0.abs() * e[0] + r1.abs() * e[1] + r2.abs() * e[2]) * f32x8::splat(1.0 + 1e-6)
+            + slack;
+        let (l, h) = (f32x8::splat(rb.lo[k]), f32x8::splat(rb.hi[k]));
+        let n = (l - (q + w)).max((q - w) - h).max(zero);
+        let f = (l - (q - w)).max((q + w) - h).max(zero);
+        near += n * n;
+        far += f * f;
+    }
+    (near, far)
 }
 
 /// The bounding sphere of the valid points of a sub-block (radius < 0: none).
@@ -1184,8 +1477,8 @@ pub(super) fn run(
         max_gap: bounds.posed.iter().map(|p| p.gap).fold(0.0, f32::max),
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
         grids,
-        all: u128::MAX >> (MAX_LINKS - links.len()),
         robot_box,
+        roots: LinkRoots::new(&bounds.posed),
     };
 
     // 2. Seeds: each link from the blocks around the SEEDS sample points nearest to its root
@@ -1221,8 +1514,10 @@ pub(super) fn run(
                 .map(move |&n| (l, n))
         })
         .collect();
-    // The sample points first (one descent each, the first bounds), then their blocks.
-    seeds.par_iter().for_each(|&(l, (_, i, _))| {
+    // The sample points first (one descent each, the first bounds; on this thread when they
+    // are few, since a parallel step costs about as much as a few dozen descents), then, for
+    // per-link minima, their blocks.
+    let seed_point = |&(l, (_, i, _)): &(usize, Seed)| {
         let p = points[i as usize];
         if pass.robot_box.within(p, pass.robot_box.max_distance) {
             let q = pass.posed[l].in_link(p);
@@ -1230,11 +1525,22 @@ pub(super) fn run(
                 pass.record(l, i, d);
             }
         }
-    });
-    seeds.into_par_iter().for_each(|(l, (_, _, b))| {
-        let b = b as usize;
-        pass.seed(l, b, &bound_block(points, tiling.subs(b)).sphere());
-    });
+    };
+    if seeds.len() <= SERIAL_SEEDS && !options.per_link {
+        seeds.iter().for_each(seed_point);
+    } else {
+        seeds.par_iter().for_each(seed_point);
+    }
+    // One bound serves every link of a global query, and the sample points give it close to
+    // its final value: their blocks, which tighten each link's own bound, are descended only
+    // for per-link minima (on the Kinect scene, global: 20 µs more for the blocks, 2–5 µs less
+    // in the main pass).
+    if options.per_link {
+        seeds.into_par_iter().for_each(|(l, (_, _, b))| {
+            let b = b as usize;
+            pass.seed(l, b, &bound_block(points, tiling.subs(b)).sphere());
+        });
+    }
 
     // 3. Main pass, one sweep over the cloud in groups of `GROUP` blocks (parallel over the
     // groups): each block is bounded, then culled or descended; within a group the last point
@@ -1243,17 +1549,7 @@ pub(super) fn run(
     let groups = tiling.blocks().div_ceil(GROUP);
     let counts = (0..groups)
         .into_par_iter()
-        .map(|g| {
-            with_scratch(links.len(), |f, s| {
-                let mut last = None;
-                let mut counts = StageCounts::default();
-                for b in g * GROUP..((g + 1) * GROUP).min(tiling.blocks()) {
-                    let block = bound_block(points, tiling.subs(b));
-                    counts = counts + pass.block(b, &block, f, s, &mut last);
-                }
-                counts
-            })
-        })
+        .map(|g| with_scratch(links.len(), |f, s| pass.group(g, f, s)))
         .reduce(StageCounts::default, |a, b| a + b);
 
     result::finish(links, bounds, input, counts, Backend::Cpu)
@@ -1324,6 +1620,77 @@ mod tests {
                 block.uniform(),
                 valid_points.iter().all(|&p| p == valid_points[0])
             );
+        }
+    }
+
+    /// A group's merged accumulators fold into the box of all its blocks' valid points, and
+    /// eight blocks' distances to the robot's box taken at once are, lane by lane, the ones
+    /// taken one block at a time (same bits).
+    #[test]
+    fn groups_bound_as_their_blocks() {
+        let mut next = xorshift(0x6a09_e667_f3bc_c908);
+        for round in 0..300 {
+            // Blocks of 29 or 32 points (a short tail too), some all invalid.
+            let points: Vec<[f32; 3]> = (0..GROUP * BLOCK - (round % 3) * 3)
+                .map(|i| {
+                    let mut coordinate = || (next() % 40_001) as f32 * 1e-4 - 2.0;
+                    let p = [coordinate(), coordinate(), coordinate()];
+                    if (i / BLOCK) % 5 == 3 || next().is_multiple_of(9) {
+                        [f32::NAN, p[1], p[2]]
+                    } else {
+                        p
+                    }
+                })
+                .collect();
+            let tiling = Tiling::new(points.len(), None);
+            let mut all = Raw::empty();
+            let mut blocks = [Block::EMPTY; GROUP];
+            for (b, block) in blocks.iter_mut().enumerate().take(tiling.blocks()) {
+                let raw = accumulate(&points, tiling.subs(b));
+                all.merge(&raw);
+                *block = raw.fold();
+            }
+            let group = all.fold();
+            let valid: Vec<_> = points.iter().copied().filter(|&p| valid(p)).collect();
+            assert_eq!(group.valid as usize, valid.len());
+            assert_eq!(group.invalid as usize, points.len() - valid.len());
+            for k in 0..3 {
+                let lo = valid.iter().map(|p| p[k]).fold(f32::INFINITY, f32::min);
+                let hi = valid.iter().map(|p| p[k]).fold(f32::NEG_INFINITY, f32::max);
+                assert_eq!(
+                    (group.lo[k], group.hi[k]),
+                    (lo, hi),
+                    "round {round} axis {k}"
+                );
+            }
+            // A posed robot box: a rotation about a random axis, a shift.
+            let (a, t) = (
+                (next() % 628) as f64 * 0.01,
+                (next() % 200) as f32 * 0.01 - 1.0,
+            );
+            let axis = nalgebra::Vector3::new(0.3, -0.5, 0.8).normalize();
+            let m = nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), a);
+            let rows = std::array::from_fn(|r| {
+                [
+                    m[(r, 0)] as f32,
+                    m[(r, 1)] as f32,
+                    m[(r, 2)] as f32,
+                    t * r as f32,
+                ]
+            });
+            let robot = RobotBox {
+                rows,
+                lo: [-0.4, -0.3, 0.0],
+                max_distance: 1.5,
+                hi: [0.4, 0.3, 1.1],
+                padding: -1.0,
+            };
+            let (near, far) = robot_distances2(&robot, &blocks);
+            for (k, b) in blocks.iter().enumerate().filter(|(_, b)| b.valid > 0) {
+                let (n, f) = robot.box_distances2(b.lo, b.hi);
+                assert_eq!(near[k].to_bits(), n.to_bits(), "round {round} block {k}");
+                assert_eq!(far[k].to_bits(), f.to_bits(), "round {round} block {k}");
+            }
         }
     }
 
