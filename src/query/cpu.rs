@@ -639,10 +639,23 @@ impl Pass<'_> {
             return whole;
         }
         let mut blocks = [Block::EMPTY; GROUP];
-        for (block, r) in blocks[..n].iter_mut().zip(&raw) {
-            *block = r.fold();
-        }
-        let (near2, far2) = robot_distances2(&self.robot_box, &blocks);
+        let (near2, far2) = if group.uniform() {
+            // One point repeated over the group (each block's box is the group's): folds and
+            // box tests once, and every block after the first repeats it.
+            for (block, r) in blocks[..n].iter_mut().zip(&raw) {
+                *block = Block {
+                    valid: r.valid,
+                    invalid: r.invalid,
+                    ..group
+                };
+            }
+            ([near; GROUP], [far; GROUP])
+        } else {
+            for (block, r) in blocks[..n].iter_mut().zip(&raw) {
+                *block = r.fold();
+            }
+            robot_distances2(&self.robot_box, &blocks)
+        };
         let reach = self.link_reach();
         let mut counts = StageCounts::default();
         let mut last = None;
@@ -1396,11 +1409,14 @@ fn robot_distances2(robot: &RobotBox, blocks: &[Block; GROUP]) -> ([f32; GROUP],
     let mut near2 = [0.0f32; GROUP];
     let mut far2 = [0.0f32; GROUP];
     for o in 0..GROUP / 8 {
-        let lanes =
-            |f: &dyn Fn(&Block) -> f32| f32x8::from(std::array::from_fn(|j| f(&blocks[8 * o + j])));
-        let lo = [0, 1, 2].map(|k| lanes(&|b| b.lo[k]));
-        let hi = [0, 1, 2].map(|k| lanes(&|b| b.hi[k]));
-        let (near, far) = box_distances2_x8(robot, lo, hi);
+        let (mut lo, mut hi) = ([[0.0f32; 8]; 3], [[0.0f32; 8]; 3]);
+        for (j, b) in blocks[8 * o..8 * o + 8].iter().enumerate() {
+            for k in 0..3 {
+                lo[k][j] = b.lo[k];
+                hi[k][j] = b.hi[k];
+            }
+        }
+        let (near, far) = box_distances2_x8(robot, lo.map(f32x8::from), hi.map(f32x8::from));
         near2[8 * o..8 * o + 8].copy_from_slice(&near.to_array());
         far2[8 * o..8 * o + 8].copy_from_slice(&far.to_array());
     }
