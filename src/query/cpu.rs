@@ -68,8 +68,10 @@ const GATHER: usize = 16;
 /// Sample points (and their blocks) that seed each link.
 const SEEDS: usize = 3;
 
-/// Seed points descended on the query's own thread: up to this many cost less than a parallel
-/// step (eleven links' 33: 11–12 µs against 15–22 µs in parallel, Kinect scene, 2 cores).
+/// Seed points of a global query descended on the query's own thread: up to this many cost less
+/// than a parallel step (eleven links' 33: 11–12 µs against 15–22 µs in parallel, Kinect scene,
+/// 2 cores). With per-link minima they stay parallel: on this thread the Kinect node defaults
+/// measured 1.27 against 1.22 ms (the parallel step there is followed by the seeds' blocks).
 const SERIAL_SEEDS: usize = 48;
 
 /// Points per sub-block: a block that survives its own tests is taken in runs of eight, each
@@ -329,6 +331,7 @@ struct Pass<'a> {
     grids: &'a [SelfGrid],
     /// The robot's box, the region of interest (`max_distance`) with it.
     robot_box: RobotBox,
+    /// The links' root spheres, eight to a vector, for the blocks' box test.
     roots: LinkRoots,
 }
 
@@ -1530,9 +1533,9 @@ pub(super) fn run(
                 .map(move |&n| (l, n))
         })
         .collect();
-    // The sample points first (one descent each, the first bounds; on this thread when they
-    // are few, since a parallel step costs about as much as a few dozen descents), then, for
-    // per-link minima, their blocks.
+    // The sample points first (one descent each, the first bounds; for a global query on this
+    // thread when they are few, since a parallel step costs about as much as a few dozen
+    // descents: `SERIAL_SEEDS`), then, for per-link minima, their blocks.
     let seed_point = |&(l, (_, i, _)): &(usize, Seed)| {
         let p = points[i as usize];
         if pass.robot_box.within(p, pass.robot_box.max_distance) {
