@@ -268,24 +268,23 @@ struct LinkRoots {
 
 impl LinkRoots {
     fn new(posed: &[PosedLink]) -> Self {
-        let octets = posed.len().div_ceil(8);
-        let lane = |o: usize, f: &dyn Fn(&PosedLink) -> f32, none: f32| {
-            f32x8::from(std::array::from_fn(|j| {
-                posed.get(8 * o + j).map_or(none, f)
-            }))
-        };
-        let mut roots = Self {
-            octets,
-            center: [[f32x8::ZERO; 3]; MAX_LINKS / 8],
-            radius: [f32x8::ZERO; MAX_LINKS / 8],
-            gap: [f32x8::ZERO; MAX_LINKS / 8],
-        };
-        for o in 0..octets {
-            roots.center[o] = [0, 1, 2].map(|k| lane(o, &|p| p.center[k], 0.0));
-            roots.radius[o] = lane(o, &|p| p.radius, f32::NEG_INFINITY);
-            roots.gap[o] = lane(o, &|p| p.gap, 0.0);
+        let mut center = [[[0.0f32; 8]; 3]; MAX_LINKS / 8];
+        let mut radius = [[f32::NEG_INFINITY; 8]; MAX_LINKS / 8];
+        let mut gap = [[0.0f32; 8]; MAX_LINKS / 8];
+        for (l, p) in posed.iter().enumerate() {
+            let (o, j) = (l / 8, l % 8);
+            for (axis, &c) in center[o].iter_mut().zip(&p.center) {
+                axis[j] = c;
+            }
+            radius[o][j] = p.radius;
+            gap[o][j] = p.gap;
         }
-        roots
+        Self {
+            octets: posed.len().div_ceil(8),
+            center: center.map(|c| c.map(f32x8::from)),
+            radius: radius.map(f32x8::from),
+            gap: gap.map(f32x8::from),
+        }
     }
 }
 
@@ -436,6 +435,25 @@ impl Pass<'_> {
             *r = (limit + self.roots.radius[o]) * f32x8::splat(1.0 + 1e-6) + f32x8::splat(1e-6);
         }
         reach
+    }
+
+    /// A box (a group's or a block's) at squared distances `near2` and `far2` from the robot's
+    /// box: `Err` with the stage of all its points when it is outside the region of interest
+    /// (`OutsideRoi`), or wholly inside it and beyond reach of the robot's box, a lower bound of
+    /// every link's distance (`Pruned`); else `Ok(partial_roi)`, whether it straddles the
+    /// region of interest's edge.
+    #[inline(always)]
+    fn against_robot_box(&self, near2: f32, far2: f32) -> Result<bool, PointStage> {
+        let roi2 = self.robot_box.max_distance * self.robot_box.max_distance;
+        if near2 > roi2 {
+            return Err(PointStage::OutsideRoi);
+        }
+        let partial_roi = far2 > roi2;
+        let reach = self.padding.max(self.largest_threshold());
+        if (reach < 0.0 || near2 > reach * reach) && !partial_roi {
+            return Err(PointStage::Pruned);
+        }
+        Ok(partial_roi)
     }
 
     /// The links whose root sphere comes within `reach` ([`Pass::link_reach`]) of a block's box
@@ -631,15 +649,16 @@ impl Pass<'_> {
         // reach of the robot's box, ends here, its blocks' lanes never folded.
         let group = all.fold();
         let (near, far) = self.robot_box.box_distances2(group.lo, group.hi);
-        let roi2 = self.robot_box.max_distance * self.robot_box.max_distance;
-        if near > roi2 {
-            whole.outside_roi = u64::from(all.valid);
-            return whole;
-        }
-        let reach = self.padding.max(self.largest_threshold());
-        if far <= roi2 && (reach < 0.0 || near > reach * reach) {
-            whole.pruned = u64::from(all.valid);
-            return whole;
+        match self.against_robot_box(near, far) {
+            Err(PointStage::OutsideRoi) => {
+                whole.outside_roi = u64::from(all.valid);
+                return whole;
+            }
+            Err(_) => {
+                whole.pruned = u64::from(all.valid);
+                return whole;
+            }
+            Ok(_) => {}
         }
         let mut blocks = [Block::EMPTY; GROUP];
         let (near2, far2) = if group.uniform() {
@@ -659,11 +678,11 @@ impl Pass<'_> {
             }
             robot_distances2(&self.robot_box, &blocks)
         };
-        let reach = self.link_reach();
+        let link_reach = self.link_reach();
         let mut counts = StageCounts::default();
         let mut last = None;
         for k in 0..n {
-            let distances = (near2[k], far2[k], &reach[..]);
+            let distances = (near2[k], far2[k], &link_reach[..]);
             self.block(
                 first + k,
                 &blocks[k],
@@ -714,20 +733,17 @@ impl Pass<'_> {
         };
         // The robot's box against the block's, squared distances (no square root for the
         // blocks culled here, most of them).
-        let roi2 = self.robot_box.max_distance * self.robot_box.max_distance;
-        if near2 > roi2 {
-            counts.outside_roi += valid;
-            whole(PointStage::OutsideRoi, last);
-            return;
-        }
-        let partial_roi = far2 > roi2;
-        // The robot's bounding box is also a cheap lower bound for every link at once.
-        let reach = self.padding.max(self.largest_threshold());
-        if (reach < 0.0 || near2 > reach * reach) && !partial_roi {
-            counts.pruned += valid;
-            whole(PointStage::Pruned, last);
-            return;
-        }
+        let partial_roi = match self.against_robot_box(near2, far2) {
+            Ok(partial_roi) => partial_roi,
+            Err(stage) => {
+                match stage {
+                    PointStage::OutsideRoi => counts.outside_roi += valid,
+                    _ => counts.pruned += valid,
+                }
+                whole(stage, last);
+                return;
+            }
+        };
         // Then every link's root sphere against the block's box (no square root either): most
         // blocks near the robot's box but away from its links end here.
         let links = self.links_near_box(link_reach, block.lo, block.hi);
