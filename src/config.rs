@@ -60,7 +60,9 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
     p("exclude_links", "[]", "", "leave these links out"),
     p("convex_hull_links", "[]", "", "pack these links' convex hulls instead of their meshes ([\"*\"]: every link); a hull contains the link, so only its certified lower bound holds for the link, and that is what is published as its distance"),
-    p("max_spheres", "8192", "", "inner spheres per link"),
+    p("max_spheres", "65536", "", "most inner spheres per link: a link starts with start_spheres and doubles its budget while its certified surface gap h is above target_gap (set it to start_spheres for a fixed budget)"),
+    p("start_spheres", "8192", "", "the sphere budget a link starts with"),
+    p("target_gap", "0.0015", "m", "the surface gap h a link is packed for: the budget grows until h is at most this, or max_spheres is reached"),
     p("cache_dir", "~", "path", "where the trees are cached (default: $IST_MONITOR_CACHE or ~/.cache/ist_monitor)"),
     p("joint_states_topic", "/joint_states", "topic", "sensor_msgs/JointState input"),
     p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
@@ -519,12 +521,24 @@ impl Config {
                 n as usize
             },
         };
-        let max_spheres = v.distance("max_spheres", "max_spheres")?;
-        if max_spheres < 1.0 || max_spheres.fract() != 0.0 {
-            return Err(Values::bad("max_spheres", "must be a whole number ≥ 1"));
-        }
+        let count = |name: &str| -> Result<u32, ConfigError> {
+            let n = v.distance(name, name)?;
+            if n < 1.0 || n.fract() != 0.0 || n > u32::MAX as f64 {
+                return Err(Values::bad(name, "must be a whole number ≥ 1"));
+            }
+            Ok(n as u32)
+        };
         let mut build = BuildOptions::default();
-        build.packing.max_spheres = max_spheres as u32;
+        build.packing.max_spheres = count("max_spheres")?;
+        build.packing.start_spheres = count("start_spheres")?;
+        let target_gap = v.distance("target_gap", "target_gap")?;
+        if !(target_gap > 0.0 && target_gap.is_finite()) {
+            return Err(Values::bad(
+                "target_gap",
+                "must be a positive number of metres",
+            ));
+        }
+        build.packing.target_gap_m = target_gap as f32;
         let package_paths = v
             .strings("package_paths")?
             .iter()
@@ -835,10 +849,7 @@ mod tests {
         assert_eq!(c.query, QueryOptions::default());
         assert_eq!(c.ssm, SsmParams::default());
         assert_eq!(c.selection, LinkSelection::default());
-        assert_eq!(
-            c.build.packing.max_spheres,
-            BuildOptions::default().packing.max_spheres
-        );
+        assert_eq!(c.build, BuildOptions::default());
         assert_eq!(default_of("mode"), Some("certified"));
         assert_eq!(default_of("no_such_parameter"), None);
     }

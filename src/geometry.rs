@@ -95,7 +95,7 @@ pub fn distance_point_triangle(p: P3, a: P3, b: P3, c: P3) -> f64 {
 }
 
 /// Solid angle of triangle `abc` seen from `p`, divided by 4π (Van Oosterom & Strackee).
-fn winding_contribution(p: P3, a: P3, b: P3, c: P3) -> f64 {
+pub fn winding_contribution(p: P3, a: P3, b: P3, c: P3) -> f64 {
     let (a, b, c) = (sub(a, p), sub(b, p), sub(c, p));
     let (la, lb, lc) = (norm(a), norm(b), norm(c));
     let det = dot(a, cross(b, c));

@@ -79,7 +79,7 @@ fn build_with(link: &LinkGeometry, spheres: u32, prototypes: u32) -> LinkTree {
         ..BuildOptions::default()
     };
     let tree = build_link(link, &options).expect("builds");
-    validate_link(&tree, link, 1e-6).expect("every sphere inside its shell (f64)");
+    validate_link(&tree, link, 1e-6, 0.0).expect("every sphere inside its shell (f64)");
     tree
 }
 
@@ -327,7 +327,10 @@ fn a_vendor_robot_with_imperfect_collision_meshes() {
     let raw: Vec<ist_monitor::robot::mesh::TriangleSoup> = model
         .links
         .iter()
-        .map(|l| load_mesh_file(&l.intake[0].file).expect("reads"))
+        .map(|l| {
+            let m = load_mesh_file(&l.intake[0].file).expect("reads");
+            (m.vertices, m.triangles)
+        })
         .collect();
     // What the strict intake (bit-exact welding, one closed manifold mesh) says of each file.
     let refused: Vec<&str> = model
@@ -351,7 +354,7 @@ fn a_vendor_robot_with_imperfect_collision_meshes() {
         .par_iter()
         .map(|l| {
             let tree = build_link(l, &BuildOptions::default()).expect("builds");
-            validate_link(&tree, l, 1e-6).expect("valid");
+            validate_link(&tree, l, 1e-6, 0.0).expect("valid");
             tree
         })
         .collect();
@@ -506,5 +509,230 @@ fn a_convex_hull_gives_only_its_lower_bound() {
     assert!(
         published[0] >= 0.02 - hull_gap - 1e-6,
         "{published:?}, h {hull_gap}"
+    );
+}
+
+/// A COLLADA file of five `<geometry>` pieces, each placed by its node's transforms (a
+/// translation, a row-major matrix, a nested rotation and scale, a unit of millimetres): all
+/// five load where the scene puts them, nothing is taken for a repeated triangle, and the tree
+/// covers every piece. mesh-loader's merge lost pieces 3–5 of such a file (they became copies
+/// of the first pieces' triangles and were dropped as "repeated"): `tests/meshes/
+/// five_pieces.dae` is the minimal file for that report.
+#[test]
+fn a_five_piece_collada_loads_every_piece_at_its_node_transform() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dae = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/meshes/five_pieces.dae");
+    std::fs::copy(&dae, dir.path().join("body.dae")).expect("copy");
+    let urdf = dir.path().join("robot.urdf");
+    std::fs::write(&urdf, one_link_urdf(r#"<mesh filename="body.dae"/>"#)).expect("write");
+    let model = RobotModel::load(&urdf, &[], &LinkSelection::default()).expect("loads");
+    let link = &model.links[0];
+    let r = report(link);
+    assert_eq!(
+        (r.pieces, r.triangles_in, r.repeated_triangles),
+        (5, 60, 0),
+        "{r:?}"
+    );
+    assert!(
+        r.notes.iter().any(|n| n.contains("unit 0.001 m")),
+        "{:?}",
+        r.notes
+    );
+    assert!(
+        r.notes.iter().any(|n| n.contains("1 of 6 geometries")),
+        "{:?}",
+        r.notes
+    );
+    // The file's cubes of 20 mm at x = 0, 40, 80 (translate), 120 (matrix) mm, and the fifth
+    // scaled ×2 along x and turned 90° about z at x = 160 mm: [140, 160] × [0, 40] × [0, 20].
+    let mut boxes: Vec<([f32; 3], [f32; 3])> = (0..4)
+        .map(|k| {
+            (
+                [0.04 * k as f32, 0.0, 0.0],
+                [0.04 * k as f32 + 0.02, 0.02, 0.02],
+            )
+        })
+        .collect();
+    boxes.push(([0.14, 0.0, 0.0], [0.16, 0.04, 0.02]));
+    let (lo, hi) = link
+        .elements
+        .iter()
+        .fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), e| {
+            let (a, b) = e.mesh.bounds();
+            (
+                std::array::from_fn(|k| lo[k].min(a[k])),
+                std::array::from_fn(|k| hi[k].max(b[k])),
+            )
+        });
+    let close = |a: [f32; 3], b: [f32; 3]| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-6);
+    assert!(
+        close(lo, [0.0; 3]) && close(hi, [0.16, 0.04, 0.02]),
+        "{lo:?} {hi:?}"
+    );
+    let tree = build(link, 1000);
+    assert_inside(&tree, &boxes);
+    let surface: Vec<Tri> = boxes
+        .iter()
+        .flat_map(|(lo, hi)| common::box_triangles(*lo, *hi))
+        .collect();
+    assert_gap_certified(&tree, &surface);
+    for (lo, hi) in &boxes {
+        let c: [f32; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+        assert!(
+            tree.spheres.iter().any(|s| (0..3)
+                .map(|k| (s.center[k] - c[k]).powi(2))
+                .sum::<f32>()
+                .sqrt()
+                < s.radius),
+            "no sphere covers the centre of the piece at {c:?}"
+        );
+    }
+}
+
+/// An ASCII STL of three `solid` blocks: every solid is read (mesh-loader's merge misplaced the
+/// third one on).
+#[test]
+fn every_solid_of_a_multi_solid_stl_loads() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut text = String::new();
+    for k in 0..3 {
+        let lo = [0.05 * k as f32, 0.0, 0.0];
+        let hi = [lo[0] + 0.03, 0.03, 0.03];
+        text.push_str(&format!("solid part{k}\n"));
+        for t in common::box_triangles(lo, hi) {
+            text.push_str(" facet normal 0 0 0\n  outer loop\n");
+            for v in t {
+                text.push_str(&format!("   vertex {} {} {}\n", v[0], v[1], v[2]));
+            }
+            text.push_str("  endloop\n endfacet\n");
+        }
+        text.push_str(&format!("endsolid part{k}\n"));
+    }
+    std::fs::write(dir.path().join("body.stl"), text).expect("write");
+    let urdf = dir.path().join("robot.urdf");
+    std::fs::write(&urdf, one_link_urdf(r#"<mesh filename="body.stl"/>"#)).expect("write");
+    let model = RobotModel::load(&urdf, &[], &LinkSelection::default()).expect("loads");
+    let r = report(&model.links[0]);
+    assert_eq!(
+        (r.pieces, r.triangles_in, r.repeated_triangles),
+        (3, 36, 0),
+        "{r:?}"
+    );
+    let hi = model.links[0]
+        .elements
+        .iter()
+        .map(|e| e.mesh.bounds().1[0])
+        .fold(f32::MIN, f32::max);
+    assert!((hi - 0.13).abs() < 1e-6, "the third solid ends at x = {hi}");
+}
+
+/// A face with two square holes that touch at one vertex (the rim passes it twice) and a
+/// third hole: the intake's choices do not depend on a hash map's order, so loading it again
+/// gives the same mesh, and building it on one and on two threads gives the same cache file,
+/// byte for byte.
+#[test]
+fn an_open_edged_mesh_builds_the_same_bits_on_one_and_two_threads() {
+    use ist_monitor::ist::{build_robot, cache::TreeCache};
+    let mut triangles = grid_box(LO, HI, 4);
+    // The +z face is the last 32 triangles, cell (i, j) at 2 (4 i + j); cells (1, 1) and
+    // (2, 2) share a corner; cell (0, 3) is apart.
+    let face = triangles.len() - 32;
+    let cells = [(1, 1), (2, 2), (0, 3)];
+    let drop: Vec<usize> = cells
+        .iter()
+        .flat_map(|&(i, j)| [face + 2 * (4 * i + j), face + 2 * (4 * i + j) + 1])
+        .collect();
+    let mut k = 0;
+    triangles.retain(|_| {
+        k += 1;
+        !drop.contains(&(k - 1))
+    });
+    let dir = tempfile::tempdir().expect("tempdir");
+    let first = load(dir.path(), &triangles);
+    let r = report(&first);
+    assert!(r.open_edges >= 12, "{r:?}");
+    for _ in 0..6 {
+        let again = load(dir.path(), &triangles);
+        assert_eq!(report(&again), r);
+        assert_eq!(again.elements.len(), first.elements.len());
+        for (a, b) in again.elements.iter().zip(&first.elements) {
+            assert_eq!(a.mesh.vertices, b.mesh.vertices);
+            assert_eq!(a.mesh.triangles, b.mesh.triangles);
+        }
+    }
+    let urdf = dir.path().join("robot.urdf");
+    let model = RobotModel::load(&urdf, &[], &LinkSelection::default()).expect("loads");
+    let options = BuildOptions {
+        packing: PackingParams {
+            max_spheres: 600,
+            prototypes: 512,
+            ..PackingParams::default()
+        },
+        ..BuildOptions::default()
+    };
+    let files: Vec<Vec<(String, Vec<u8>)>> = [1, 2, 1]
+        .iter()
+        .map(|&threads| {
+            let cache_dir = tempfile::tempdir().expect("tempdir");
+            let cache = TreeCache::new(cache_dir.path().to_path_buf());
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            pool.install(|| build_robot(&model, &options, Some(&cache), &|_| {}))
+                .expect("builds");
+            let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(cache_dir.path())
+                .expect("cache")
+                .map(|e| {
+                    let e = e.expect("entry");
+                    (
+                        e.file_name().to_string_lossy().into_owned(),
+                        std::fs::read(e.path()).expect("read"),
+                    )
+                })
+                .collect();
+            files.sort();
+            files
+        })
+        .collect();
+    assert_eq!(files[0].len(), 1);
+    assert!(
+        files[0] == files[1],
+        "1 and 2 threads give different cache files"
+    );
+    assert!(
+        files[0] == files[2],
+        "two builds on 1 thread give different cache files"
+    );
+}
+
+/// A piece of the file that the intake lost (here: taken out of the mesh the tree was built
+/// from, as mesh-loader's merge did) is found by the validation, which certifies h against the
+/// file as read: the error names the link, the file and the point.
+#[test]
+fn validation_finds_a_piece_of_the_file_the_tree_does_not_cover() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let link = load(dir.path(), &common::box_triangles(LO, HI));
+    let tree = build(&link, 300);
+    let mut lost = link.clone();
+    let far = common::box_triangles([0.3, 0.0, 0.0], [0.35, 0.05, 0.05]);
+    let (mut vertices, mut triangles) = (*lost.intake[0].original).clone();
+    for t in far {
+        let base = vertices.len() as u32;
+        vertices.extend_from_slice(&t);
+        triangles.push([base, base + 1, base + 2]);
+    }
+    lost.intake[0].original = std::sync::Arc::new((vertices, triangles));
+    // A file of two pieces, the second lost (a file the intake took as it was is its packed
+    // surface, certified as that).
+    lost.intake[0].report.pieces = 2;
+    let e = validate_link(&tree, &lost, 1e-6, 0.0).expect_err("the lost piece is found");
+    let message = e.to_string();
+    assert!(
+        message.contains("link body") && message.contains("body.stl as read"),
+        "{message}"
+    );
+    assert!(
+        matches!(e, ist_monitor::ist::validate::ValidationError::Gap { gap_m, .. } if gap_m > 0.15)
     );
 }

@@ -3,7 +3,8 @@
 //! The key is a BLAKE3 hash of the format version, the build options, the link name and its collision
 //! meshes as packed (link-frame vertices and triangles, tessellation error), so any change of
 //! mesh content, scale, origin or parameter misses the cache. A file holds:
-//! `magic "ISTCACHE" | version u32 | key [32] | name len u32 | name | quality (8 × f64) |
+//! `magic "ISTCACHE" | version u32 | key [32] | name len u32 | name | quality (9 × f64, no
+//! wall time; the last the mark that the tree passed `ist::validate`) |
 //! node count u32 | sphere count u32 | nodes | spheres | BLAKE3 of all before [32]`, little
 //! endian. A file that fails any check (length, checksum, magic, version, key, link name) is
 //! reported as an error, never trusted; the caller warns and rebuilds. Writes go to a temporary
@@ -17,7 +18,9 @@ use crate::robot::LinkGeometry;
 
 const MAGIC: &[u8; 8] = b"ISTCACHE";
 /// Bump when the file layout or anything that changes the trees for the same key changes.
-pub const FORMAT_VERSION: u32 = 2;
+/// 3: trees validated before they are stored (`ist::validate`), the files' sampled gap and the
+/// grown budget recorded, no wall times; deterministic intake.
+pub const FORMAT_VERSION: u32 = 3;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CacheError {
@@ -117,7 +120,10 @@ impl TreeCache {
     }
 }
 
-fn quality_fields(q: &LinkQuality) -> [f64; 8] {
+/// The quality as stored: no wall time, so that the same inputs give the same file on any
+/// machine and thread count; the last field records that the tree passed `ist::validate` (the
+/// cache stores no other).
+fn quality_fields(q: &LinkQuality) -> [f64; QUALITY_FIELDS] {
     [
         q.spheres as f64,
         q.coverage,
@@ -125,10 +131,15 @@ fn quality_fields(q: &LinkQuality) -> [f64; 8] {
         q.gap_sampled_m,
         q.mesh_volume_m3,
         q.tree_volume_m3,
-        q.build_s,
-        0.0,
+        q.file_gap_sampled_m,
+        q.budget as f64,
+        VALIDATED,
     ]
 }
+
+const QUALITY_FIELDS: usize = 9;
+/// The "validated" mark.
+const VALIDATED: f64 = 1.0;
 
 pub fn encode(key: &[u8; 32], tree: &LinkTree) -> Vec<u8> {
     let mut out = Vec::new();
@@ -201,9 +212,12 @@ pub fn decode(bytes: &[u8], key: &[u8; 32], link: &str) -> Result<LinkTree, Stri
     if name != link {
         return Err(format!("holds link {name}, expected {link}"));
     }
-    let mut q = [0.0f64; 8];
+    let mut q = [0.0f64; QUALITY_FIELDS];
     for v in &mut q {
         *v = r.f64()?;
+    }
+    if q[QUALITY_FIELDS - 1] != VALIDATED {
+        return Err("the tree is not marked validated".into());
     }
     let n_nodes = r.u32()? as usize;
     let n_spheres = r.u32()? as usize;
@@ -219,12 +233,16 @@ pub fn decode(bytes: &[u8], key: &[u8; 32], link: &str) -> Result<LinkTree, Stri
         spheres,
         quality: LinkQuality {
             spheres: q[0] as usize,
+            budget: q[7] as usize,
             coverage: q[1],
             gap_m: q[2],
             gap_sampled_m: q[3],
             mesh_volume_m3: q[4],
             tree_volume_m3: q[5],
-            build_s: q[6],
+            // Not stored (see `quality_fields`): this run built nothing.
+            build_s: 0.0,
+            validate_s: 0.0,
+            file_gap_sampled_m: q[6],
         },
     })
 }
@@ -250,12 +268,15 @@ mod tests {
             }],
             quality: LinkQuality {
                 spheres: 1,
+                budget: 1,
                 coverage: 0.5,
                 gap_m: 0.1,
                 gap_sampled_m: 0.09,
                 mesh_volume_m3: 1.0,
                 tree_volume_m3: 4.0,
-                build_s: 0.1,
+                build_s: 0.0,
+                validate_s: 0.0,
+                file_gap_sampled_m: 0.05,
             },
         }
     }

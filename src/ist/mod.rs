@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::packing::grid::SphereGrid;
 pub use crate::packing::InnerSphere;
-use crate::packing::{gap::surface_gap, pack, pack_sphere, PackingParams};
+use crate::packing::{gap::surface_gap, pack_sphere, Packer, Packing, PackingParams};
 use crate::robot::{LinkGeometry, RobotModel};
 pub use build::TreeBuilder;
 use cache::TreeCache;
@@ -43,17 +43,29 @@ const _: () = assert!(std::mem::size_of::<IstNode>() == 32);
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LinkQuality {
     pub spheres: usize,
+    /// The sphere budget the link was packed with: `start_spheres`, doubled while its h was
+    /// above `target_gap_m`, up to `max_spheres`.
+    pub budget: usize,
     /// Sphere volume / mesh volume.
     pub coverage: f64,
-    /// Certified upper bound of the surface gap h, m (tessellation error of primitives included).
+    /// Certified upper bound of the surface gap h, m (tessellation error of primitives
+    /// included): the bound `validate` confirmed, in f64, on the packed surface and on the
+    /// mesh files' own triangles.
     pub gap_m: f64,
     /// Largest sampled surface-to-spheres distance, m (h lies in [gap_sampled_m, gap_m]).
     pub gap_sampled_m: f64,
     pub mesh_volume_m3: f64,
     /// Sum of the node sphere volumes, m³.
     pub tree_volume_m3: f64,
-    /// Wall time of the build (packing, gap and tree), s.
+    /// Wall time of the build (packing, gap and tree), s; 0 for a tree from the cache (the
+    /// cache stores no times).
     pub build_s: f64,
+    /// Wall time of its validation (`validate`), s; 0 for a tree from the cache, which was
+    /// validated before it was stored.
+    pub validate_s: f64,
+    /// Largest distance sampled from the mesh files' own triangles, outside the solid, to the
+    /// spheres, m (validation certified it at most `gap_m` + 1e-6 m).
+    pub file_gap_sampled_m: f64,
 }
 
 /// The inner sphere tree of one link.
@@ -88,77 +100,80 @@ impl Default for BuildOptions {
 pub enum IstError {
     #[error("link {link}: no inner sphere fits (every element is thinner than 2 × min_radius_m = {min_radius_m} m)")]
     NoSpheres { link: String, min_radius_m: f32 },
+    #[error("the tree fails its validation and is refused (not cached, not used): {0}")]
+    Invalid(#[from] validate::ValidationError),
 }
 
+/// Tolerance of the validation every tree passes, m.
+pub const VALIDATION_TOLERANCE_M: f64 = 1e-6;
+
 /// Packs every element of a link (a sphere primitive gets its inscribed sphere, which no packing
-/// beats), measures the gap and builds the tree.
+/// beats), measures the gap, builds the tree and validates it (`validate`): a tree that fails
+/// is an error naming the link and the sphere or surface point.
 pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTree, IstError> {
     let start = Instant::now();
     let params = &options.packing;
     let mesh_volume_m3: f64 = link.elements.iter().map(|e| e.mesh.volume_m3).sum();
     let mut spheres = Vec::new();
-    let mut gap_m = 0.0f64;
-    let mut gap_sampled_m = 0.0f64;
-    let mut packings = Vec::with_capacity(link.elements.len());
-    for element in &link.elements {
-        let share = element.mesh.volume_m3 / mesh_volume_m3;
-        let budget = ((params.max_spheres as f64 * share).round() as usize).max(1);
-        let t = Instant::now();
-        let packing = match element.sphere_center {
-            // A sphere primitive: its inscribed sphere is the whole packing (no search needed).
-            Some(center) => pack_sphere(&element.mesh, center, params),
-            None => pack(&element.mesh, budget, params),
-        };
-        log::debug!(
-            "link {} element {}: {} spheres, {} settles, packed in {:.2} s",
-            link.name,
-            element.index,
-            packing.grid.spheres().len(),
-            packing.settles,
-            t.elapsed().as_secs_f64(),
-        );
-        packings.push(packing);
+    // A sphere primitive's inscribed sphere is its whole packing (no search needed); the other
+    // elements grow with the link's budget.
+    enum Element<'a> {
+        Grows(Packer<'a>),
+        Fixed(Packing),
     }
-    // The gap of each element's surface against all the link's spheres: the link's solid is
-    // the union of its elements, so a sphere of one element covers the surface of another
-    // that lies against it (a mesh file's shells, overlapping primitives). With one element
-    // that is its own packing's grid.
-    let union = (packings.len() > 1).then(|| {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for e in &link.elements {
-            let (a, b) = e.mesh.bounds();
-            for k in 0..3 {
-                lo[k] = lo[k].min(a[k]);
-                hi[k] = hi[k].max(b[k]);
+    let mut packers: Vec<Element> = link
+        .elements
+        .iter()
+        .map(|e| match e.sphere_center {
+            Some(center) => Element::Fixed(pack_sphere(&e.mesh, center, params)),
+            None => Element::Grows(Packer::new(&e.mesh, params)),
+        })
+        .collect();
+    let cap = params.max_spheres.max(1) as usize;
+    let mut budget = (params.start_spheres.max(1) as usize).min(cap);
+    let (gap_m, gap_sampled_m) = loop {
+        let t = Instant::now();
+        // Whether some growing element used (nearly) all of its budget: one that stopped
+        // short has no room left for spheres of the minimal radius, and more budget is idle.
+        let mut room = false;
+        for (element, packer) in link.elements.iter().zip(&mut packers) {
+            if let Element::Grows(packer) = packer {
+                let share = element.mesh.volume_m3 / mesh_volume_m3;
+                let element_budget = ((budget as f64 * share).round() as usize).max(1);
+                packer.grow(element_budget);
+                room |= packer.grid().spheres().len() >= element_budget * 9 / 10;
             }
         }
-        let mut grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
-        for p in &packings {
-            for s in p.grid.spheres() {
-                grid.insert(*s);
-            }
-        }
-        grid
-    });
-    for (element, packing) in link.elements.iter().zip(&packings) {
-        let t = Instant::now();
-        let gap = surface_gap(
-            &element.mesh,
-            union.as_ref().unwrap_or(&packing.grid),
-            options.gap_tolerance_m,
-        );
+        let grids: Vec<&SphereGrid> = packers
+            .iter()
+            .map(|p| match p {
+                Element::Grows(packer) => packer.grid(),
+                Element::Fixed(packing) => &packing.grid,
+            })
+            .collect();
+        let (gap_m, gap_sampled_m) = link_gap(link, &grids, options);
         log::debug!(
-            "link {} element {}: gap in {:.2} s, h {:.2} mm at {:?}",
+            "link {}: budget {budget}, {} spheres, h {:.3} mm ({:.2} s)",
             link.name,
-            element.index,
-            t.elapsed().as_secs_f64(),
-            gap.upper_m * 1e3,
-            gap.worst_point
+            grids.iter().map(|g| g.spheres().len()).sum::<usize>(),
+            gap_m * 1e3,
+            t.elapsed().as_secs_f64()
         );
-        gap_m = gap_m.max(gap.upper_m as f64 + element.tessellation_error_m);
-        gap_sampled_m = gap_sampled_m.max(gap.lower_m as f64);
-    }
+        // Grown while h (as it will be reported: the validation certifies it with its slack
+        // added) is above the target, the cap allows, and the budget is used.
+        let reported = gap_m + options.gap_tolerance_m as f64 + VALIDATION_TOLERANCE_M;
+        if reported <= params.target_gap_m as f64 || budget >= cap || !room {
+            break (gap_m, gap_sampled_m);
+        }
+        budget = (2 * budget).min(cap);
+    };
+    let packings: Vec<Packing> = packers
+        .into_iter()
+        .map(|p| match p {
+            Element::Grows(packer) => packer.finish(),
+            Element::Fixed(packing) => packing,
+        })
+        .collect();
     for packing in packings {
         spheres.extend(packing.grid.into_spheres());
     }
@@ -173,20 +188,72 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         .map(|s| crate::geometry::ball_volume(s.radius as f64))
         .sum();
     let (nodes, spheres) = build::build_tree(spheres, options.tree);
-    Ok(LinkTree {
+    let mut tree = LinkTree {
         link: link.name.clone(),
         quality: LinkQuality {
             spheres: spheres.len(),
+            budget,
             coverage: sphere_volume / mesh_volume_m3,
             gap_m,
             gap_sampled_m,
             mesh_volume_m3,
             tree_volume_m3: build::tree_volume(&nodes),
             build_s: start.elapsed().as_secs_f64(),
+            validate_s: 0.0,
+            file_gap_sampled_m: 0.0,
         },
         nodes,
         spheres,
-    })
+    };
+    let checked = validate::validate_link(
+        &tree,
+        link,
+        VALIDATION_TOLERANCE_M,
+        options.gap_tolerance_m as f64,
+    )?;
+    // The h the independent check certified is the one the link reports.
+    tree.quality.gap_m = checked.gap_m;
+    tree.quality.validate_s = checked.seconds;
+    tree.quality.file_gap_sampled_m = checked.file_gap_sampled_m;
+    Ok(tree)
+}
+
+/// The certified gap h of a link (its elements' surfaces against all its spheres, primitives'
+/// tessellation error added) and the largest sampled gap, m.
+fn link_gap(link: &LinkGeometry, grids: &[&SphereGrid], options: &BuildOptions) -> (f64, f64) {
+    // The link's solid is the union of its elements, so a sphere of one element covers the
+    // surface of another that lies against it (a mesh file's shells, overlapping
+    // primitives). With one element that is its own packing's grid.
+    let union = (grids.len() > 1).then(|| {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for e in &link.elements {
+            let (a, b) = e.mesh.bounds();
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        let mut grid = SphereGrid::new(lo, hi, 2.0 * options.packing.min_radius_m);
+        for g in grids {
+            for s in g.spheres() {
+                grid.insert(*s);
+            }
+        }
+        grid
+    });
+    let mut gap_m = 0.0f64;
+    let mut gap_sampled_m = 0.0f64;
+    for (element, grid) in link.elements.iter().zip(grids) {
+        let gap = surface_gap(
+            &element.mesh,
+            union.as_ref().unwrap_or(grid),
+            options.gap_tolerance_m,
+        );
+        gap_m = gap_m.max(gap.upper_m as f64 + element.tessellation_error_m);
+        gap_sampled_m = gap_sampled_m.max(gap.lower_m as f64);
+    }
+    (gap_m, gap_sampled_m)
 }
 
 /// Where a link's tree came from.
@@ -198,7 +265,7 @@ pub enum Origin {
 }
 
 /// Trees of every link with collision geometry, from the cache where it holds a valid entry,
-/// built (and stored) otherwise; `done` is called as each link finishes. Links are built in
+/// built, validated (and stored) otherwise: the cache holds validated trees only; `done` is called as each link finishes. Links are built in
 /// parallel, and each packing is parallel inside.
 pub fn build_robot(
     model: &RobotModel,

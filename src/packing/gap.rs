@@ -11,11 +11,10 @@
 //!   nearest spheres. This one is tight where one sphere faces the whole triangle.
 //!
 //! Branch and bound over the mesh triangles with the smaller of the two:
-//! a triangle whose bound is within `tolerance` of the largest g seen so far (shared by all
-//! threads in an atomic, as in the query) is done; any other is split in four. The result is an
+//! a triangle whose bound is within `tolerance` of the largest g known (at any mesh vertex, or
+//! sampled on the triangle itself; never what other threads found meanwhile, so the result
+//! does not depend on their timing) is done; any other is split in four. The result is an
 //! upper bound of h, at most `tolerance` above the largest sampled value.
-
-use std::sync::atomic::{AtomicU32, Ordering};
 
 use rayon::prelude::*;
 
@@ -33,17 +32,21 @@ pub struct SurfaceGap {
 
 const INV_SQRT3: f32 = 0.577_350_26;
 
-/// Branch and bound of the surface gap (see the module doc).
+/// Branch and bound of the surface gap (see the module doc). Deterministic: a triangle prunes
+/// against the largest gap at any mesh vertex and what it sampled itself, never against what
+/// other threads found meanwhile, so the same packing gives the same bits on any thread count.
 pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> SurfaceGap {
-    let lower = AtomicU32::new(0);
     let spheres = grid.spheres();
     // g at a point, and its nearest sphere.
     let g = |p: [f32; 3]| -> (f32, u32) {
         let (d, k) = grid.nearest_any(p).unwrap_or((f32::INFINITY, 0));
-        let v = d.max(0.0);
-        lower.fetch_max(v.to_bits(), Ordering::Relaxed);
-        (v, k)
+        (d.max(0.0), k)
     };
+    let at_vertices = mesh
+        .vertices
+        .par_iter()
+        .map(|&v| g(v).0)
+        .reduce(|| 0.0, f32::max);
     let convex_bound = |corners: [[f32; 3]; 3], k: u32| -> f32 {
         let s = spheres.get(k as usize).map_or([0.0; 4], |s| {
             [s.center[0], s.center[1], s.center[2], s.radius]
@@ -53,7 +56,23 @@ pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> Su
             .map(|v| distance(*v, [s[0], s[1], s[2]]) - s[3])
             .fold(f32::NEG_INFINITY, f32::max)
     };
-    let upper = mesh
+    // Per triangle: (upper bound, (largest sampled gap, its point)); the largest, ties to the
+    // lowest point, so that the reduction's shape does not matter.
+    let largest = |x: (f32, (f32, [f32; 3])), y: (f32, (f32, [f32; 3]))| {
+        let worst = match y.1 .0.total_cmp(&x.1 .0).then_with(|| {
+            x.1 .1
+                .iter()
+                .zip(&y.1 .1)
+                .map(|(a, b)| a.total_cmp(b))
+                .find(|o| o.is_ne())
+                .unwrap_or(std::cmp::Ordering::Equal)
+        }) {
+            std::cmp::Ordering::Greater => y.1,
+            _ => x.1,
+        };
+        (x.0.max(y.0), worst)
+    };
+    let (upper, (lower, worst_point)) = mesh
         .triangles
         .par_iter()
         .map(|t| {
@@ -76,7 +95,7 @@ pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> Su
                     .fold(f32::INFINITY, f32::min);
                 // Round the bound up a little: it must stay above the true value in f32.
                 let bound = lipschitz.min(convex.max(0.0)) * (1.0 + 1e-6) + 1e-9;
-                let seen = f32::from_bits(lower.load(Ordering::Relaxed));
+                let seen = at_vertices.max(worst.0);
                 if bound <= seen + tolerance_m || longest * INV_SQRT3 <= tolerance_m {
                     upper = upper.max(bound);
                     continue;
@@ -90,13 +109,9 @@ pub fn surface_gap(mesh: &ClosedMesh, grid: &SphereGrid, tolerance_m: f32) -> Su
             }
             (upper, worst)
         })
-        .reduce(
-            || (0.0, (0.0, [0.0; 3])),
-            |x, y| (x.0.max(y.0), if y.1 .0 > x.1 .0 { y.1 } else { x.1 }),
-        );
-    let (upper, (_, worst_point)) = upper;
+        .reduce(|| (0.0, (0.0, [0.0; 3])), largest);
     SurfaceGap {
-        lower_m: f32::from_bits(lower.into_inner()),
+        lower_m: lower,
         upper_m: upper,
         worst_point,
     }

@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{cross, norm, sub, widen};
+use crate::robot::exact::ExactSolid;
 use crate::robot::ClosedMesh;
 use grid::{distance, midpoint, SphereGrid};
 
@@ -51,8 +52,12 @@ const _: () = assert!(std::mem::size_of::<InnerSphere>() == 16);
 /// Packing parameters (per link).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PackingParams {
-    /// Sphere budget of one link (split among its collision elements by volume).
+    /// Most spheres of one link (split among its collision elements by volume): its budget
+    /// starts at `start_spheres` (or this, if smaller) and doubles while the link's certified
+    /// h stays above `target_gap_m` (`ist::build_link`).
     pub max_spheres: u32,
+    /// The budget a link starts with.
+    pub start_spheres: u32,
     /// Spheres smaller than this are not placed (the first sphere of an element always is), m.
     pub min_radius_m: f32,
     /// Stop once the spheres fill this fraction of the mesh volume.
@@ -61,15 +66,17 @@ pub struct PackingParams {
     pub prototypes: u32,
     /// Settling steps of a prototype.
     pub settle_iterations: u32,
-    /// The gap pass fills pockets under the surface until every surface sample is this close to
-    /// the spheres (or the budget is spent), m.
+    /// The surface gap h a link is packed for, m: the gap pass fills pockets under the surface
+    /// until the samples put the whole surface this close to the spheres (or the budget is
+    /// spent), and the budget grows until the certified h is at most this (or `max_spheres`).
     pub target_gap_m: f32,
 }
 
 impl Default for PackingParams {
     fn default() -> Self {
         Self {
-            max_spheres: 8192,
+            max_spheres: 65536,
+            start_spheres: 8192,
             min_radius_m: 0.00015,
             target_coverage: 0.99,
             prototypes: 4096,
@@ -81,6 +88,8 @@ impl Default for PackingParams {
 
 /// Share of the budget the first volume pass may spend before the gap pass.
 const VOLUME_SHARE: f64 = 0.5;
+/// 1/√3.
+const INV_SQRT3: f32 = 0.577_350_26;
 /// Half the diagonal of a unit cube.
 const HALF_DIAGONAL: f32 = 0.866_025_4;
 /// Prototypes within this fraction of the round's largest clearance become spheres together.
@@ -196,12 +205,47 @@ fn jitter(cell: [i64; 3], axis: usize) -> f32 {
 /// above `target_gap_m`, and the volume pass spends what budget is left.
 pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing {
     let mut packer = Packer::new(mesh, params);
-    packer.volume_pass((budget as f64 * VOLUME_SHARE).ceil() as usize);
-    packer.gap_pass(budget);
-    packer.volume_pass(budget);
-    Packing {
-        grid: packer.grid,
-        settles: packer.settles,
+    packer.grow(budget);
+    packer.finish()
+}
+
+/// A packing that can grow: [`Packer::grow`] to a budget, look at the spheres, grow further.
+pub struct Packer<'a> {
+    state: PackerState<'a>,
+}
+
+impl<'a> Packer<'a> {
+    pub fn new(mesh: &'a ClosedMesh, params: &'a PackingParams) -> Self {
+        Self {
+            state: PackerState::new(mesh, params),
+        }
+    }
+
+    /// Packs up to `budget` spheres in all: the volume pass to half of it, the gap pass, the
+    /// volume pass to the rest; a packing already past a step's limit skips it.
+    pub fn grow(&mut self, budget: usize) {
+        let p = &mut self.state;
+        p.volume_pass((budget as f64 * VOLUME_SHARE).ceil() as usize);
+        p.gap_pass(budget);
+        p.volume_pass(budget);
+    }
+
+    pub fn grid(&self) -> &SphereGrid {
+        &self.state.grid
+    }
+
+    pub fn finish(self) -> Packing {
+        let p = self.state;
+        if p.refused > 0 {
+            log::debug!(
+                "{} prototypes refused: the exact test puts their centre outside the solid",
+                p.refused
+            );
+        }
+        Packing {
+            grid: p.grid,
+            settles: p.settles,
+        }
     }
 }
 
@@ -225,9 +269,23 @@ fn shrink(clearance: f32) -> f32 {
     clearance * (1.0 - 4.0 * f32::EPSILON) - 2e-7
 }
 
+/// The largest f32 radius at most `radius` whose ball lies within `clearance` (f64) of its
+/// centre.
+fn exact_radius(radius: f32, clearance: f64) -> f32 {
+    let mut r = radius.min(clearance as f32);
+    while r > 0.0 && r as f64 > clearance {
+        r = r.next_down();
+    }
+    r
+}
+
 /// The state of one packing.
-struct Packer<'a> {
+struct PackerState<'a> {
     solid: Solid,
+    /// The exact f64 test every sphere passes before it is kept.
+    exact: ExactSolid,
+    /// Prototypes whose centre the exact test put outside the solid.
+    refused: usize,
     mesh: &'a ClosedMesh,
     params: &'a PackingParams,
     grid: SphereGrid,
@@ -239,7 +297,7 @@ struct Packer<'a> {
     cell: f32,
 }
 
-impl<'a> Packer<'a> {
+impl<'a> PackerState<'a> {
     /// Seeds the first grid: a prototype at every cell centre (jittered) inside the solid; the
     /// cells that reach the solid are kept for refinement.
     fn new(mesh: &'a ClosedMesh, params: &'a PackingParams) -> Self {
@@ -282,6 +340,8 @@ impl<'a> Packer<'a> {
         }
         Self {
             solid,
+            exact: ExactSolid::new(mesh),
+            refused: 0,
             mesh,
             params,
             grid,
@@ -348,11 +408,16 @@ impl<'a> Packer<'a> {
     /// per sample, then about one per seed.
     fn gap_pass(&mut self, limit: usize) {
         use std::collections::BinaryHeap;
-        let target = self.params.target_gap_m;
         // Half the target apart, so that the gap between samples stays near the target; on
-        // very large links (metres), sparser, so that the samples stay within memory.
+        // very large links (metres), sparser, so that the samples stay within memory. Each
+        // point of a triangle lies within spacing/√3 of its sample (the centroid), so samples
+        // within `target − spacing/√3` put the whole surface within the target (h is
+        // 1-Lipschitz).
         let sparse = (2.0 * self.mesh.area_m2() / MAX_GAP_SAMPLES as f64).sqrt() as f32;
-        let samples = surface_samples(self.mesh, (0.5 * target).max(sparse));
+        let spacing = (0.5 * self.params.target_gap_m).max(sparse);
+        let samples = surface_samples(self.mesh, spacing);
+        let target =
+            (self.params.target_gap_m - spacing * INV_SQRT3).max(0.25 * self.params.target_gap_m);
         let grid = &self.grid;
         // Non-negative f32 gaps order like their bits.
         let mut heap: BinaryHeap<(u32, u32)> = samples
@@ -436,16 +501,33 @@ impl<'a> Packer<'a> {
                 continue;
             }
             let radius = shrink(p.clearance);
-            let candidate = InnerSphere {
-                center: p.pos,
-                radius,
-            };
-            if radius > 0.0
-                && round
+            let apart = |r: f32| {
+                round
                     .iter()
-                    .all(|s| distance(s.center, candidate.center) >= s.radius + candidate.radius)
-            {
-                round.push(candidate);
+                    .all(|s| distance(s.center, p.pos) >= s.radius + r)
+            };
+            if radius > 0.0 && apart(radius) {
+                // The f32 climb's clearance, capped by the exact f64 one; a centre the exact
+                // test puts outside is never kept (a wrong pseudo-normal in the f32 query).
+                match self
+                    .exact
+                    .ball_clearance(crate::geometry::widen(p.pos), 0.0)
+                {
+                    Some(clearance) => {
+                        let radius = exact_radius(radius, clearance);
+                        if radius > 0.0 {
+                            round.push(InnerSphere {
+                                center: p.pos,
+                                radius,
+                            });
+                        }
+                    }
+                    None => {
+                        p.state = State::Retired;
+                        self.refused += 1;
+                        continue;
+                    }
+                }
             }
             p.state = State::Unsettled;
         }
@@ -625,6 +707,38 @@ mod tests {
             volume / mesh.volume_m3 > 0.6,
             "coverage {}",
             volume / mesh.volume_m3
+        );
+    }
+
+    /// A prototype the f32 climb believes inside (a wrong pseudo-normal) is refused by the exact
+    /// test, and a clearance the climb overstated is cut to the exact one: no sphere outside.
+    #[test]
+    fn the_exact_test_refuses_a_centre_outside_and_caps_a_radius() {
+        let t = tessellate_box([0.1, 0.1, 0.1]);
+        let mesh = ClosedMesh::new(t.vertices, t.triangles, "cube").expect("closed");
+        let params = PackingParams::default();
+        let mut packer = PackerState::new(&mesh, &params);
+        let settled = |pos: [f32; 3], clearance: f32| Prototype {
+            pos,
+            clearance,
+            state: State::Settled,
+        };
+        // 1.75 m away with a clearance of 1.69 m, as a vendor link once gave; then a centre
+        // 10 mm inside a face that claims 40 mm.
+        let mut prototypes = vec![
+            settled([1.75, 0.0, 0.0], 1.69),
+            settled([0.0, 0.0, 0.04], 0.04),
+        ];
+        let new = packer.accept(&mut prototypes, &[0, 1], 0.0, 10);
+        assert_eq!(packer.refused, 1);
+        assert!(prototypes[0].state == State::Retired);
+        assert_eq!(new.len(), 1);
+        // The face at 0.05 (f32) is this far from the centre, in f64.
+        let exact = 0.05f32 as f64 - 0.04f32 as f64;
+        assert!(
+            new[0].radius as f64 <= exact && new[0].radius as f64 > exact - 1e-8,
+            "{:?}",
+            new[0]
         );
     }
 

@@ -19,7 +19,9 @@
 //!    T-junction: one long edge against a chain of collinear short ones) is a crack, sewn by
 //!    splitting the triangle of the long edge at the chain's vertices; any other loop is closed
 //!    by a fan of triangles around its centroid (any surface spanning a hole closes it; the
-//!    report gives the largest loop's diameter).
+//!    report gives the largest loop's diameter). A rim that passes a vertex twice (holes
+//!    touching at a corner) is split there into simple loops first. The edges are taken in
+//!    sorted order, never a hash map's, so the same file gives the same mesh on every run.
 //! 5. **The solid is everything the outside cannot reach.** Each closed shell is made
 //!    outward-oriented (positive volume). A shell that lies wholly inside another (a hollow
 //!    part's inner wall) adds nothing and is dropped: its vertices lie inside the outer shell
@@ -49,6 +51,10 @@ pub const WELD_RELATIVE: f64 = 1e-6;
 /// What the intake did to one mesh file.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct MeshReport {
+    /// Pieces the file holds (COLLADA geometry instances, STL solids, OBJ groups), all read.
+    pub pieces: usize,
+    /// What the reader noted (geometries the scene leaves out, a unit applied, ...).
+    pub notes: Vec<String>,
     pub triangles_in: usize,
     /// Vertices closer than this were merged, m.
     pub weld_tolerance_m: f64,
@@ -99,6 +105,18 @@ impl MeshReport {
 
     /// One line: what the mesh needed.
     pub fn summary(&self) -> String {
+        let mut line = self.repairs();
+        if self.pieces > 1 {
+            line = format!("{} pieces, {line}", self.pieces);
+        }
+        for n in &self.notes {
+            line.push_str("; ");
+            line.push_str(n);
+        }
+        line
+    }
+
+    fn repairs(&self) -> String {
         if self.clean() {
             return format!(
                 "closed, {} triangles (weld tolerance {:.1e} m)",
@@ -439,13 +457,19 @@ fn close_holes(
 ) -> Result<(), MeshError> {
     let edges = EdgeUse::count(triangles);
     // A hole runs its open edges backwards: b → a for a triangle's a → b.
+    // In edge order, not the hash map's (which differs from run to run): where a rim passes a
+    // vertex twice, the order decides which loops are closed.
+    let mut open_edges: Vec<((u32, u32), u32)> = edges
+        .uses
+        .iter()
+        .filter(|(_, u)| u.len() == 1)
+        .map(|(&e, u)| (e, u[0]))
+        .collect();
+    open_edges.sort_unstable();
     let mut next: HashMap<u32, Vec<u32>> = HashMap::new();
     let mut open = 0;
-    for (&(lo, hi), u) in &edges.uses {
-        if u.len() != 1 {
-            continue;
-        }
-        let t = triangles[u[0] as usize];
+    for ((lo, hi), t) in open_edges {
+        let t = triangles[t as usize];
         let a_to_b = (0..3).any(|m| t[m] == lo && t[(m + 1) % 3] == hi);
         let (from, to) = if a_to_b { (hi, lo) } else { (lo, hi) };
         next.entry(from).or_default().push(to);
@@ -468,40 +492,63 @@ fn close_holes(
                 at = n;
             }
             lp.pop(); // the start again
-            if lp.len() < 3 {
-                continue;
-            }
-            if crack(vertices, triangles, &edges, &lp, min_area) {
-                report.cracks_sewn += 1;
-                continue;
-            }
-            let mut c = [0.0f64; 3];
-            for &v in &lp {
-                for k in 0..3 {
-                    c[k] += vertices[v as usize][k] as f64 / lp.len() as f64;
+                      // A rim that passes a vertex twice (two holes touching at a corner) is split there
+                      // into simple loops, each closed on its own: one fan over a figure eight would
+                      // leave an edge of three triangles.
+            for lp in simple_loops(&lp) {
+                if lp.len() < 3 {
+                    continue;
                 }
-            }
-            let centre = c.map(|x| x as f32);
-            let diameter = lp
-                .iter()
-                .map(|&v| {
-                    let p = vertices[v as usize];
-                    2.0 * (0..3)
-                        .map(|k| (p[k] as f64 - c[k]).powi(2))
-                        .sum::<f64>()
-                        .sqrt()
-                })
-                .fold(0.0, f64::max);
-            report.largest_hole_m = report.largest_hole_m.max(diameter);
-            report.holes_closed += 1;
-            let ci = vertices.len() as u32;
-            vertices.push(centre);
-            for k in 0..lp.len() {
-                triangles.push([lp[k], lp[(k + 1) % lp.len()], ci]);
+                if crack(vertices, triangles, &edges, &lp, min_area) {
+                    report.cracks_sewn += 1;
+                    continue;
+                }
+                let mut c = [0.0f64; 3];
+                for &v in &lp {
+                    for k in 0..3 {
+                        c[k] += vertices[v as usize][k] as f64 / lp.len() as f64;
+                    }
+                }
+                let centre = c.map(|x| x as f32);
+                let diameter = lp
+                    .iter()
+                    .map(|&v| {
+                        let p = vertices[v as usize];
+                        2.0 * (0..3)
+                            .map(|k| (p[k] as f64 - c[k]).powi(2))
+                            .sum::<f64>()
+                            .sqrt()
+                    })
+                    .fold(0.0, f64::max);
+                report.largest_hole_m = report.largest_hole_m.max(diameter);
+                report.holes_closed += 1;
+                let ci = vertices.len() as u32;
+                vertices.push(centre);
+                for k in 0..lp.len() {
+                    triangles.push([lp[k], lp[(k + 1) % lp.len()], ci]);
+                }
             }
         }
     }
     Ok(())
+}
+
+/// A closed walk split at its repeated vertices into simple loops (in walk order).
+fn simple_loops(walk: &[u32]) -> Vec<Vec<u32>> {
+    let mut loops = Vec::new();
+    let mut path: Vec<u32> = Vec::with_capacity(walk.len());
+    let mut at: HashMap<u32, usize> = HashMap::new();
+    for &v in walk.iter().chain(walk.first()) {
+        if let Some(&i) = at.get(&v) {
+            for u in &path[i + 1..] {
+                at.remove(u);
+            }
+            loops.push(path.split_off(i));
+        }
+        at.insert(v, path.len());
+        path.push(v);
+    }
+    loops
 }
 
 /// A hole of no area (a T-junction: one long edge on one side, a chain of collinear shorter
@@ -636,4 +683,19 @@ fn drop_inner(mut shells: Vec<(ClosedMesh, Solid)>, report: &mut MeshReport) -> 
         }
     }
     kept.into_iter().map(|(m, _)| m).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_figure_eight_splits_at_its_repeated_vertex() {
+        // s a b v c d v e (back to s): the loop v c d, then s a b v e.
+        assert_eq!(
+            simple_loops(&[0, 1, 2, 9, 3, 4, 9, 5]),
+            vec![vec![9, 3, 4], vec![0, 1, 2, 9, 5]]
+        );
+        assert_eq!(simple_loops(&[0, 1, 2]), vec![vec![0, 1, 2]]);
+    }
 }

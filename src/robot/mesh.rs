@@ -140,44 +140,86 @@ impl ClosedMesh {
 /// Vertices and vertex-index triangles.
 pub type TriangleSoup = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
-/// Loads every mesh in a file (merged), as f32 vertices and triangles in file units.
-pub fn load_mesh_file(path: &std::path::Path) -> Result<TriangleSoup, MeshError> {
+/// Every piece of a mesh file (COLLADA instances, STL solids, OBJ groups) in one soup, in file
+/// units (COLLADA: metres, its `<unit>` applied), with what the reader noted.
+#[derive(Debug, Clone, Default)]
+pub struct MeshFile {
+    pub vertices: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Pieces read: COLLADA geometry instances, STL solids, OBJ groups.
+    pub pieces: usize,
+    pub notes: Vec<String>,
+}
+
+/// Loads every piece of a mesh file.
+pub fn load_mesh_file(path: &std::path::Path) -> Result<MeshFile, MeshError> {
     let bytes = std::fs::read(path).map_err(|e| MeshError::Load(e.to_string()))?;
     load_mesh_bytes(&bytes, path)
 }
 
 /// As [`load_mesh_file`], from the bytes of the file at `path` (its extension picks the
-/// format; a COLLADA file's references are resolved next to it).
-pub fn load_mesh_bytes(bytes: &[u8], path: &std::path::Path) -> Result<TriangleSoup, MeshError> {
+/// format). COLLADA goes through `robot::collada` (the scene's instances under their node
+/// transforms); STL and OBJ through mesh-loader, each of its meshes appended here with its own
+/// vertex offset (mesh-loader's own merge misplaces the third mesh on).
+pub fn load_mesh_bytes(bytes: &[u8], path: &std::path::Path) -> Result<MeshFile, MeshError> {
     // Checked here: mesh-loader's own error for another format prints `{path:?}` literally.
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("stl" | "dae" | "obj")) {
-        return Err(MeshError::Load(format!(
-            "{}: unsupported mesh format (STL, COLLADA .dae and OBJ are read)",
-            path.display()
-        )));
+    match ext.as_deref() {
+        Some("dae") => {
+            let m = super::collada::read(bytes).map_err(MeshError::Load)?;
+            return Ok(MeshFile {
+                vertices: m.vertices,
+                triangles: m.triangles,
+                pieces: m.pieces,
+                notes: m.notes,
+            });
+        }
+        Some("stl" | "obj") => {}
+        _ => {
+            return Err(MeshError::Load(format!(
+                "{}: unsupported mesh format (STL, COLLADA .dae and OBJ are read)",
+                path.display()
+            )))
+        }
     }
     let scene = mesh_loader::Loader::default()
-        .merge_meshes(true)
+        .merge_meshes(false)
         .load_from_slice(bytes, path)
         .map_err(|e| MeshError::Load(e.to_string()))?;
-    let mut vertices = Vec::new();
-    let mut triangles = Vec::new();
+    let mut out = MeshFile {
+        pieces: scene.meshes.len(),
+        ..MeshFile::default()
+    };
     for mesh in scene.meshes {
-        let base = vertices.len() as u32;
-        let n = mesh.vertices.len() as u32;
-        if let Some(bad) = mesh.faces.iter().flatten().find(|&&i| i >= n) {
+        let base = out.vertices.len();
+        let n = mesh.vertices.len();
+        if let Some(bad) = mesh.faces.iter().flatten().find(|&&i| i as usize >= n) {
             return Err(MeshError::Load(format!(
                 "face index {bad} out of range ({n} vertices)"
             )));
         }
-        vertices.extend_from_slice(&mesh.vertices);
-        triangles.extend(mesh.faces.iter().map(|f| f.map(|i| i + base)));
+        if base + n > u32::MAX as usize {
+            return Err(MeshError::Load("more than 2³² vertices".into()));
+        }
+        out.vertices.extend_from_slice(&mesh.vertices);
+        out.triangles
+            .extend(mesh.faces.iter().map(|f| f.map(|i| i + base as u32)));
     }
-    Ok((vertices, triangles))
+    if out.pieces > 1 {
+        out.notes.push(format!(
+            "{} {} read",
+            out.pieces,
+            if ext.as_deref() == Some("stl") {
+                "solids"
+            } else {
+                "groups"
+            }
+        ));
+    }
+    Ok(out)
 }
 
 fn bounds(vertices: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {

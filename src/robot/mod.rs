@@ -2,6 +2,8 @@
 //! metres) and the kinematic tree that poses the links (f64). Its output feeds the sphere
 //! packing (`packing`), and the link poses that the query (`query`) and the monitor use.
 
+pub mod collada;
+pub mod exact;
 pub mod fill;
 pub mod intake;
 pub mod kinematics;

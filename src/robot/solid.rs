@@ -73,6 +73,9 @@ impl Solid {
 
     /// Signed distance to the surface (positive inside) and the closest surface point; a point
     /// a filled solid cannot place counts as outside (no sphere is grown from it).
+    /// A point outside the mesh's bounding box is outside, whatever the pseudo-normal of its
+    /// nearest feature says (a sliver's f32 normal can turn it), so no prototype climbs away
+    /// from the link.
     #[inline]
     pub fn signed_distance(&self, p: [f32; 3]) -> (f32, [f32; 3]) {
         let projection = self
@@ -80,8 +83,10 @@ impl Solid {
             .project_local_point(Vector::new(p[0], p[1], p[2]), false);
         let q = [projection.point.x, projection.point.y, projection.point.z];
         let d = distance(p, q);
+        let aabb = self.trimesh.local_aabb();
+        let in_box = (0..3).all(|k| aabb.mins[k] <= p[k] && p[k] <= aabb.maxs[k]);
         (
-            if self.inside(p, projection.is_inside, false) {
+            if in_box && self.inside(p, projection.is_inside, false) {
                 d
             } else {
                 -d

@@ -78,6 +78,9 @@ pub struct MeshIntake {
     pub element: usize,
     pub file: PathBuf,
     pub report: MeshReport,
+    /// The file's own triangles in the link frame (metres, the URDF's scale and origin
+    /// applied), before any repair: what `ist::validate` certifies h against.
+    pub original: std::sync::Arc<super::mesh::TriangleSoup>,
 }
 
 /// A robot loaded from a URDF: kinematics and the collision geometry of its links.
@@ -320,13 +323,19 @@ fn load_element(
                     format!("scale {scale:?} must be finite and non-zero"),
                 ));
             }
-            let (vertices, triangles) = load_mesh_file(&file).map_err(mesh_error)?;
+            let loaded = load_mesh_file(&file).map_err(mesh_error)?;
             let t = Tessellation {
-                vertices,
-                triangles,
+                vertices: loaded.vertices,
+                triangles: loaded.triangles,
                 error_m: 0.0,
             };
-            (format!("mesh {}", file.display()), t, scale, Some(file))
+            let read = (loaded.pieces, loaded.notes);
+            (
+                format!("mesh {}", file.display()),
+                t,
+                scale,
+                Some((file, read)),
+            )
         }
         G::Box { size } => {
             positive("box", &**size)?;
@@ -375,7 +384,8 @@ fn load_element(
     };
     match file {
         // A mesh file as its vendor made it: welded, closed and filled by the intake.
-        Some(file) => {
+        Some((file, (pieces, notes))) => {
+            let original = std::sync::Arc::new((vertices.clone(), triangles.clone()));
             let (shells, report) =
                 intake(&vertices, &triangles).map_err(|source| RobotError::Mesh {
                     link: link.to_owned(),
@@ -401,7 +411,12 @@ fn load_element(
                 Some(MeshIntake {
                     element: index,
                     file,
-                    report,
+                    report: MeshReport {
+                        pieces,
+                        notes,
+                        ..report
+                    },
+                    original,
                 }),
             ))
         }

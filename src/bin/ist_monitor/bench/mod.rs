@@ -74,6 +74,7 @@ fn packing(args: BenchPackingArgs) -> Result<()> {
     for &budget in &args.budgets {
         let mut options = BuildOptions::default();
         options.packing.max_spheres = budget;
+        options.packing.start_spheres = budget;
         let cache = TreeCache::new(dir.path().join(budget.to_string()));
         let start = Instant::now();
         let trees = ist::build_robot(&model, &options, Some(&cache), &|_| {})?;
@@ -92,18 +93,19 @@ fn packing(args: BenchPackingArgs) -> Result<()> {
             1e3 * worst_gap
         );
         println!(
-            "{:<24} {:>8} {:>9} {:>8} {:>9}",
-            "link", "spheres", "coverage", "h [mm]", "build [s]"
+            "{:<24} {:>8} {:>9} {:>8} {:>9} {:>10}",
+            "link", "spheres", "coverage", "h [mm]", "build [s]", "valid. [s]"
         );
         for (t, _) in &trees {
             let q = &t.quality;
             println!(
-                "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9.2}",
+                "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9.2} {:>10.2}",
                 t.link,
                 q.spheres,
                 100.0 * q.coverage,
                 1e3 * q.gap_m,
-                q.build_s
+                q.build_s,
+                q.validate_s
             );
         }
         cache_load(&model, &options, &cache, args.runs)?;

@@ -322,7 +322,7 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                 &[],
             ));
         }
-        // The node's settings (self-filter on), at the default budget.
+        // The node's settings (self-filter on), at the default (grown) budget.
         for (label, options) in node_settings(args.backend) {
             let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
             let mut errors = Vec::new();
@@ -335,7 +335,8 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
                 name,
                 &format!("{label}, self-filter"),
                 options.per_link,
-                Some(BuildOptions::default().packing.max_spheres),
+                // The default budget grows per link: the largest link's.
+                default_trees.iter().map(|t| t.quality.budget as u32).max(),
                 samples,
                 &errors,
             ));
@@ -348,6 +349,7 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
         for &budget in &args.budgets {
             let mut options = BuildOptions::default();
             options.packing.max_spheres = budget;
+            options.packing.start_spheres = budget;
             let trees = cached_trees(&scenario.model, &options, cache_dir)?;
             let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
             for &mode in &args.modes {

@@ -41,9 +41,14 @@ impl RobotArgs {
 
 #[derive(Args)]
 pub struct PackingArgs {
-    /// Sphere budget per link (parameter max_spheres).
+    /// Most spheres per link: the budget starts at --start-spheres and doubles while the
+    /// link's certified h is above --target-gap (parameter max_spheres; equal to
+    /// --start-spheres for a fixed budget).
     #[arg(long, default_value = param("max_spheres"))]
     pub max_spheres: u32,
+    /// The sphere budget a link starts with (parameter start_spheres).
+    #[arg(long, default_value = param("start_spheres"))]
+    pub start_spheres: u32,
     /// Smallest sphere radius, m.
     #[arg(long, default_value_t = PackingParams::default().min_radius_m)]
     min_radius: f32,
@@ -53,8 +58,9 @@ pub struct PackingArgs {
     /// Prototypes of the first grid per collision element.
     #[arg(long, default_value_t = PackingParams::default().prototypes)]
     prototypes: u32,
-    /// The gap pass fills pockets under the surface until every sample is this close to the spheres, m.
-    #[arg(long, default_value_t = PackingParams::default().target_gap_m)]
+    /// The surface gap h a link is packed for, m: the gap pass fills pockets under the surface
+    /// and the budget grows until h is at most this (parameter target_gap).
+    #[arg(long, default_value = param("target_gap"))]
     target_gap: f32,
     /// Hierarchy build.
     #[arg(long, value_enum, default_value_t = BuildOptions::default().tree)]
@@ -63,8 +69,8 @@ pub struct PackingArgs {
 
 impl PackingArgs {
     pub fn options(&self) -> Result<BuildOptions> {
-        if self.max_spheres == 0 {
-            bail!("--max-spheres must be at least 1");
+        if self.max_spheres == 0 || self.start_spheres == 0 {
+            bail!("--max-spheres and --start-spheres must be at least 1");
         }
         if !(self.min_radius > 0.0 && self.min_radius.is_finite()) {
             bail!("--min-radius must be a positive number of metres");
@@ -81,6 +87,7 @@ impl PackingArgs {
         Ok(BuildOptions {
             packing: PackingParams {
                 max_spheres: self.max_spheres,
+                start_spheres: self.start_spheres,
                 min_radius_m: self.min_radius,
                 target_coverage: self.target_coverage,
                 prototypes: self.prototypes,

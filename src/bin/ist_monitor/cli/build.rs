@@ -9,7 +9,7 @@ use clap::Args;
 use serde::Serialize;
 
 use ist_monitor::ist::cache::TreeCache;
-use ist_monitor::ist::{self, validate::validate_link, BuildOptions, LinkTree, Origin};
+use ist_monitor::ist::{self, BuildOptions, LinkTree, Origin};
 use ist_monitor::robot::{LinkSelection, RobotModel};
 
 use super::args::{parse_joint, RobotArgs, TreeArgs};
@@ -27,8 +27,9 @@ pub struct BuildArgs {
     /// Write {"<link>": [[x, y, z, r], ...]} (link frames, metres) to this file.
     #[arg(long, value_name = "FILE")]
     export_spheres: Option<PathBuf>,
-    /// Check every sphere and node against the meshes (exact, in f64), and print per link
-    /// what its meshes needed (welding, holes closed, shells) and what was checked.
+    /// Print per link what its meshes needed (pieces read, welding, holes closed, shells) and
+    /// what its validation checked. Every tree is validated whether or not this is given:
+    /// before it is used, and before it is cached.
     #[arg(long)]
     validate: bool,
     /// Only these links (comma separated); the others' meshes are not read.
@@ -86,12 +87,33 @@ pub fn cached_trees(
 struct LinkRow<'a> {
     name: &'a str,
     spheres: usize,
+    /// The budget the link was packed with (grown from start_spheres while h > target_gap).
+    budget: usize,
     coverage: f64,
     gap_m: f64,
     gap_sampled_m: f64,
-    build_s: f64,
+    /// Largest distance sampled from the mesh files' own triangles to the spheres.
+    file_gap_sampled_m: f64,
+    /// This run's build, s; null for a tree from the cache.
+    build_s: Option<f64>,
+    /// Every tree passed validation: this run's, or the one before it was cached.
+    validated: bool,
+    /// This run's validation, s; null for a tree from the cache.
+    validate_s: Option<f64>,
     tree_volume_m3: f64,
     origin: Origin,
+    from_cache: bool,
+    warnings: Vec<String>,
+    /// What the intake did to each mesh file, per collision element.
+    intake: Vec<IntakeRow<'a>>,
+}
+
+#[derive(Serialize)]
+struct IntakeRow<'a> {
+    element: usize,
+    file: String,
+    summary: String,
+    report: &'a ist_monitor::robot::MeshReport,
 }
 
 pub fn build(args: BuildArgs) -> Result<()> {
@@ -114,12 +136,8 @@ pub fn build(args: BuildArgs) -> Result<()> {
     let start = Instant::now();
     let trees = build_trees(&model, &options, cache.as_ref())?;
     let total_s = start.elapsed().as_secs_f64();
-    if args.validate {
-        for ((tree, _), geometry) in trees.iter().zip(&model.links) {
-            validate_link(tree, geometry, 1e-6)?;
-            if args.json {
-                continue;
-            }
+    if args.validate && !args.json {
+        for ((tree, origin), geometry) in trees.iter().zip(&model.links) {
             println!("link {}:", geometry.name);
             for e in &geometry.elements {
                 println!(
@@ -148,25 +166,74 @@ pub fn build(args: BuildArgs) -> Result<()> {
                 );
             }
             println!(
-                "  checked: {} spheres inside the solid (centre inside by winding number or flood \
-                 fill, radius within the f64 distance to the surface), no overlap beyond 1e-6 m, \
-                 every node bounds its children; h {:.3} mm",
+                "  checked ({}): {} spheres inside the solid (centre inside by ray winding \
+                 number or flood fill, radius within the f64 distance to the surface), no overlap \
+                 beyond {tol:.0e} m, every node bounds its children; h {:.3} mm certified (+{tol:.0e} m) \
+                 on the packed surface and on the files' own triangles (largest sampled there {:.3} mm)",
+                if *origin == Origin::Cache {
+                    "before it was cached".to_string()
+                } else {
+                    format!("{:.2} s", tree.quality.validate_s)
+                },
                 tree.spheres.len(),
-                tree.quality.gap_m * 1e3
+                tree.quality.gap_m * 1e3,
+                tree.quality.file_gap_sampled_m * 1e3,
+                tol = ist::VALIDATION_TOLERANCE_M,
             );
         }
     }
     let rows: Vec<LinkRow> = trees
         .iter()
-        .map(|(t, origin)| LinkRow {
-            name: &t.link,
-            spheres: t.quality.spheres,
-            coverage: t.quality.coverage,
-            gap_m: t.quality.gap_m,
-            gap_sampled_m: t.quality.gap_sampled_m,
-            build_s: t.quality.build_s,
-            tree_volume_m3: t.quality.tree_volume_m3,
-            origin: *origin,
+        .zip(&model.links)
+        .map(|((t, origin), geometry)| {
+            let cached = *origin == Origin::Cache;
+            let mut warnings = Vec::new();
+            if t.quality.coverage > 1.0 {
+                warnings.push(format!(
+                    "coverage {:.1} % above 100 %: the link's elements overlap, and so do their \
+                     spheres",
+                    100.0 * t.quality.coverage
+                ));
+            }
+            if t.quality.gap_m > options.packing.target_gap_m as f64 {
+                warnings.push(format!(
+                    "h {:.3} mm above the target {:.3} mm at a budget of {} spheres ({})",
+                    1e3 * t.quality.gap_m,
+                    1e3 * options.packing.target_gap_m,
+                    t.quality.budget,
+                    if t.quality.budget >= options.packing.max_spheres as usize {
+                        "the cap max_spheres"
+                    } else {
+                        "the packing found no room for more spheres of min_radius"
+                    }
+                ));
+            }
+            LinkRow {
+                name: &t.link,
+                spheres: t.quality.spheres,
+                budget: t.quality.budget,
+                coverage: t.quality.coverage,
+                gap_m: t.quality.gap_m,
+                gap_sampled_m: t.quality.gap_sampled_m,
+                file_gap_sampled_m: t.quality.file_gap_sampled_m,
+                build_s: (!cached).then_some(t.quality.build_s),
+                validated: true,
+                validate_s: (!cached).then_some(t.quality.validate_s),
+                tree_volume_m3: t.quality.tree_volume_m3,
+                origin: *origin,
+                from_cache: cached,
+                warnings,
+                intake: geometry
+                    .intake
+                    .iter()
+                    .map(|i| IntakeRow {
+                        element: i.element,
+                        file: i.file.display().to_string(),
+                        summary: i.report.summary(),
+                        report: &i.report,
+                    })
+                    .collect(),
+            }
         })
         .collect();
     if let Some(path) = &args.export_spheres {
@@ -186,26 +253,36 @@ pub fn build(args: BuildArgs) -> Result<()> {
         rows.len()
     );
     println!(
-        "{:<24} {:>8} {:>9} {:>8} {:>9} {:>7}",
-        "link", "spheres", "coverage", "h [mm]", "build [s]", "from"
+        "{:<24} {:>8} {:>9} {:>8} {:>9} {:>10} {:>7}",
+        "link", "spheres", "coverage", "h [mm]", "build [s]", "valid. [s]", "from"
     );
     for r in &rows {
         println!(
-            "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9.2} {:>7}",
+            "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9} {:>10} {:>7}{}",
             r.name,
             r.spheres,
             100.0 * r.coverage,
             1e3 * r.gap_m,
-            r.build_s,
+            r.build_s.map_or("-".into(), |s| format!("{s:.2}")),
+            r.validate_s.map_or("-".into(), |s| format!("{s:.2}")),
             match r.origin {
                 Origin::Built => "built",
                 Origin::Cache => "cache",
-            }
+            },
+            if r.warnings.is_empty() { "" } else { "  (!)" }
         );
+        for w in &r.warnings {
+            println!("  {}: {w}", r.name);
+        }
     }
     println!(
-        "total {total_s:.2} s{}",
-        if args.validate { ", validated" } else { "" }
+        "total {total_s:.2} s; every tree validated (f64: spheres inside, h certified on the \
+         packed surface and the files' own triangles){}",
+        if rows.iter().any(|r| r.from_cache) {
+            "; cached trees were validated before they were stored"
+        } else {
+            ""
+        }
     );
     Ok(())
 }
