@@ -118,7 +118,7 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
     // A sphere primitive's inscribed sphere is its whole packing (no search needed); the other
     // elements grow with the link's budget.
     enum Element<'a> {
-        Grows(Packer<'a>),
+        Grows(Box<Packer<'a>>),
         Fixed(Packing),
     }
     let mut packers: Vec<Element> = link
@@ -126,7 +126,7 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         .iter()
         .map(|e| match e.sphere_center {
             Some(center) => Element::Fixed(pack_sphere(&e.mesh, center, params)),
-            None => Element::Grows(Packer::new(&e.mesh, params)),
+            None => Element::Grows(Box::new(Packer::new(&e.mesh, params))),
         })
         .collect();
     let cap = params.max_spheres.max(1) as usize;
@@ -249,6 +249,13 @@ fn link_gap(link: &LinkGeometry, grids: &[&SphereGrid], options: &BuildOptions) 
             &element.mesh,
             union.as_ref().unwrap_or(grid),
             options.gap_tolerance_m,
+        );
+        log::debug!(
+            "link {} element {}: h {:.3} mm at {:?}",
+            link.name,
+            element.index,
+            gap.upper_m * 1e3,
+            gap.worst_point
         );
         gap_m = gap_m.max(gap.upper_m as f64 + element.tessellation_error_m);
         gap_sampled_m = gap_sampled_m.max(gap.lower_m as f64);
