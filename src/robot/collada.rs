@@ -572,21 +572,16 @@ mod tests {
 
     /// A unit cube as one `<geometry>`, `<triangles>` with a normal input at offset 1.
     fn cube(id: &str) -> String {
-        let v = "0 0 0 1 0 0 0 1 0 1 1 0 0 0 1 1 0 1 0 1 1 1 1 1";
-        let tris = [
-            [0, 2, 1],
-            [1, 2, 3],
-            [4, 5, 6],
-            [5, 7, 6],
-            [0, 1, 4],
-            [1, 5, 4],
-            [2, 6, 3],
-            [3, 6, 7],
-            [0, 4, 2],
-            [2, 4, 6],
-            [1, 3, 5],
-            [3, 7, 5],
-        ];
+        // The unit cube [0, 1]³, as the box primitive lays out its vertices and triangles.
+        let b = crate::robot::mesh::tessellate_box([1.0; 3]);
+        let v: Vec<String> = b
+            .vertices
+            .iter()
+            .flatten()
+            .map(|x| format!("{}", x + 0.5))
+            .collect();
+        let v = v.join(" ");
+        let tris = b.triangles;
         let p: Vec<String> = tris.iter().flatten().map(|i| format!("{i} 0")).collect();
         format!(
             r##"<geometry id="{id}"><mesh>

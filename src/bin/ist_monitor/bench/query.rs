@@ -68,6 +68,13 @@ pub struct BenchQueryArgs {
     /// Where the engine's queries run (the peers always run on the CPU).
     #[arg(long, value_enum, default_value_t = Backend::Cpu)]
     backend: Backend,
+    /// The trees of the node-settings rows: most spheres per link (parameter max_spheres;
+    /// equal to --node-start-spheres for a fixed budget).
+    #[arg(long, default_value = crate::cli::param("max_spheres"))]
+    node_max_spheres: u32,
+    /// The trees of the node-settings rows: the budget a link starts with (start_spheres).
+    #[arg(long, default_value = crate::cli::param("start_spheres"))]
+    node_start_spheres: u32,
 }
 
 /// One line of the table.
@@ -242,8 +249,11 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
         );
         let mut scenario_rows = Vec::new();
         // The floor and the exact peers do not depend on the budget: measured with the
-        // default trees (peer (b) uses only the meshes).
-        let default_trees = cached_trees(&scenario.model, &BuildOptions::default(), cache_dir)?;
+        // node's trees (default: the node's default budget; peer (b) uses only the meshes).
+        let mut node_build = BuildOptions::default();
+        node_build.packing.max_spheres = args.node_max_spheres.max(1);
+        node_build.packing.start_spheres = args.node_start_spheres.max(1);
+        let default_trees = cached_trees(&scenario.model, &node_build, cache_dir)?;
         let mut engine = Engine::new(&scenario.model, &default_trees, &LinkSelection::default())?;
         let mut floor = Vec::new();
         for case in cases {

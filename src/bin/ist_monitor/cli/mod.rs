@@ -14,7 +14,7 @@ mod query;
 mod replay;
 mod ros;
 
-pub use args::{parse_count, RobotArgs};
+pub use args::{param, parse_count, RobotArgs};
 pub use build::cached_trees;
 pub use replay::{load_config, monitor_from_config};
 
