@@ -21,7 +21,8 @@ for t in "${targets[@]}"; do
   case $t in
     params) cp -n config/*.yaml "$CORPUS/$t/" ;;
     urdf) cp -n urdf/*.urdf "$CORPUS/$t/" ;;
-    mesh) for m in urdf/meshes/*.stl; do (printf '\0'; cat "$m") > "$CORPUS/$t/$(basename "$m")"; done ;;
+    mesh) for m in urdf/meshes/*.stl; do (printf '\0'; cat "$m") > "$CORPUS/$t/$(basename "$m")"; done
+          for m in tests/meshes/*.dae; do (printf '\2'; cat "$m") > "$CORPUS/$t/$(basename "$m")"; done ;;
   esac
   echo "== $t"
   "$bin/$t" "$CORPUS/$t" -runs="$RUNS" -max_total_time="$MAX_S" -max_len=65536 \

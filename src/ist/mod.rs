@@ -1,6 +1,8 @@
-//! Inner sphere tree (IST) stage: per link, the inner spheres from `packing`, a hierarchy of
-//! bounding spheres over them (`build`), the measured quality (coverage and surface gap h), a
-//! cache (`cache`) and checks (`validate`).
+//! Inner sphere tree (IST) stage: per link, the inner spheres from `packing` (the budget grown
+//! from `start_spheres`, doubling while the link's certified h is above `target_gap_m`, up to
+//! `max_spheres`), a hierarchy of bounding spheres over them (`build`), the measured quality
+//! (coverage and surface gap h), the checks every tree passes before it is used or cached
+//! (`validate`: the h they certify is the h reported) and the cache (`cache`).
 //!
 //! Output, per link and in the link frame: two flat `#[repr(C)]` Pod arrays, `nodes` (root at 0)
 //! and `spheres`, which the CPU traversal walks and the GPU uploads as they are. Building a link

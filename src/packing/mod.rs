@@ -16,15 +16,21 @@
 //! Largest-first packing fills volume, but the surface gap h (see `gap`) is set by the pockets
 //! left between large spheres and the surface. So the volume pass spends half the budget, then a
 //! gap pass seeds prototypes just under the surface samples farthest from the spheres (worst
-//! first, found lazily in a max-heap) until every sample is within `target_gap_m`, and the
-//! volume pass spends the rest. On the Panda at 8192 spheres per link this brings the worst h
-//! from 3.47 mm (volume pass alone, `--target-gap 1`) to 1.99 mm, at the same coverage
-//! (85.3 % on the worst link either way) for 15 % more build time.
+//! first, found lazily in a max-heap) until every sample is within `target_gap_m − spacing/√3`
+//! (each surface point lies within spacing/√3 of its sample, so that puts the whole surface
+//! within `target_gap_m`), and the volume pass spends the rest. On the Panda at 8192 spheres
+//! per link the gap pass brought the worst h from 3.47 mm (volume pass alone, `--target-gap 1`)
+//! to 1.99 mm, at the same coverage (85.3 % on the worst link either way) for 15 % more build
+//! time. A [`Packer`] can grow: `ist::build_link` doubles a link's budget while its certified h
+//! is above `target_gap_m`.
 //!
 //! Prototypes settle in parallel (rayon). Each settling step is one point-to-mesh query (parry3d,
 //! BVH, f32) and one nearest-sphere query ([`grid::SphereGrid`]). A sphere's radius is its
-//! prototype's clearance shrunk by a few f32 roundings, so spheres lie inside the mesh and apart
-//! from each other; `ist::validate` checks this in f64 against the exact mesh.
+//! prototype's clearance shrunk by a few f32 roundings. Before a sphere is kept, its centre is
+//! tested inside the solid and its radius capped by the distance to the surface, both exactly
+//! in f64 (`robot::exact`), so that a wrong f32 answer (a pseudo-normal turned by a sliver, which
+//! let a prototype climb away from a vendor link and become a 1.69 m sphere) places no sphere
+//! outside; `ist::validate` checks every tree again before it is used.
 
 pub mod gap;
 pub mod grid;

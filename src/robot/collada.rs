@@ -36,6 +36,10 @@ type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
 
 /// Nesting of `<node>` and `<instance_node>` beyond this is taken for a cycle.
 const MAX_DEPTH: usize = 64;
+/// Geometry instances and triangles a file may place: nodes that instance each other twice
+/// at every level would otherwise place 2^depth copies.
+const MAX_INSTANCES: usize = 100_000;
+const MAX_TRIANGLES: usize = 50_000_000;
 
 /// Reads a COLLADA document (see the module doc).
 pub fn read(bytes: &[u8]) -> Result<SceneMesh, String> {
@@ -288,6 +292,13 @@ impl<'a, 'i> Reader<'_, 'a, 'i> {
             .entry(geometry.attribute("id").unwrap_or("").to_owned())
             .or_default() += 1;
         self.out.pieces += 1;
+        if self.out.pieces > MAX_INSTANCES || self.out.triangles.len() > MAX_TRIANGLES {
+            return Err(format!(
+                "{}: more than {MAX_INSTANCES} geometry instances or {MAX_TRIANGLES} triangles \
+                 placed (nodes that instance each other over and over?)",
+                at(geometry)
+            ));
+        }
         let mut positions_cache: BTreeMap<String, Vec<[f64; 3]>> = BTreeMap::new();
         for prim in mesh.children().filter(|c| c.is_element()) {
             let kind = prim.tag_name().name();
@@ -436,7 +447,7 @@ impl<'a, 'i> Reader<'_, 'a, 'i> {
             || count
                 .checked_mul(stride)
                 .and_then(|n| n.checked_add(start))
-                .is_none_or(|n| n > values.len() + stride - 3)
+                .is_none_or(|n| n > values.len().saturating_add(stride) - 3)
         {
             return Err(format!(
                 "{}: accessor count {count} × stride {stride} (offset {start}) beyond its {} numbers",
@@ -674,6 +685,30 @@ mod tests {
         );
     }
 
+    /// Cut short anywhere, or with any digit, bracket or quote changed, a document is read or
+    /// refused, never a panic (the `mesh` fuzz target runs the same reader).
+    #[test]
+    fn damaged_documents_are_refused_not_panicked_on() {
+        let geometries: String = (0..2).map(|k| cube(&format!("g{k}"))).collect();
+        let nodes = r##"<node><matrix>1 0 0 1 0 1 0 0 0 0 1 0 0 0 0 1</matrix>
+<instance_geometry url="#g0"/><node><rotate>0 0 1 30</rotate><instance_node url="#n"/></node></node>
+<node id="n"><scale>1 2 1</scale><instance_geometry url="#g1"/></node>"##;
+        let doc = document(&geometries, nodes, r#"<unit meter="0.01"/>"#).into_bytes();
+        read(&doc).expect("the intact document reads");
+        for cut in (0..doc.len()).step_by(7) {
+            let _ = read(&doc[..cut]);
+        }
+        for (i, &b) in doc.iter().enumerate() {
+            if b.is_ascii_digit() || b"<>\"#".contains(&b) {
+                for r in [b'0', b'9', b'-', b' ', b'x'] {
+                    let mut bad = doc.clone();
+                    bad[i] = r;
+                    let _ = read(&bad);
+                }
+            }
+        }
+    }
+
     #[test]
     fn bad_files_name_the_element() {
         let nodes = r##"<node><instance_geometry url="#g0"/></node>"##;
@@ -689,5 +724,15 @@ mod tests {
         let cycle = r##"<node id="a"><instance_node url="#a"/></node>"##;
         let e = read(document(&cube("g0"), cycle, "").as_bytes()).unwrap_err();
         assert!(e.contains("cycle"), "{e}");
+        // Each level instances the next twice: 2^40 copies, refused early.
+        let mut bomb = String::from(r##"<node id="l40"><instance_geometry url="#g0"/></node>"##);
+        for k in 0..40 {
+            bomb.push_str(&format!(
+                r##"<node id="l{k}"><instance_node url="#l{n}"/><instance_node url="#l{n}"/></node>"##,
+                n = k + 1
+            ));
+        }
+        let e = read(document(&cube("g0"), &bomb, "").as_bytes()).unwrap_err();
+        assert!(e.contains("geometry instances"), "{e}");
     }
 }
