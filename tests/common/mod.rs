@@ -198,25 +198,21 @@ pub fn write_fault_bag(path: &Path) {
     });
 }
 
-/// The demo arm's trees, built into the default cache (so that a node started after loads them
-/// in milliseconds).
+/// The demo arm's trees as the node started with the demo config builds them (its sphere
+/// budget), into the default cache (so that a node started after loads them in milliseconds).
 pub fn demo_trees() -> (
     ist_monitor::robot::RobotModel,
     Vec<ist_monitor::ist::LinkTree>,
 ) {
-    use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
+    use ist_monitor::ist::{build_robot, cache::TreeCache};
     let model =
         ist_monitor::robot::RobotModel::load(Path::new(DEMO_URDF), &[], &Default::default())
             .unwrap();
-    let trees = build_robot(
-        &model,
-        &BuildOptions::default(),
-        Some(&TreeCache::at(None)),
-        &|_| {},
-    )
-    .unwrap()
-    .into_iter()
-    .map(|(t, _)| t)
-    .collect();
+    let config = ist_monitor::config::Config::load(Path::new(DEMO_CONFIG), &[]).unwrap();
+    let trees = build_robot(&model, &config.build, Some(&TreeCache::at(None)), &|_| {})
+        .unwrap()
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect();
     (model, trees)
 }
