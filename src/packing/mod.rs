@@ -215,46 +215,6 @@ pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing
     packer.finish()
 }
 
-/// A packing that can grow: [`Packer::grow`] to a budget, look at the spheres, grow further.
-pub struct Packer<'a> {
-    state: PackerState<'a>,
-}
-
-impl<'a> Packer<'a> {
-    pub fn new(mesh: &'a ClosedMesh, params: &'a PackingParams) -> Self {
-        Self {
-            state: PackerState::new(mesh, params),
-        }
-    }
-
-    /// Packs up to `budget` spheres in all: the volume pass to half of it, the gap pass, the
-    /// volume pass to the rest; a packing already past a step's limit skips it.
-    pub fn grow(&mut self, budget: usize) {
-        let p = &mut self.state;
-        p.volume_pass((budget as f64 * VOLUME_SHARE).ceil() as usize);
-        p.gap_pass(budget);
-        p.volume_pass(budget);
-    }
-
-    pub fn grid(&self) -> &SphereGrid {
-        &self.state.grid
-    }
-
-    pub fn finish(self) -> Packing {
-        let p = self.state;
-        if p.refused > 0 {
-            log::debug!(
-                "{} prototypes refused: the exact test puts their centre outside the solid",
-                p.refused
-            );
-        }
-        Packing {
-            grid: p.grid,
-            settles: p.settles,
-        }
-    }
-}
-
 /// The packing of a sphere primitive: its inscribed sphere about `center` (the exact f64
 /// distance to the tessellation's faces, shrunk like every sphere's radius), which no packing
 /// beats, so no search is run.
@@ -285,8 +245,9 @@ fn exact_radius(radius: f32, clearance: f64) -> f32 {
     r
 }
 
-/// The state of one packing.
-struct PackerState<'a> {
+/// One packing, which can grow: [`Packer::grow`] to a budget, look at the spheres
+/// ([`Packer::grid`]), grow further, then [`Packer::finish`].
+pub struct Packer<'a> {
     solid: Solid,
     /// The exact f64 test every sphere passes before it is kept.
     exact: ExactSolid,
@@ -303,10 +264,35 @@ struct PackerState<'a> {
     cell: f32,
 }
 
-impl<'a> PackerState<'a> {
+impl<'a> Packer<'a> {
+    /// Packs up to `budget` spheres in all: the volume pass to half of it, the gap pass, the
+    /// volume pass to the rest; a packing already past a step's limit skips it.
+    pub fn grow(&mut self, budget: usize) {
+        self.volume_pass((budget as f64 * VOLUME_SHARE).ceil() as usize);
+        self.gap_pass(budget);
+        self.volume_pass(budget);
+    }
+
+    pub fn grid(&self) -> &SphereGrid {
+        &self.grid
+    }
+
+    pub fn finish(self) -> Packing {
+        if self.refused > 0 {
+            log::debug!(
+                "{} prototypes refused: the exact test puts their centre outside the solid",
+                self.refused
+            );
+        }
+        Packing {
+            grid: self.grid,
+            settles: self.settles,
+        }
+    }
+
     /// Seeds the first grid: a prototype at every cell centre (jittered) inside the solid; the
     /// cells that reach the solid are kept for refinement.
-    fn new(mesh: &'a ClosedMesh, params: &'a PackingParams) -> Self {
+    pub fn new(mesh: &'a ClosedMesh, params: &'a PackingParams) -> Self {
         let solid = Solid::new(mesh);
         let (lo, hi) = mesh.bounds();
         let grid = SphereGrid::new(lo, hi, 2.0 * params.min_radius_m);
@@ -723,7 +709,7 @@ mod tests {
         let t = tessellate_box([0.1, 0.1, 0.1]);
         let mesh = ClosedMesh::new(t.vertices, t.triangles, "cube").expect("closed");
         let params = PackingParams::default();
-        let mut packer = PackerState::new(&mesh, &params);
+        let mut packer = Packer::new(&mesh, &params);
         let settled = |pos: [f32; 3], clearance: f32| Prototype {
             pos,
             clearance,

@@ -18,19 +18,11 @@
 //! whether or not the scene instantiates it, and whose merge of three or more meshes offsets
 //! the third one's indices by the second one's count alone (`fuzz/regressions/mesh/`).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::{Matrix4, Rotation3, Unit, Vector3};
 
-/// A triangle soup and what the reader noted about the file.
-#[derive(Debug, Clone, Default)]
-pub struct SceneMesh {
-    pub vertices: Vec<[f32; 3]>,
-    pub triangles: Vec<[u32; 3]>,
-    /// Geometry instances placed (pieces of the file).
-    pub pieces: usize,
-    pub notes: Vec<String>,
-}
+use super::mesh::MeshFile;
 
 type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
 
@@ -41,8 +33,8 @@ const MAX_DEPTH: usize = 64;
 const MAX_INSTANCES: usize = 100_000;
 const MAX_TRIANGLES: usize = 50_000_000;
 
-/// Reads a COLLADA document (see the module doc).
-pub fn read(bytes: &[u8]) -> Result<SceneMesh, String> {
+/// Reads a COLLADA document (see the module doc): its pieces are the geometry instances placed.
+pub fn read(bytes: &[u8]) -> Result<MeshFile, String> {
     let text = std::str::from_utf8(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes))
         .map_err(|e| format!("COLLADA file is not UTF-8: {e}"))?;
     let doc = roxmltree::Document::parse(text).map_err(|e| format!("COLLADA XML: {e}"))?;
@@ -72,8 +64,9 @@ pub fn read(bytes: &[u8]) -> Result<SceneMesh, String> {
     };
     let mut reader = Reader {
         ids: &ids,
-        out: SceneMesh::default(),
-        used: BTreeMap::new(),
+        out: MeshFile::default(),
+        used: BTreeSet::new(),
+        positions: BTreeMap::new(),
     };
     let scale = Matrix4::new_scaling(meter);
     let scene = child(root, "scene")
@@ -114,9 +107,11 @@ pub fn read(bytes: &[u8]) -> Result<SceneMesh, String> {
 
 struct Reader<'d, 'a, 'i> {
     ids: &'d BTreeMap<&'a str, Node<'a, 'i>>,
-    out: SceneMesh,
-    /// Geometries instantiated, by id, and how often.
-    used: BTreeMap<String, usize>,
+    out: MeshFile,
+    /// Ids of the geometries instantiated.
+    used: BTreeSet<&'a str>,
+    /// Positions read, by the VERTEX input's source (a geometry instanced twice is read once).
+    positions: BTreeMap<&'a str, Vec<[f64; 3]>>,
 }
 
 fn child<'a, 'i>(n: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
@@ -287,10 +282,7 @@ impl<'a, 'i> Reader<'_, 'a, 'i> {
             ));
             return Ok(());
         };
-        *self
-            .used
-            .entry(geometry.attribute("id").unwrap_or("").to_owned())
-            .or_default() += 1;
+        self.used.insert(geometry.attribute("id").unwrap_or(""));
         self.out.pieces += 1;
         if self.out.pieces > MAX_INSTANCES || self.out.triangles.len() > MAX_TRIANGLES {
             return Err(format!(
@@ -299,7 +291,6 @@ impl<'a, 'i> Reader<'_, 'a, 'i> {
                 at(geometry)
             ));
         }
-        let mut positions_cache: BTreeMap<String, Vec<[f64; 3]>> = BTreeMap::new();
         for prim in mesh.children().filter(|c| c.is_element()) {
             let kind = prim.tag_name().name();
             if matches!(kind, "lines" | "linestrips") {
@@ -332,12 +323,12 @@ impl<'a, 'i> Reader<'_, 'a, 'i> {
             let Some((offset, input)) = vertex else {
                 return Err(format!("{}: no VERTEX input", at(prim)));
             };
-            let key = input.attribute("source").unwrap_or("").to_owned();
-            if !positions_cache.contains_key(&key) {
-                let p = self.positions(input)?;
-                positions_cache.insert(key.clone(), p);
+            let key = input.attribute("source").unwrap_or("");
+            if !self.positions.contains_key(key) {
+                let p = self.read_positions(input)?;
+                self.positions.insert(key, p);
             }
-            let positions = &positions_cache[&key];
+            let positions = &self.positions[key];
             let base = self.out.vertices.len();
             if base + positions.len() > u32::MAX as usize {
                 return Err(format!("{}: more than 2³² vertices", at(prim)));
@@ -392,7 +383,7 @@ impl<'a, 'i> Reader<'_, 'a, 'i> {
 
     /// The positions a VERTEX input names: a `<vertices>` element's POSITION source, or a
     /// `<source>` itself.
-    fn positions(&self, input: Node<'a, 'i>) -> Result<Vec<[f64; 3]>, String> {
+    fn read_positions(&self, input: Node<'a, 'i>) -> Result<Vec<[f64; 3]>, String> {
         let url = input.attribute("source").unwrap_or("");
         let id = url.strip_prefix('#').unwrap_or(url);
         let target = *self

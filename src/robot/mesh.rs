@@ -168,15 +168,7 @@ pub fn load_mesh_bytes(bytes: &[u8], path: &std::path::Path) -> Result<MeshFile,
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("dae") => {
-            let m = super::collada::read(bytes).map_err(MeshError::Load)?;
-            return Ok(MeshFile {
-                vertices: m.vertices,
-                triangles: m.triangles,
-                pieces: m.pieces,
-                notes: m.notes,
-            });
-        }
+        Some("dae") => return super::collada::read(bytes).map_err(MeshError::Load),
         Some("stl" | "obj") => {}
         _ => {
             return Err(MeshError::Load(format!(
