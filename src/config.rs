@@ -72,6 +72,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
     p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
     p("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
+    p("heartbeat_period", "0.1", "s", "the node publishes the cell's fused state at least this often, also when no cloud arrives, so that a subscriber can tell a quiet monitor from a dead one (> 0)"),
     p("sources", "[camera]", "", "names of the point cloud sources"),
     p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
     p("<source>.topic", "/camera/depth/points", "topic", "the source's PointCloud2 or depth Image topic"),
@@ -184,6 +185,8 @@ pub struct Config {
     pub stop_distance_m: f64,
     pub hysteresis_m: f64,
     pub latency_budget_s: f64,
+    /// The node publishes the fused state at least this often, s.
+    pub heartbeat_period_s: f64,
     pub sources: Vec<SourceConfig>,
     pub static_transforms: Vec<TransformStamped>,
     pub fixed_joint_state: Vec<(String, f64)>,
@@ -706,6 +709,15 @@ impl Config {
             stop_distance_m,
             hysteresis_m,
             latency_budget_s: v.distance("latency_budget", "latency_budget")?,
+            heartbeat_period_s: match v.distance("heartbeat_period", "heartbeat_period")? {
+                t if t > 0.0 => t,
+                t => {
+                    return Err(Values::bad(
+                        "heartbeat_period",
+                        format!("must be > 0, got {t}"),
+                    ))
+                }
+            },
             sources,
             static_transforms,
             fixed_joint_state: names.into_iter().zip(positions).collect(),

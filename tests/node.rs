@@ -235,6 +235,81 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     assert!(distances.iter().any(|d| *d < 0.05));
 }
 
+/// Two cameras over DDS: the demo bag with a second camera that sees only a far wall, played to a
+/// node watching both. Once the approach raised `~/safety_stop`, it is never released (the
+/// wall camera's frames cannot clear it), and no published distance is the wall's.
+#[test]
+fn a_far_camera_never_releases_the_nodes_stop() {
+    if !in_private_network("a_far_camera_never_releases_the_nodes_stop") {
+        return;
+    }
+    common::demo_trees();
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("two_cameras.mcap");
+    common::write_two_camera_bag(&bag, false);
+    let record = dir.path().join("outputs.mcap");
+    let wall_topic = format!("wall.topic:={}", common::SECOND_CAMERA_TOPIC);
+    let node = ist_monitor()
+        .args([
+            "node",
+            "--ros-args",
+            "-p",
+            "sources:=[camera, wall]",
+            "-p",
+            &wall_topic,
+            "-p",
+            "wall.max_range:=4.0",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut recorder = spawn(&[
+        "record",
+        "--duration",
+        "7",
+        "--out",
+        record.to_str().unwrap(),
+    ]);
+    let _reap = Reap(vec![node.id(), recorder.id()]);
+    std::thread::sleep(Duration::from_secs(2));
+    let run = play_measured(
+        ist_monitor(),
+        "1.5",
+        "/ist_monitor/link_distances",
+        Some(&bag),
+    );
+    // The two cameras share their stamps: one answer per stamp is counted.
+    assert_answered(&run, 60, 25);
+    assert!(recorder.wait().unwrap().success());
+    let log = stop(node);
+    assert_no_error_lines(&log);
+    let messages = read_messages(&record, &|_, _| true).unwrap();
+    let stops: Vec<bool> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/ist_monitor/safety_stop")
+        .map(|m| msg::decode::<msg::Bool>(&m.data).unwrap().data)
+        .collect();
+    // Raised while the cell is not fully seen, released while the person is far, raised by the
+    // approach: from there on, raised to the end.
+    let raised = stops
+        .windows(2)
+        .position(|w| !w[0] && w[1])
+        .map(|i| i + 1)
+        .unwrap_or_else(|| panic!("the approach never raised the stop: {stops:?}"));
+    assert!(
+        stops[raised..].iter().all(|s| *s),
+        "released after the approach: {stops:?}"
+    );
+    let distances: Vec<f64> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/ist_monitor/min_distance")
+        .map(|m| msg::decode::<Float64>(&m.data).unwrap().data)
+        .collect();
+    assert!(distances.len() >= 40, "{} distances", distances.len());
+    assert!(distances.iter().all(|d| *d < 1.3), "{distances:?}");
+}
+
 /// The fault model through DDS: the bag with one fault of each kind, played to the node, gives
 /// each as ERROR with its kind in the diagnostics, and the node answers the good clouds around
 /// them.
@@ -323,13 +398,11 @@ fn a_node_building_its_trees_says_so_and_stops_at_once() {
         .map(|m| msg::decode::<DiagnosticArray>(&m.data).unwrap().status[0].clone())
         .collect();
     assert!(diagnostics.len() >= 2, "{} diagnostics", diagnostics.len());
+    // What must hold, however far the start-up got in the window: ERROR, "not monitoring",
+    // the stop raised, no distance.
     for s in &diagnostics {
         assert_eq!(s.level, DiagnosticStatus::ERROR);
-        assert!(
-            s.message.starts_with("not monitoring: loading the robot"),
-            "{}",
-            s.message
-        );
+        assert!(s.message.starts_with("not monitoring: "), "{}", s.message);
     }
     let stops: Vec<bool> = messages
         .iter()
@@ -413,6 +486,94 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
         .as_f64()
         .expect("a speed_scaling factor from the node");
     assert!((0.2..=1.0).contains(&factor), "{factor}");
+}
+
+/// The node's last word, read by an independent DDS implementation (the Cyclone DDS peer): a
+/// node serving a cloud at full speed that is stopped by SIGTERM, or that panics (a fault
+/// injected after 40 frames), leaves `~/safety_stop` true and the speed-scaling factor 0 as the
+/// last messages a controller and a safety PLC received.
+#[test]
+fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
+    if !in_private_network(
+        "a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero",
+    ) {
+        return;
+    }
+    let Some(python) = common::venv_python() else {
+        return;
+    };
+    common::demo_trees();
+    let joints =
+        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
+    let fixed = format!("fixed_joint_state.names:={joints}");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
+    for crash in [false, true] {
+        let mut node = ist_monitor();
+        if crash {
+            node.env(ist_monitor::node::PANIC_AFTER_ENV, "40");
+        }
+        let node = node
+            .args([
+                "node",
+                "--ros-args",
+                "-p",
+                "backend:=cpu",
+                "-p",
+                &fixed,
+                "-p",
+                "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
+                "-r",
+                "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut peer = Command::new(&python)
+            .arg(&script)
+            .args(["--watch", if crash { "8" } else { "4" }])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let _reap = Reap(vec![node.id(), peer.id()]);
+        // The peer says `watching` once the factor has risen: the arm may move.
+        let mut stdout = std::io::BufReader::new(peer.stdout.take().unwrap());
+        let mut line = String::new();
+        std::io::BufRead::read_line(&mut stdout, &mut line).unwrap();
+        assert_eq!(line.trim(), "watching", "the peer: {line}");
+        if !crash {
+            std::thread::sleep(Duration::from_millis(1500));
+            Command::new("kill")
+                .arg(node.id().to_string())
+                .status()
+                .unwrap();
+        }
+        let out = node.wait_with_output().unwrap();
+        let log = String::from_utf8_lossy(&out.stderr);
+        if crash {
+            assert_eq!(out.status.code(), Some(101), "{log}");
+            assert!(log.contains("stopped by a panic"), "{log}");
+        } else {
+            assert!(out.status.success(), "{log}");
+        }
+        let mut rest = String::new();
+        std::io::Read::read_to_string(&mut stdout, &mut rest).unwrap();
+        let peer = peer.wait_with_output().unwrap();
+        assert!(
+            peer.status.success(),
+            "the peer: {}",
+            String::from_utf8_lossy(&peer.stderr)
+        );
+        let seen: serde_json::Value = serde_json::from_str(&rest).unwrap();
+        let stops: Vec<bool> = serde_json::from_value(seen["stops"].clone()).unwrap();
+        let factors: Vec<f64> = serde_json::from_value(seen["factors"].clone()).unwrap();
+        // Running, the node allowed motion and raised no stop; its last word undid both.
+        assert!(stops.contains(&false), "crash {crash}: {seen}");
+        assert!(factors.iter().any(|&f| f >= 0.2), "crash {crash}: {seen}");
+        assert_eq!(stops.last(), Some(&true), "crash {crash}: {seen}");
+        assert_eq!(factors.last(), Some(&0.0), "crash {crash}: {seen}");
+    }
 }
 
 /// Depth images over DDS: a generated 16UC1 bag (images and their CameraInfo) played to a node
@@ -600,6 +761,9 @@ fn zenoh_transport_serves_the_node() {
         ),
         "--delay".into(),
         "3".into(),
+        // Both sources at once: the node publishes the cell's fused distance, which needs
+        // every enabled source.
+        "--together".into(),
     ];
     for (i, (topic, ty, bytes)) in files.iter().enumerate() {
         let path = dir.path().join(format!("{i}.cdr"));
@@ -673,23 +837,33 @@ fn zenoh_transport_serves_the_node() {
         String::from_utf8_lossy(&out.stderr)
     );
     let peer: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    for (topic, expected) in [
-        ("/camera/depth/points", expected_cloud),
-        ("/camera/depth/image_raw", expected_depth),
+    // Each source measured on its own, as its own status in /diagnostics says (6 decimals)...
+    for (status, expected) in [
+        ("ist_monitor: camera", expected_cloud),
+        ("ist_monitor: depth", expected_depth),
     ] {
-        let got: Vec<f64> = peer["distances"][topic]
-            .as_array()
-            .unwrap_or_else(|| panic!("{peer}"))
-            .iter()
-            .map(|v| v.as_f64().unwrap())
-            .collect();
-        assert!(got.len() >= 10, "{topic}: {} distances: {peer}", got.len());
-        for d in &got {
-            assert!(
-                (d - expected).abs() < 1e-6,
-                "{topic}: the node published {d}, the library gives {expected}"
-            );
-        }
+        let got = peer["lower_m"][status]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no lower_m of {status}: {peer}"));
+        assert!(
+            (got - expected).abs() < 1e-6,
+            "{status}: the node measured {got}, the library gives {expected}"
+        );
+    }
+    // ... and the cell's distance is the nearer of the two.
+    let fused = expected_cloud.min(expected_depth);
+    let got: Vec<f64> = peer["distances"]["together"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{peer}"))
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(got.len() >= 10, "{} distances: {peer}", got.len());
+    for d in &got {
+        assert!(
+            (d - fused).abs() < 1e-6,
+            "the node published {d}, the nearer source is at {fused}"
+        );
     }
     // The peer subscribed by the exact keys, with ROS 2's type hashes, as rmw_zenoh does: the
     // distances above reached it that way, and so did the diagnostics.

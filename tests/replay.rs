@@ -409,6 +409,7 @@ fn replay_outputs_are_readable_by_rosbags() {
     let count = |topic: &str| written.iter().filter(|m| &*m.topic == topic).count();
     for topic in [
         "/ist_monitor/min_distance",
+        "/ist_monitor/distance",
         "/ist_monitor/link_distances",
         "/ist_monitor/closest_points",
         "/ist_monitor/safety_stop",
@@ -429,7 +430,180 @@ fn replay_outputs_are_readable_by_rosbags() {
     for (topic, entry) in v.as_object().unwrap() {
         assert_eq!(entry["definition_matches"], true, "{topic}");
     }
+    // The stamped distance: the first cloud's stamp, the root frame, the published distance.
+    let first = &v["/ist_monitor/distance"]["first"];
+    assert_eq!(first["header"]["frame_id"], "world");
+    let min = msg::decode::<Float64>(
+        &written
+            .iter()
+            .find(|m| &*m.topic == "/ist_monitor/min_distance")
+            .unwrap()
+            .data,
+    )
+    .unwrap()
+    .data;
+    assert!(
+        (first["range"].as_f64().unwrap() - min).abs() < 1e-6,
+        "{first}"
+    );
     let status = &v["/diagnostics"]["first"]["status"][0];
     assert_eq!(status["name"], "ist_monitor: camera");
     assert_eq!(status["hardware_id"], "demo_arm");
+}
+
+/// The demo config with a second camera on `common::SECOND_CAMERA_TOPIC`.
+fn two_camera_monitor() -> Monitor {
+    let config = Config::load(
+        Path::new(DEMO_CONFIG),
+        &[
+            ("sources".into(), "[camera, wall]".into()),
+            ("wall.topic".into(), common::SECOND_CAMERA_TOPIC.into()),
+            ("wall.max_range".into(), "4.0".into()),
+        ],
+    )
+    .unwrap();
+    Monitor::new(config, &|_| {}).unwrap()
+}
+
+/// A second camera that sees only a far wall never releases the stop the first one raised: the
+/// cell's level, stop and distance are those of the nearer camera on every frame of either
+/// source (the wall frames repeat the camera's last distance and level).
+#[test]
+fn a_far_camera_never_releases_the_stop_a_near_one_raised() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("two_cameras.mcap");
+    common::write_two_camera_bag(&bag, false);
+    let (alone, _) = replay_all(&mut demo_monitor(), Path::new(DEMO_BAG), Clock::Log);
+    let (fused, s) = replay_all(&mut two_camera_monitor(), &bag, Clock::Log);
+    assert!(s.faults.is_empty(), "{:?}", s.faults);
+    assert_eq!(fused.len(), 2 * alone.len());
+    assert!(alone.iter().any(|f| f.level == Level::Error));
+    // Before the wall camera is heard from, the cell is not fully seen: ERROR, no distance.
+    assert_eq!(fused[0].level, Level::Error);
+    assert_eq!(fused[0].min_distance_m, None);
+    for (i, pair) in fused.chunks(2).enumerate().skip(1) {
+        let (camera, wall) = (&pair[0], &pair[1]);
+        assert_eq!(
+            (camera.source.as_str(), wall.source.as_str()),
+            ("camera", "wall")
+        );
+        // The wall camera on its own is far and clear.
+        assert!(wall.distance_m.unwrap_or(f64::INFINITY) > 1.0 || wall.outcome != "nearest");
+        for f in [camera, wall] {
+            assert_eq!(
+                f.min_distance_m, alone[i].min_distance_m,
+                "frame {}",
+                f.index
+            );
+            assert_eq!(f.level, alone[i].level, "frame {} ({})", f.index, f.source);
+        }
+    }
+}
+
+/// A blinded second camera (every point NaN, a fault on each of its frames) holds the cell at
+/// ERROR with no distance for the whole bag: a healthy camera never clears it.
+#[test]
+fn a_blinded_camera_holds_the_stop_whatever_the_other_sees() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("blinded_second.mcap");
+    common::write_two_camera_bag(&bag, true);
+    let out = dir.path().join("out.mcap");
+    let mut frames = Vec::new();
+    let mut monitor = two_camera_monitor();
+    let s = replay(
+        &mut monitor,
+        &bag,
+        Some((&out, ist_monitor::bag::writer::Compression::None)),
+        Clock::Log,
+        &mut |f| frames.push(f.clone()),
+    )
+    .unwrap();
+    assert!(s.faults.get("no_valid_points").copied().unwrap_or(0) >= 20);
+    for f in &frames {
+        assert_eq!(f.level, Level::Error, "frame {} ({})", f.index, f.source);
+        assert_eq!(f.min_distance_m, None, "frame {}", f.index);
+    }
+    // The camera's own frames were measured: its own status says so, the cell's says why not.
+    assert!(frames
+        .iter()
+        .any(|f| f.source == "camera" && f.distance_m.is_some()));
+    let messages = read_messages(&out, &|_, _| true).unwrap();
+    let stops: Vec<bool> = messages
+        .iter()
+        .filter(|m| &*m.topic == "/ist_monitor/safety_stop")
+        .map(|m| msg::decode::<msg::Bool>(&m.data).unwrap().data)
+        .collect();
+    assert_eq!(stops.len(), frames.len());
+    assert!(stops.iter().all(|s| *s));
+    let last = messages
+        .iter()
+        .rev()
+        .find(|m| &*m.topic == "/diagnostics")
+        .unwrap();
+    let d = msg::decode::<msg::DiagnosticArray>(&last.data).unwrap();
+    let names: Vec<&str> = d.status.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "ist_monitor: camera",
+            "ist_monitor: wall",
+            "ist_monitor: all sources"
+        ]
+    );
+    let cell = &d.status[2];
+    assert_eq!(cell.level, msg::DiagnosticStatus::ERROR);
+    assert!(
+        cell.message.contains("source wall: no valid points"),
+        "{}",
+        cell.message
+    );
+    assert!(!messages
+        .iter()
+        .any(|m| &*m.topic == "/ist_monitor/min_distance"));
+}
+
+/// A source whose latest result is older than its `source_timeout` (it went silent in the bag)
+/// holds the cell at ERROR: the other camera's frames cannot clear it.
+#[test]
+fn a_silent_camera_goes_stale_and_holds_the_stop() {
+    let dir = tempfile::tempdir().unwrap();
+    let two = dir.path().join("two_cameras.mcap");
+    common::write_two_camera_bag(&two, false);
+    // The wall camera stops after its 10th cloud.
+    let silent = dir.path().join("silent.mcap");
+    let messages = read_messages(&two, &|_, _| true).unwrap();
+    let mut w =
+        ist_monitor::bag::BagWriter::create(&silent, ist_monitor::bag::writer::Compression::None)
+            .unwrap();
+    let mut walls = 0;
+    for m in &messages {
+        if &*m.topic == common::SECOND_CAMERA_TOPIC {
+            walls += 1;
+            if walls > 10 {
+                continue;
+            }
+        }
+        w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &m.data)
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let (frames, _) = replay_all(&mut two_camera_monitor(), &silent, Clock::Log);
+    let last_wall = frames.iter().rposition(|f| f.source == "wall").unwrap();
+    let wall_stamp = frames[last_wall].stamp_ns;
+    let mut stale = 0;
+    for f in &frames[last_wall + 1..] {
+        let age_s = (f.stamp_ns - wall_stamp) as f64 * 1e-9;
+        // (Stamps and log times differ by the recorder's delay: a margin either side.)
+        if age_s > 0.6 {
+            assert_eq!(f.level, Level::Error, "frame {}", f.index);
+            assert_eq!(f.min_distance_m, None, "frame {}", f.index);
+            stale += 1;
+        } else if age_s < 0.4 {
+            assert!(f.min_distance_m.is_some(), "frame {}", f.index);
+        }
+    }
+    assert!(
+        stale >= 10,
+        "{stale} frames after the wall camera went stale"
+    );
 }

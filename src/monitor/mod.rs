@@ -19,9 +19,11 @@
 //! `replay` feeds a bag through this pipeline in log-time order, as the node (`crate::node`)
 //! feeds it from DDS.
 
+pub mod fusion;
 pub mod outputs;
 pub mod replay;
 
+pub use fusion::Fusion;
 pub use outputs::{Level, LevelTracker, Outputs};
 
 use std::time::Instant;
@@ -146,7 +148,8 @@ pub struct Monitor {
     engine: Engine,
     tf: TfBuffer,
     joints: JointStateBuffer,
-    level: LevelTracker,
+    /// Every source's latest result, and the cell's one level (`fusion`).
+    fusion: Fusion,
     scaler: SpeedScaler,
     /// Per source: the camera model of its last CameraInfo, or why that one was refused
     /// (depth image sources; `None` until one arrives).
@@ -248,7 +251,7 @@ impl Monitor {
         // The self-filter's grids now, not on the first cloud.
         engine.prepare_self_filter(&config.query);
         let (tf, joints) = Self::inputs(&config, &model)?;
-        let level = LevelTracker::new(&config);
+        let fusion = Fusion::new(&config);
         let scaler = Self::scaler(&config);
         let cameras = vec![None; config.sources.len()];
         Ok(Self {
@@ -257,7 +260,7 @@ impl Monitor {
             engine,
             tf,
             joints,
-            level,
+            fusion,
             scaler,
             cameras,
             depth_points: Vec::new(),
@@ -311,7 +314,7 @@ impl Monitor {
     /// another bag starts from here).
     pub fn reset(&mut self) -> Result<(), MonitorError> {
         (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
-        self.level = LevelTracker::new(&self.config);
+        self.fusion = Fusion::new(&self.config);
         self.scaler = Self::scaler(&self.config);
         self.cameras = vec![None; self.config.sources.len()];
         Ok(())
@@ -442,10 +445,10 @@ impl Monitor {
     pub fn on_depth_image(&mut self, source: usize, payload: &[u8], now_ns: Option<i64>) -> Frame {
         let start = Instant::now();
         match msg::decode::<Image>(payload) {
-            Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
+            Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), now_ns, |me| {
                 me.process_depth(source, &m, now_ns)
             }),
-            Err(e) => self.finish_frame(source, start, 0, |_| {
+            Err(e) => self.finish_frame(source, start, 0, now_ns, |_| {
                 Err(Fault::Decode(CloudError::Decode(e)))
             }),
         }
@@ -460,9 +463,13 @@ impl Monitor {
         start: Instant,
         now_ns: i64,
     ) -> Frame {
-        self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
-            me.process_depth(source, m, Some(now_ns))
-        })
+        self.finish_frame(
+            source,
+            start,
+            m.header.stamp.as_nanos(),
+            Some(now_ns),
+            |me| me.process_depth(source, m, Some(now_ns)),
+        )
     }
 
     /// Processes one cloud of source `source`, from its CDR payload; `now_ns` is the clock the
@@ -472,16 +479,17 @@ impl Monitor {
     pub fn on_cloud(&mut self, source: usize, payload: &[u8], now_ns: Option<i64>) -> Frame {
         let start = Instant::now();
         match pointcloud2::decode(payload) {
-            Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
+            Ok(m) => self.finish_frame(source, start, m.header.stamp.as_nanos(), now_ns, |me| {
                 me.process(source, &m, now_ns)
             }),
-            Err(e) => self.finish_frame(source, start, 0, |_| Err(e.into())),
+            Err(e) => self.finish_frame(source, start, 0, now_ns, |_| Err(e.into())),
         }
     }
 
     /// The outputs of a source silent for `silent_s` (never heard from: `never`): a fault.
     pub fn on_source_timeout(&mut self, source: usize, silent_s: f64, never: bool) -> Frame {
         let s = &self.config.sources[source];
+        let now = msg::Time::now_nanos();
         let fault = Fault::SourceTimeout {
             source_name: s.name.clone(),
             what: if never {
@@ -492,9 +500,7 @@ impl Monitor {
             silent_s,
             timeout_s: s.source_timeout_s,
         };
-        self.finish_frame(source, Instant::now(), msg::Time::now_nanos(), |_| {
-            Err(fault)
-        })
+        self.finish_frame(source, Instant::now(), now, Some(now), |_| Err(fault))
     }
 
     /// Processes one decoded cloud of source `source`; `start` is when it was received and
@@ -506,9 +512,13 @@ impl Monitor {
         start: Instant,
         now_ns: i64,
     ) -> Frame {
-        self.finish_frame(source, start, m.header.stamp.as_nanos(), |me| {
-            me.process(source, m, Some(now_ns))
-        })
+        self.finish_frame(
+            source,
+            start,
+            m.header.stamp.as_nanos(),
+            Some(now_ns),
+            |me| me.process(source, m, Some(now_ns)),
+        )
     }
 
     fn finish_frame(
@@ -516,6 +526,7 @@ impl Monitor {
         source: usize,
         start: Instant,
         stamp_ns: i64,
+        now_ns: Option<i64>,
         process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion), Fault>,
     ) -> Frame {
         let processed = process(self);
@@ -527,16 +538,16 @@ impl Monitor {
             .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
         let result = processed.map(|(r, _)| r);
         let name = self.config.sources[source].name.clone();
-        let outputs = Outputs::new(
+        let outputs = self.fusion.frame(
             &self.config,
             self.model.kinematics.root_link(),
             &self.model.name,
-            &name,
+            source,
             stamp_ns,
+            now_ns,
             &result,
             processing_s,
             speed.as_ref(),
-            &mut self.level,
         );
         Frame {
             source: name,
@@ -546,6 +557,19 @@ impl Monitor {
             speed,
             outputs,
         }
+    }
+
+    /// The cell's fused outputs at `now_ns` without a new frame (the node's heartbeat, see
+    /// `fusion`).
+    pub fn heartbeat(&mut self, now_ns: i64) -> Outputs {
+        let factor = self.config.ssm.enabled.then(|| self.scaler.factor());
+        self.fusion.heartbeat(
+            &self.config,
+            self.model.kinematics.root_link(),
+            &self.model.name,
+            now_ns,
+            factor,
+        )
     }
 
     /// The separation stage (`crate::separation`): the factor this frame allows, through the

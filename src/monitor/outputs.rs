@@ -1,11 +1,14 @@
 //! The node's outputs for one frame, as ROS 2 messages, and the warning level with hysteresis.
+//! Each source's part of a frame is a [`SourceReport`]; `monitor::fusion` makes the published
+//! outputs from every source's latest.
 //!
 //! | topic | type | content |
 //! |---|---|---|
 //! | `~/min_distance` | `std_msgs/Float64` | the conservative distance: the certified lower bound (certified), the exact distance (exact), the inner-sphere distance (fast, not conservative); `max_distance` when nothing is nearer; not published on a fault, a cloud without valid points, or one whose valid points the self-filter all removed |
+//! | `~/distance` | `sensor_msgs/Range` | the same conservative distance, stamped: `header.stamp` is the stamp of the oldest cloud the fused result rests on (a consumer can age it), `header.frame_id` the robot's root; `range` NaN (REP 117: no valid reading) on a fault; `max_range` = `max_distance`; published on every frame and heartbeat |
 //! | `~/link_distances` | `sensor_msgs/JointState` | `name` = links, `position` = each link's conservative distance (`max_distance` when nothing is nearer); `header` = cloud stamp, root frame |
 //! | `~/closest_points` | `visualization_msgs/MarkerArray` | a line from the robot to the nearest obstacle point and a text with the distance, coloured by level; DELETEALL on a fault |
-//! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source: level, reason, figures |
+//! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source (level, reason, figures), then the cell's fused one (`monitor::fusion`) |
 //! | `~/safety_stop` | `std_msgs/Bool` | true at level ERROR (below `stop_distance`, or any fault) |
 //! | `~/speed_scaling` | `control_msgs/SpeedScalingFactor` | the speed and separation monitor's factor (`crate::separation`): 0 on every fault; reliable and transient local, as `joint_trajectory_controller`'s `~/speed_scaling_input` subscribes; not published with `speed_scaling.enabled: false` |
 //!
@@ -21,7 +24,8 @@
 use crate::config::Config;
 use crate::msg::{
     Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
-    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, SpeedScalingFactor, Time, Vector3,
+    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, Range, SpeedScalingFactor, Time,
+    Vector3,
 };
 use crate::query::{Outcome, QueryResult};
 use crate::separation::SpeedScaling;
@@ -80,6 +84,11 @@ impl LevelTracker {
         self.level
     }
 
+    /// The level held now.
+    pub fn level(&self) -> Level {
+        self.level
+    }
+
     /// The level for a conservative distance `d` (`None`: no distance is known, a fault).
     pub fn update(&mut self, d: Option<f64>) -> Level {
         let Some(d) = d else {
@@ -112,6 +121,8 @@ pub struct Outputs {
     pub level: Level,
     /// The conservative distance published on `~/min_distance`.
     pub min_distance: Option<Float64>,
+    /// The same, stamped (NaN when none is known).
+    pub distance: Range,
     pub link_distances: JointState,
     pub closest_points: MarkerArray<'static>,
     pub diagnostics: DiagnosticArray,
@@ -125,6 +136,7 @@ pub struct Outputs {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum OutputTopic {
     MinDistance,
+    Distance,
     LinkDistances,
     ClosestPoints,
     Diagnostics,
@@ -137,6 +149,7 @@ impl OutputTopic {
     pub fn name(self) -> &'static str {
         match self {
             OutputTopic::MinDistance => "~/min_distance",
+            OutputTopic::Distance => "~/distance",
             OutputTopic::LinkDistances => "~/link_distances",
             OutputTopic::ClosestPoints => "~/closest_points",
             OutputTopic::Diagnostics => "/diagnostics",
@@ -175,18 +188,20 @@ pub trait OutputVisitor {
 
 /// The table: every output topic, in publication order, with its type and the frame's message.
 fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V::Error> {
-    let (min, links, markers, diagnostics, stop, speed) = match o {
+    let (min, distance, links, markers, diagnostics, stop, speed) = match o {
         Some(o) => (
             o.min_distance,
+            Some(o.distance),
             Some(o.link_distances),
             Some(o.closest_points),
             Some(o.diagnostics),
             Some(o.safety_stop),
             o.speed_scaling,
         ),
-        None => (None, None, None, None, None, None),
+        None => (None, None, None, None, None, None, None),
     };
     v.visit::<Float64>(OutputTopic::MinDistance, min)?;
+    v.visit::<Range>(OutputTopic::Distance, distance)?;
     v.visit::<JointState>(OutputTopic::LinkDistances, links)?;
     v.visit::<MarkerArray<'static>>(OutputTopic::ClosestPoints, markers)?;
     v.visit::<DiagnosticArray>(OutputTopic::Diagnostics, diagnostics)?;
@@ -222,6 +237,20 @@ pub fn published_distance(r: &QueryResult) -> Option<f64> {
     conservative_distance(r).filter(|_| !all_self_filtered(r))
 }
 
+/// `~/distance`: the conservative distance `d` stamped with `header` (NaN: none known).
+pub fn stamped_distance(config: &Config, header: &Header, d: Option<f64>) -> Range {
+    Range {
+        header: header.clone(),
+        // Depth cameras and lidars are infrared sensors; the field has no better value.
+        radiation_type: 1,
+        field_of_view: 0.0,
+        min_range: 0.0,
+        max_range: config.query.max_distance_m,
+        range: d.map_or(f32::NAN, |d| d as f32),
+        variance: 0.0,
+    }
+}
+
 fn point(p: [f64; 3]) -> Point {
     Point {
         x: p[0],
@@ -241,6 +270,7 @@ impl Outputs {
         Self {
             level: Level::Error,
             min_distance: None,
+            distance: stamped_distance(config, &header, None),
             link_distances: JointState {
                 header: header.clone(),
                 ..JointState::default()
@@ -277,23 +307,34 @@ impl Outputs {
     pub fn visit<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
         each_output(Some(self), v)
     }
+}
 
+/// One source's part of a frame: its own level (with its own hysteresis), its diagnostic
+/// status, and what it contributes to the fused result (`monitor::fusion`).
+#[derive(Debug, Clone)]
+pub struct SourceReport {
+    pub level: Level,
+    pub status: DiagnosticStatus,
+    /// The source's conservative distance (`None`: a fault, or every valid point
+    /// self-filtered).
+    pub distance: Option<f64>,
+    /// Every valid point self-filtered: no distance, and the level held at WARN at least.
+    pub all_self: bool,
+    /// The frame took longer than `latency_budget`.
+    pub over_budget: bool,
+}
+
+impl SourceReport {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         config: &Config,
-        root_frame: &str,
         robot: &str,
         source: &str,
-        stamp_ns: i64,
         result: &Result<QueryResult, Fault>,
         processing_s: f64,
         speed: Option<&SpeedScaling>,
         tracker: &mut LevelTracker,
     ) -> Self {
-        let header = Header {
-            stamp: Time::from_nanos(stamp_ns),
-            frame_id: root_frame.to_owned(),
-        };
         let kv = |key: &str, value: String| KeyValue {
             key: key.into(),
             value,
@@ -359,8 +400,6 @@ impl Outputs {
         };
         if over_budget {
             level = level.max(Level::Warn);
-        }
-        if over_budget {
             message.push_str(&format!(
                 "; over the latency budget ({:.1} ms > {:.1} ms)",
                 processing_s * 1e3,
@@ -390,103 +429,83 @@ impl Outputs {
                 Err(reason) => values.push(kv("ssm_fault", reason.clone())),
             }
         }
-        let max_distance = f64::from(config.query.max_distance_m);
-        let link_distances = JointState {
-            header: header.clone(),
-            name: result
-                .as_ref()
-                .map(|r| r.links.iter().map(|l| l.link.clone()).collect())
-                .unwrap_or_default(),
-            position: result
-                .as_ref()
-                .map(|r| {
-                    r.links
-                        .iter()
-                        .map(|l| {
-                            // A link beyond per_link_range: the bound it is known to exceed.
-                            l.exact_m
-                                .or(l.lower_m)
-                                .or(l.distance_m)
-                                .or(l.farther_than_m)
-                                .unwrap_or(max_distance)
-                        })
-                        .collect()
-                })
-                .unwrap_or_default(),
-            ..JointState::default()
-        };
-        let nearest = result.as_ref().ok().and_then(|r| r.nearest.as_ref());
-        let markers = match (nearest, distance) {
-            (Some(n), Some(d)) => {
-                let base = Marker {
-                    header: header.clone(),
-                    ns: format!("{source}/closest"),
-                    action: Marker::ADD,
-                    pose: Pose::default(),
-                    color: level.color(),
-                    lifetime: Duration { sec: 1, nanosec: 0 },
-                    ..Marker::default()
-                };
-                let mid = [0, 1, 2].map(|k| 0.5 * (n.point_root[k] + n.robot_point_root[k]));
-                vec![
-                    Marker {
-                        id: 0,
-                        r#type: Marker::LINE_LIST,
-                        scale: Vector3 {
-                            x: 0.005,
-                            ..Vector3::default()
-                        },
-                        points: vec![point(n.robot_point_root), point(n.point_root)],
-                        ..base.clone()
-                    },
-                    Marker {
-                        id: 1,
-                        r#type: Marker::TEXT_VIEW_FACING,
-                        pose: Pose {
-                            position: point(mid),
-                            ..Pose::default()
-                        },
-                        scale: Vector3 {
-                            z: 0.04,
-                            ..Vector3::default()
-                        },
-                        text: format!("{} {d:.3} m", n.link),
-                        ..base
-                    },
-                ]
-            }
-            _ => vec![Marker {
-                header: header.clone(),
-                ns: format!("{source}/closest"),
-                action: Marker::DELETEALL,
-                ..Marker::default()
-            }],
-        };
-        let diagnostics = DiagnosticArray {
-            header: Header {
-                frame_id: String::new(),
-                ..header
-            },
-            status: vec![DiagnosticStatus {
+        Self {
+            level,
+            status: DiagnosticStatus {
                 level: level.diagnostic(),
                 name: format!("{}: {source}", config.node_name),
                 message,
                 hardware_id: robot.to_owned(),
                 values,
-            }],
-        };
-        Self {
-            level,
-            min_distance: distance.map(|data| Float64 { data }),
-            link_distances,
-            closest_points: MarkerArray { markers },
-            diagnostics,
-            safety_stop: Bool {
-                data: level == Level::Error,
             },
-            speed_scaling: speed.map(|s| SpeedScalingFactor { factor: s.factor }),
+            distance,
+            all_self,
+            over_budget,
         }
     }
+}
+
+/// Each link's conservative distance in a result, in the engine's link order (a link beyond
+/// `per_link_range`: the bound it is known to exceed; `max_distance` when nothing is nearer).
+pub fn link_positions(r: &QueryResult, max_distance: f64) -> Vec<f64> {
+    r.links
+        .iter()
+        .map(|l| {
+            l.exact_m
+                .or(l.lower_m)
+                .or(l.distance_m)
+                .or(l.farther_than_m)
+                .unwrap_or(max_distance)
+        })
+        .collect()
+}
+
+/// The markers of a source's nearest point: a line from the robot to it and the distance as
+/// text, coloured by `level`, under the namespace `<source>/closest`.
+pub fn closest_markers(
+    header: &Header,
+    source: &str,
+    nearest: &crate::query::Nearest,
+    d: f64,
+    level: Level,
+) -> Vec<Marker<'static>> {
+    let base = Marker {
+        header: header.clone(),
+        ns: format!("{source}/closest"),
+        action: Marker::ADD,
+        pose: Pose::default(),
+        color: level.color(),
+        lifetime: Duration { sec: 1, nanosec: 0 },
+        ..Marker::default()
+    };
+    let n = nearest;
+    let mid = [0, 1, 2].map(|k| 0.5 * (n.point_root[k] + n.robot_point_root[k]));
+    vec![
+        Marker {
+            id: 0,
+            r#type: Marker::LINE_LIST,
+            scale: Vector3 {
+                x: 0.005,
+                ..Vector3::default()
+            },
+            points: vec![point(n.robot_point_root), point(n.point_root)],
+            ..base.clone()
+        },
+        Marker {
+            id: 1,
+            r#type: Marker::TEXT_VIEW_FACING,
+            pose: Pose {
+                position: point(mid),
+                ..Pose::default()
+            },
+            scale: Vector3 {
+                z: 0.04,
+                ..Vector3::default()
+            },
+            text: format!("{} {d:.3} m", n.link),
+            ..base
+        },
+    ]
 }
 
 #[cfg(test)]
@@ -518,7 +537,7 @@ mod tests {
         }
         let mut names = Names(Vec::new());
         visit_output_topics(&mut names).unwrap();
-        assert_eq!(names.0.len(), 6);
+        assert_eq!(names.0.len(), 7);
         assert!(names.0.iter().all(|(_, m)| !m));
     }
 

@@ -130,6 +130,7 @@ const OWN_DEFINITIONS: &[(&str, &str)] = &[
     (PointField::TYPE, PointField::OWN_DEFINITION),
     (PointCloud2::TYPE, PointCloud2::OWN_DEFINITION),
     (JointState::TYPE, JointState::OWN_DEFINITION),
+    (Range::TYPE, Range::OWN_DEFINITION),
     (Image::TYPE, Image::OWN_DEFINITION),
     (CompressedImage::TYPE, CompressedImage::OWN_DEFINITION),
     (RegionOfInterest::TYPE, RegionOfInterest::OWN_DEFINITION),
@@ -263,7 +264,8 @@ owned_as_is!(
     TfMessage,
     SpeedScalingFactor,
     CameraInfo,
-    StringMessage
+    StringMessage,
+    Range
 );
 
 /// `data` copied out of the sample.

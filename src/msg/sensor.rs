@@ -77,6 +77,24 @@ ros_message!(
     "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n"
 );
 
+/// `sensor_msgs/msg/Range`: the node's fused distance, stamped (`~/distance`). `range` is NaN
+/// where no distance is known (REP 117: an erroneous or invalid reading).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Range {
+    pub header: Header,
+    pub radiation_type: u8,
+    pub field_of_view: f32,
+    pub min_range: f32,
+    pub max_range: f32,
+    pub range: f32,
+    pub variance: f32,
+}
+ros_message!(
+    Range,
+    "sensor_msgs/msg/Range",
+    "uint8 ULTRASOUND=0\nuint8 INFRARED=1\nstd_msgs/Header header\nuint8 radiation_type\nfloat32 field_of_view\nfloat32 min_range\nfloat32 max_range\nfloat32 range\nfloat32 variance\n"
+);
+
 /// `sensor_msgs/msg/Image`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Image<'a> {

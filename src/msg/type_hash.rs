@@ -289,6 +289,11 @@ mod tests {
             "diagnostic_msgs/msg/DiagnosticArray",
             "RIHS01_5a8a36efb05fb25070fa0fb3810290c0e6cd4862b54a8fb975a1ee8dc55a333e",
         ),
+        // Computed by rosbags (its Jazzy type store), which gives every other hash here too.
+        (
+            "sensor_msgs/msg/Range",
+            "RIHS01_b42b62562e93cbfe9d42b82fe5994dfa3d63d7d5c90a317981703f7388adff3a",
+        ),
         (
             "control_msgs/msg/SpeedScalingFactor",
             "RIHS01_0c240f349f2b74e33e8741f83e0f196ddeb6585923663876ed3c1f51f0566037",

@@ -10,7 +10,11 @@
 //! processing thread waits for a slot, runs the monitor and publishes its outputs. It also
 //! checks every source: one silent for longer than its `source_timeout` (or never heard) is a
 //! fault. The node then publishes ERROR diagnostics with the reason and `safety_stop`, and never
-//! a distance.
+//! a distance. Every output is the cell's fused picture over all sources (`monitor::fusion`); it
+//! is also published every `heartbeat_period` when no frame went out, the sources aged by the
+//! clock. Whatever ends the serving (a signal, an error, a panic), the node's last word —
+//! `safety_stop` true, factor 0, "not monitoring: REASON" — goes out before the participant
+//! closes.
 
 pub mod play;
 pub mod record;
@@ -446,18 +450,7 @@ impl Publishers {
     /// join the diagnostics.
     fn publish(&self, frame: Frame, dropped: u64, input_errors: u64) {
         let mut o = frame.outputs;
-        for status in &mut o.diagnostics.status {
-            status.values.extend([
-                crate::msg::KeyValue {
-                    key: "clouds_dropped".into(),
-                    value: dropped.to_string(),
-                },
-                crate::msg::KeyValue {
-                    key: "input_errors".into(),
-                    value: input_errors.to_string(),
-                },
-            ]);
-        }
+        add_counts(&mut o, dropped, input_errors);
         self.publish_outputs(o);
     }
 
@@ -487,6 +480,22 @@ impl Publishers {
         if let Err(e) = o.visit(&mut Publish(self)) {
             log::warn!("publishing: {e}");
         }
+    }
+}
+
+/// The node's own counts (`dropped` clouds, refused inputs), added to every status.
+fn add_counts(o: &mut Outputs, dropped: u64, input_errors: u64) {
+    for status in &mut o.diagnostics.status {
+        status.values.extend([
+            crate::msg::KeyValue {
+                key: "clouds_dropped".into(),
+                value: dropped.to_string(),
+            },
+            crate::msg::KeyValue {
+                key: "input_errors".into(),
+                value: input_errors.to_string(),
+            },
+        ]);
     }
 }
 
@@ -687,15 +696,86 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             m
         }
         Ok((None, task)) => {
+            last_word(&outputs, &config, "shutting down");
             shutdown(task.into_iter().collect(), outputs, node);
             return Ok(());
         }
         Err(e) => {
+            last_word(&outputs, &config, &format!("stopped by an error: {e}"));
             shutdown(Vec::new(), outputs, node);
             return Err(e);
         }
     };
     monitor.probe_gpu();
+    // The subscription tasks, cancelled before the node is dropped: a DDS reader dropped after
+    // its participant has stopped makes RustDDS log an error on every normal shutdown.
+    let mut tasks: Vec<smol::Task<()>> = Vec::new();
+    // Whatever ends the serving — a signal, an error, a panic — the last word goes out before
+    // the participant closes; a panic then goes on unwinding (exit status 101).
+    let served = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        serve(
+            &config,
+            &stop,
+            transport,
+            &mut monitor,
+            &mut node,
+            &executor,
+            &outputs,
+            &mut tasks,
+        )
+    }));
+    let reason = match &served {
+        Ok(Ok(())) => "shutting down".to_string(),
+        Ok(Err(e)) => format!("stopped by an error: {e}"),
+        Err(panic) => format!("stopped by a panic: {}", panic_text(panic.as_ref())),
+    };
+    last_word(&outputs, &config, &reason);
+    shutdown(tasks, outputs, node);
+    match served {
+        Ok(r) => r,
+        Err(panic) => std::panic::resume_unwind(panic),
+    }
+}
+
+/// A panic's message.
+fn panic_text(panic: &(dyn Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".into())
+}
+
+/// The node's last word before it leaves the network: `~/safety_stop` true, `~/speed_scaling` 0
+/// and an ERROR status "not monitoring: REASON", published twice 0.1 s apart on the reliable
+/// outputs so that it is delivered before the participant closes (a controller keeps the last
+/// factor it received: it must be 0).
+fn last_word(outputs: &Publishers, config: &Config, reason: &str) {
+    log::info!("not monitoring: {reason}: safety_stop and a speed-scaling factor of 0 published");
+    for _ in 0..2 {
+        outputs.publish_outputs(Outputs::not_monitoring(config, reason, Time::now_nanos()));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// The environment variable that makes the node panic after that many published frames: a
+/// fault injection for the tests of the last word (never set in use).
+pub const PANIC_AFTER_ENV: &str = "IST_MONITOR_PANIC_AFTER";
+
+/// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
+/// through the monitor, the fused outputs published, silent sources reported, and the fused
+/// state published at least every `heartbeat_period`.
+#[allow(clippy::too_many_arguments)]
+fn serve(
+    config: &Config,
+    stop: &AtomicBool,
+    transport: Transport,
+    monitor: &mut Monitor,
+    node: &mut RosNode,
+    executor: &Arc<smol::Executor<'static>>,
+    outputs: &Publishers,
+    tasks: &mut Vec<smol::Task<()>>,
+) -> Result<()> {
     let sources = config.sources.clone();
     let shared = Arc::new(Shared {
         slots: sources
@@ -709,9 +789,6 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     });
     // Inputs: clouds into slots; TF and joint states into a queue the processing thread drains
     // (they are small; the monitor is owned by that thread).
-    // The subscription tasks, cancelled before the node is dropped: a DDS reader dropped after
-    // its participant has stopped makes RustDDS log an error on every normal shutdown.
-    let mut tasks: Vec<smol::Task<()>> = Vec::new();
     let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
     let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
     let (info_tx, info_rx) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
@@ -723,20 +800,20 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         };
         match s.kind {
             SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
-                &mut node,
+                node,
                 &s.topic,
                 qos,
-                &executor,
+                executor,
                 k,
                 &shared,
                 SourceMessage::Cloud,
             )?),
             SourceKind::DepthImage => {
                 tasks.push(source_task::<Image<'static>>(
-                    &mut node,
+                    node,
                     &s.topic,
                     qos.clone(),
-                    &executor,
+                    executor,
                     k,
                     &shared,
                     SourceMessage::Depth,
@@ -745,10 +822,10 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
                 // gives both; a latched (transient local) publisher is matched too.
                 let topic = s.camera_info_topic.clone().unwrap_or_default();
                 tasks.push(forward(
-                    &mut node,
+                    node,
                     &topic,
                     qos,
-                    &executor,
+                    executor,
                     "camera info",
                     info_tx.clone(),
                     move |m: CameraInfo| (k, m),
@@ -764,10 +841,10 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             RELIABLE_QOS.history(History::KeepLast { depth: 100 })
         };
         tasks.push(forward(
-            &mut node,
+            node,
             name,
             qos,
-            &executor,
+            executor,
             name,
             tf_tx.clone(),
             move |m: TfMessage| (m, is_static),
@@ -778,19 +855,25 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         .reliability_best_effort()
         .history(History::KeepLast { depth: 100 });
     tasks.push(forward(
-        &mut node,
+        node,
         &config.joint_states_topic,
         joint_qos,
-        &executor,
+        executor,
         "joint states",
         js_tx,
         |m: JointState| m,
         &shared,
     )?);
-    log_up(&config, &monitor, &node);
+    log_up(config, monitor, node);
     let mut heard = vec![false; sources.len()];
     let mut silent_logged = vec![false; sources.len()];
     let started = Instant::now();
+    let heartbeat = Duration::from_secs_f64(config.heartbeat_period_s);
+    let mut last_published = started;
+    let mut published_frames = 0u64;
+    let panic_after: Option<u64> = std::env::var(PANIC_AFTER_ENV)
+        .ok()
+        .and_then(|v| v.parse().ok());
     let counts = || {
         (
             shared.dropped.load(Ordering::Relaxed),
@@ -864,6 +947,11 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
                     let (d, e) = counts();
                     outputs.publish(frame, d, e);
                 }
+                last_published = Instant::now();
+                published_frames += 1;
+                if panic_after.is_some_and(|n| published_frames >= n) {
+                    panic!("injected after {published_frames} frames ({PANIC_AFTER_ENV})");
+                }
                 last_fault_report[k] = None;
                 continue;
             }
@@ -887,11 +975,20 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
                     let (d, e) = counts();
                     outputs.publish(frame, d, e);
                 }
+                last_published = Instant::now();
                 last_fault_report[k] = Some(now);
             }
         }
+        // The heartbeat: the fused state, aged by the clock, when no frame went out for a
+        // heartbeat period (a subscriber can tell a quiet monitor from a dead one).
+        if last_published.elapsed() >= heartbeat {
+            let (d, e) = counts();
+            let mut o = monitor.heartbeat(Time::now_nanos());
+            add_counts(&mut o, d, e);
+            outputs.publish_outputs(o);
+            last_published = Instant::now();
+        }
     }
-    shutdown(tasks, outputs, node);
     Ok(())
 }
 

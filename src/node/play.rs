@@ -123,7 +123,9 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
             move |item| {
                 if let Ok((m, _)) = item {
                     let now = Instant::now();
-                    let at = super::lock(&sent).get(&m.header.stamp.as_nanos()).copied();
+                    // The first output with a cloud's stamp answers it; the node's heartbeat
+                    // repeats the stamp of the state it holds.
+                    let at = super::lock(&sent).remove(&m.header.stamp.as_nanos());
                     if let Some(at) = at {
                         super::lock(&latencies).push(now.duration_since(at).as_secs_f64() * 1e3);
                     }

@@ -168,6 +168,46 @@ pub fn edit_cloud(
     ist_monitor::msg::encode(&c).unwrap()
 }
 
+/// The second camera's topic in [`write_two_camera_bag`].
+pub const SECOND_CAMERA_TOPIC: &str = "/wall/points";
+
+/// Writes the demo bag with a second camera on [`SECOND_CAMERA_TOPIC`] to `path`: 1 ms after
+/// each demo cloud, a cloud with the same header that sees only a wall 3.5 m ahead (nothing
+/// near the arm), or (`blinded`) one whose every point is NaN.
+pub fn write_two_camera_bag(path: &Path, blinded: bool) {
+    use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
+    use ist_monitor::cloud::pointcloud2;
+    let messages = read_messages(Path::new(DEMO_BAG), &|_, _| true).unwrap();
+    let mut w = BagWriter::create(path, Compression::None).unwrap();
+    let wall: Vec<[f32; 3]> = (0..400)
+        .map(|i| {
+            let (u, v) = ((i % 20) as f32 / 19.0, (i / 20) as f32 / 19.0);
+            if blinded {
+                [f32::NAN; 3]
+            } else {
+                [2.0 * u - 1.0, 2.0 * v - 1.0, 3.5]
+            }
+        })
+        .collect();
+    for m in &messages {
+        w.write_cdr(&m.topic, &m.schema, m.log_time_ns, &m.data)
+            .unwrap();
+        if &*m.topic == DEMO_CLOUD_TOPIC {
+            let c = pointcloud2::decode(&m.data).unwrap();
+            let layout = pointcloud2::Layout::unorganized(wall.len() as u32);
+            let second = pointcloud2::encode(c.header.clone(), &wall, &layout).unwrap();
+            w.write_cdr(
+                SECOND_CAMERA_TOPIC,
+                &m.schema,
+                m.log_time_ns + 1_000_000,
+                &ist_monitor::msg::encode(&second).unwrap(),
+            )
+            .unwrap();
+        }
+    }
+    w.finish().unwrap();
+}
+
 /// Writes the demo bag with the [`FAULTS`] to `path`: an all-NaN cloud, a stamp of 0, a stamp
 /// 1 s old and one 1 s ahead of the log time, a frame no transform reaches, a height the data
 /// does not hold, and no joint state in the 0.15 s before a cloud.

@@ -14,6 +14,12 @@ package) talks to ist_monitor under the ROS 2 naming, as a standard ROS 2 node w
                             rt/joint_trajectory_controller/speed_scaling_input (where the node is
                             remapped to publish it) until its factor reaches 0.2 (or 10 s pass):
                             the last one received
+    cyclonedds_interop.py --watch S
+                            as above without the robot description; then prints `watching` and
+                            goes on publishing the cloud for S seconds while it records every
+                            std_msgs/Bool on rt/ist_monitor/safety_stop and every factor; the
+                            JSON then also has "stops" and "factors", in the order received
+                            (what a controller and a safety PLC saw last when the node stopped)
 """
 import os
 import sys
@@ -75,6 +81,11 @@ class SpeedScalingFactor_(IdlStruct, typename="control_msgs::msg::dds_::SpeedSca
 
 
 @dataclass
+class Bool_(IdlStruct, typename="std_msgs::msg::dds_::Bool_"):
+    data: bool
+
+
+@dataclass
 class String_(IdlStruct, typename="std_msgs::msg::dds_::String_"):
     data: str
 
@@ -93,8 +104,14 @@ def cloud():
 
 def main():
     dp = DomainParticipant(0)
-    if len(sys.argv) > 1:
-        urdf = os.path.abspath(sys.argv[1])
+    args = sys.argv[1:]
+    watch = None
+    if "--watch" in args:
+        i = args.index("--watch")
+        watch = float(args[i + 1])
+        del args[i:i + 2]
+    if args:
+        urdf = os.path.abspath(args[0])
         text = open(urdf).read().replace('filename="meshes/',
                                          f'filename="file://{os.path.dirname(urdf)}/meshes/')
         description = DataWriter(dp, Topic(dp, "rt/robot_description", String_), qos=Qos(
@@ -105,6 +122,8 @@ def main():
     writer = DataWriter(dp, cloud_topic, qos=Qos(Policy.Reliability.BestEffort))
     out_topic = Topic(dp, "rt/ist_monitor/min_distance", Float64_)
     reader = DataReader(dp, out_topic, qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1)))
+    stop_reader = DataReader(dp, Topic(dp, "rt/ist_monitor/safety_stop", Bool_), qos=Qos(
+        Policy.Reliability.Reliable(max_blocking_time=1), Policy.History.KeepLast(1000)))
     deadline = time.time() + 30
     received = None
     while time.time() < deadline and received is None:
@@ -123,7 +142,23 @@ def main():
         time.sleep(0.1)
         for sample in scaling.take(N=10):
             factor = sample.factor
-    print(json.dumps({"min_distance": received, "speed_scaling": factor}))
+    out = {"min_distance": received, "speed_scaling": factor}
+    if watch is not None:
+        # A writer that leaves sends an invalid sample (no data): not a message.
+        stops = [s.data for s in stop_reader.take(N=1000) if isinstance(s, Bool_)]
+        factors = [factor] if factor is not None else []
+        print("watching", flush=True)
+        end = time.time() + watch
+        while time.time() < end:
+            writer.write(cloud())
+            time.sleep(0.1)
+            stops += [s.data for s in stop_reader.take(N=1000) if isinstance(s, Bool_)]
+            factors += [
+                s.factor for s in scaling.take(N=100) if isinstance(s, SpeedScalingFactor_)
+            ]
+        out["stops"] = stops
+        out["factors"] = factors
+    print(json.dumps(out))
 
 
 if __name__ == "__main__":

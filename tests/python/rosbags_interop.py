@@ -20,8 +20,8 @@ from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-TS = get_typestore(Stores.ROS2_HUMBLE)
-# The Humble store has no control_msgs: SpeedScalingFactor is registered from its .msg text as
+TS = get_typestore(Stores.ROS2_JAZZY)
+# The Jazzy store has no control_msgs: SpeedScalingFactor is registered from its .msg text as
 # control_msgs (ros-controls) defines it, comments and all, so that rosbags parses it itself.
 TS.register(get_types_from_msg(
     '# A factor to scale trajectory execution by: 1.0 is normal speed, 0.0 a full pause.\n'

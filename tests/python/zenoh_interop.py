@@ -4,17 +4,20 @@ with each type's REP-2016 hash as ROS 2 Jazzy computes it (the table below, copi
 code ROS 2 generates, not from ist_monitor), CDR payloads with their encapsulation header, and
 the rmw_zenoh attachment (sequence number, source timestamp, source gid).
 
-    zenoh_interop.py ENDPOINT [--latched TOPIC=FILE,TYPE] [--delay S] TOPIC=FILE,TYPE ...
+    zenoh_interop.py ENDPOINT [--latched TOPIC=FILE,TYPE] [--delay S] [--together] TOPIC=FILE,TYPE ...
 
 Connects to ENDPOINT (a router, tcp/localhost:7447). `--latched` publishes that message once, at
 once, as rmw_zenoh publishes a transient-local topic (`/tf_static`): from a cache that
 late-joining subscribers query. After `--delay` seconds (default 0), for each TOPIC=FILE in order,
 publishes the CDR payload in FILE on TOPIC at 10 Hz for 2 s with its header stamp set to now
+(with `--together`, every TOPIC in each 10 Hz cycle, in order, for 2 s: the distances are then
+listed under "together")
 (bytes 4..12 of the payload: sec, nanosec), while subscribed, as an rmw_zenoh subscriber is, to
 the exact keys of `/ist_monitor/min_distance` (Float64) and `/diagnostics` (DiagnosticArray).
 TYPE is the DDS type name (`sensor_msgs::msg::dds_::Image_`). Prints, as JSON:
 {"distances": {topic: [distances received while it was published]}, "diagnostics": count,
-"attachments": [[length, sequence number], ...] of the distances, "liveliness": [the keys of
+"attachments": [[length, sequence number], ...] of the distances, "lower_m": {status name:
+the last `lower_m` value of that status in /diagnostics}, "liveliness": [the keys of
 the liveliness tokens under @ros2_lv/0/**], "speed_scaling": [the factors in the node's
 `~/speed_scaling` cache that a late-joining rmw_zenoh subscriber receives]}.
 
@@ -59,6 +62,39 @@ def key(topic, dds_type):
     return f"0/{topic.strip('/')}/{dds_type}/{ROS_2_HASH[dds_type]}"
 
 
+def parse_diagnostics(payload):
+    """The (name, {key: value}) of each status of a CDR diagnostic_msgs/DiagnosticArray."""
+    little = payload[1] == 1
+    b = payload[4:]
+    pos = 0
+
+    def u32():
+        nonlocal pos
+        pos += (-pos) % 4
+        (v,) = struct.unpack_from("<I" if little else ">I", b, pos)
+        pos += 4
+        return v
+
+    def string():
+        nonlocal pos
+        n = u32()
+        s = b[pos:pos + n - 1].decode()
+        pos += n
+        return s
+
+    u32(), u32(), string()  # header: stamp, frame_id
+    statuses = []
+    for _ in range(u32()):
+        pos += 1  # level
+        name, _message, _hardware_id = string(), string(), string()
+        values = {}
+        for _ in range(u32()):
+            k = string()
+            values[k] = string()
+        statuses.append((name, values))
+    return statuses
+
+
 def main():
     refuse_outside_private_network()
     import zenoh
@@ -68,8 +104,12 @@ def main():
     plan = []
     latched = []
     delay = 0.0
+    together = False
     args = iter(sys.argv[2:])
     for arg in args:
+        if arg == "--together":
+            together = True
+            continue
         if arg == "--delay":
             delay = float(next(args))
             continue
@@ -116,9 +156,15 @@ def main():
             received.append((time.monotonic(), value))
             attachments.append([len(a), seq])
 
+    lower_m = {}
+
     def on_diagnostics(sample):
+        statuses = parse_diagnostics(bytes(sample.payload.to_bytes()))
         with lock:
             diagnostics[0] += 1
+            for name, values in statuses:
+                if "lower_m" in values:
+                    lower_m[name] = float(values["lower_m"])
 
     sub = session.declare_subscriber(
         key("/ist_monitor/min_distance", "std_msgs::msg::dds_::Float64_"), on_distance
@@ -133,21 +179,26 @@ def main():
         if reply.ok is not None
     ]
     out = {}
-    for topic, dds_type, payload in plan:
-        pub = session.declare_publisher(key(topic, dds_type))
+    groups = [plan] if together else [[p] for p in plan]
+    for group in groups:
+        pubs = [session.declare_publisher(key(topic, dds_type)) for topic, dds_type, _ in group]
         time.sleep(0.5)
         start = time.monotonic()
         for seq in range(1, 21):
-            now = time.time_ns()
-            struct.pack_into("<iI", payload, 4, now // 10**9, now % 10**9)
-            attachment = struct.pack("<qq16s", seq, now, gid)
-            pub.put(bytes(payload), attachment=attachment)
+            for pub, (_, _, payload) in zip(pubs, group):
+                now = time.time_ns()
+                struct.pack_into("<iI", payload, 4, now // 10**9, now % 10**9)
+                attachment = struct.pack("<qq16s", seq, now, gid)
+                pub.put(bytes(payload), attachment=attachment)
             time.sleep(0.1)
         time.sleep(0.5)
         with lock:
-            out[topic] = [v for (t, v) in received if t >= start]
+            out["together" if together else group[0][0]] = [
+                v for (t, v) in received if t >= start
+            ]
             received.clear()
-        pub.undeclare()
+        for pub in pubs:
+            pub.undeclare()
     # What a late joiner gets: a transient-local subscription as rmw_zenoh makes one (an
     # advanced subscriber that fetches the history of the publishers it detects) receives the
     # node's last speed-scaling factors from its publisher's cache: the samples stamped (source
@@ -182,6 +233,7 @@ def main():
                 "attachments": attachments,
                 "liveliness": liveliness,
                 "speed_scaling": speed_scaling,
+                "lower_m": lower_m,
             }
         )
     )
