@@ -65,6 +65,16 @@ impl Drop for Reap {
     }
 }
 
+/// The node with `args`, its output and log kept (read them with `wait_with_output`).
+fn spawn_node(args: &[&str]) -> Child {
+    ist_monitor()
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
 fn spawn(args: &[&str]) -> Child {
     ist_monitor()
         .args(args)
@@ -131,21 +141,16 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
     let dir = tempfile::tempdir().unwrap();
     let record = dir.path().join("outputs.mcap");
     let record_arg = record.to_str().unwrap();
-    let node = ist_monitor()
-        .args([
-            "node",
-            "--ros-args",
-            "-r",
-            "__node:=watch",
-            "-r",
-            "__ns:=/robot1",
-            "-p",
-            "camera.source_timeout:=0.5",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let node = spawn_node(&[
+        "node",
+        "--ros-args",
+        "-r",
+        "__node:=watch",
+        "-r",
+        "__ns:=/robot1",
+        "-p",
+        "camera.source_timeout:=0.5",
+    ]);
     let mut recorder = spawn(&[
         "record",
         "--node",
@@ -249,21 +254,16 @@ fn a_far_camera_never_releases_the_nodes_stop() {
     common::write_two_camera_bag(&bag, false);
     let record = dir.path().join("outputs.mcap");
     let wall_topic = format!("wall.topic:={}", common::SECOND_CAMERA_TOPIC);
-    let node = ist_monitor()
-        .args([
-            "node",
-            "--ros-args",
-            "-p",
-            "sources:=[camera, wall]",
-            "-p",
-            &wall_topic,
-            "-p",
-            "wall.max_range:=4.0",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let node = spawn_node(&[
+        "node",
+        "--ros-args",
+        "-p",
+        "sources:=[camera, wall]",
+        "-p",
+        &wall_topic,
+        "-p",
+        "wall.max_range:=4.0",
+    ]);
     let mut recorder = spawn(&[
         "record",
         "--duration",
