@@ -72,6 +72,10 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
     p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
     p("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
+    p("release_frames", "1", "frames", "a level is lowered only after this many consecutive results allow it (raising is immediate); the delay adds (release_frames − 1) frame periods to the time a stop is held, never to the reaction time"),
+    p("stray_filter.min_points", "1", "points", "a source's nearest point counts only when at least this many of its valid points (itself included) lie within stray_filter.cluster_radius of it; a nearer isolated point is rejected and the query repeated without it. 1: off. The distance is then that of the nearest cluster of min_points points, not of the nearest point"),
+    p("stray_filter.cluster_radius", "0.02", "m", "the radius of a cluster for stray_filter.min_points"),
+    p("stray_filter.max_rejected", "16", "points", "at most this many points are rejected per frame; the nearest point after that counts whatever its neighbours (the conservative side)"),
     p("heartbeat_period", "0.1", "s", "the node publishes the cell's fused state at least this often, also when no cloud arrives, so that a subscriber can tell a quiet monitor from a dead one (> 0)"),
     p("sources", "[camera]", "", "names of the point cloud sources"),
     p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
@@ -135,6 +139,22 @@ pub struct SourceConfig {
     pub reliable: bool,
 }
 
+/// The stray-point filter: a source's nearest point counts only with at least `min_points`
+/// valid points (itself included) within `cluster_radius_m` of it (`monitor`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StrayFilter {
+    pub min_points: u32,
+    pub cluster_radius_m: f64,
+    /// At most this many points rejected per frame.
+    pub max_rejected: u32,
+}
+
+impl StrayFilter {
+    pub fn enabled(&self) -> bool {
+        self.min_points > 1
+    }
+}
+
 /// What a source publishes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SourceKind {
@@ -187,6 +207,10 @@ pub struct Config {
     pub latency_budget_s: f64,
     /// The node publishes the fused state at least this often, s.
     pub heartbeat_period_s: f64,
+    /// A level is lowered only after this many consecutive results allow it.
+    pub release_frames: u32,
+    /// The stray-point filter (`min_points` 1: off).
+    pub stray: StrayFilter,
     pub sources: Vec<SourceConfig>,
     pub static_transforms: Vec<TransformStamped>,
     pub fixed_joint_state: Vec<(String, f64)>,
@@ -278,6 +302,14 @@ impl Values {
             return Err(Self::bad(name, format!("must be finite and ≥ 0, got {v}")));
         }
         Ok(v)
+    }
+    /// A whole number ≥ 1.
+    fn count(&self, name: &str) -> Result<u32, ConfigError> {
+        let n = self.distance(name, name)?;
+        if n < 1.0 || n.fract() != 0.0 || n > u32::MAX as f64 {
+            return Err(Self::bad(name, "must be a whole number ≥ 1"));
+        }
+        Ok(n as u32)
     }
     fn bool(&self, name: &str, template: &str) -> Result<bool, ConfigError> {
         let y = self.raw(name, template);
@@ -524,16 +556,9 @@ impl Config {
                 n as usize
             },
         };
-        let count = |name: &str| -> Result<u32, ConfigError> {
-            let n = v.distance(name, name)?;
-            if n < 1.0 || n.fract() != 0.0 || n > u32::MAX as f64 {
-                return Err(Values::bad(name, "must be a whole number ≥ 1"));
-            }
-            Ok(n as u32)
-        };
         let mut build = BuildOptions::default();
-        build.packing.max_spheres = count("max_spheres")?;
-        build.packing.start_spheres = count("start_spheres")?;
+        build.packing.max_spheres = v.count("max_spheres")?;
+        build.packing.start_spheres = v.count("start_spheres")?;
         let target_gap = v.distance("target_gap", "target_gap")?;
         if !(target_gap > 0.0 && target_gap.is_finite()) {
             return Err(Values::bad(
@@ -709,6 +734,13 @@ impl Config {
             stop_distance_m,
             hysteresis_m,
             latency_budget_s: v.distance("latency_budget", "latency_budget")?,
+            release_frames: v.count("release_frames")?,
+            stray: StrayFilter {
+                min_points: v.count("stray_filter.min_points")?,
+                cluster_radius_m: v
+                    .distance("stray_filter.cluster_radius", "stray_filter.cluster_radius")?,
+                max_rejected: v.count("stray_filter.max_rejected")?,
+            },
             heartbeat_period_s: match v.distance("heartbeat_period", "heartbeat_period")? {
                 t if t > 0.0 => t,
                 t => {

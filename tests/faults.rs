@@ -18,19 +18,31 @@ const STAMP: i64 = 1_700_000_000_000_000_000;
 /// The demo arm at rest, seen by a sensor `cam` at the root (`world`), joints fixed at 0; and
 /// points on it: the centres of every inner sphere of every link, in the root frame.
 fn arm_at_rest() -> (Monitor, Vec<[f32; 3]>) {
+    let (m, robot, _) = arm_at_rest_with(&[]);
+    (m, robot)
+}
+
+/// As [`arm_at_rest`], with more parameters set; also the top of the arm: the highest point of
+/// its inner spheres, and that sphere's centre and radius.
+fn arm_at_rest_with(extra: &[(&str, &str)]) -> (Monitor, Vec<[f32; 3]>, ([f32; 3], f32)) {
     let (model, trees) = common::demo_trees();
     let names = model.kinematics.variables().to_vec();
     let poses = model.kinematics.link_poses(&vec![0.0; names.len()]);
     let mut robot = Vec::new();
+    let mut top = ([0.0f32; 3], 0.0f32);
     for tree in &trees {
         let pose = poses[model.kinematics.link_index(&tree.link).unwrap()];
         for s in &tree.spheres {
             let c = s.center.map(f64::from);
             let p = pose * Point3::new(c[0], c[1], c[2]);
-            robot.push([p.x as f32, p.y as f32, p.z as f32]);
+            let p = [p.x as f32, p.y as f32, p.z as f32];
+            if robot.is_empty() || p[2] + s.radius > top.0[2] + top.1 {
+                top = (p, s.radius);
+            }
+            robot.push(p);
         }
     }
-    let overrides: Vec<(String, String)> = vec![
+    let mut overrides: Vec<(String, String)> = vec![
         ("robot_description".into(), common::DEMO_URDF.into()),
         ("static_transforms".into(), "[cam]".into()),
         ("cam.parent_frame".into(), "world".into()),
@@ -42,8 +54,13 @@ fn arm_at_rest() -> (Monitor, Vec<[f32; 3]>) {
         ),
         ("backend".into(), "cpu".into()),
     ];
+    overrides.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
     let config = Config::from_overrides(&overrides).unwrap();
-    (Monitor::with_trees(config, model, &trees).unwrap(), robot)
+    (
+        Monitor::with_trees(config, model, &trees).unwrap(),
+        robot,
+        top,
+    )
 }
 
 fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
@@ -231,4 +248,117 @@ fn too_many_links_are_refused_before_any_tree_is_built() {
     let m = Monitor::new(config(&[("links", "[l3, l7]")]), &count).unwrap();
     assert_eq!(m.links(), 2);
     assert_eq!(built.load(std::sync::atomic::Ordering::Relaxed), 2);
+}
+
+const STRAY_FILTER: &[(&str, &str)] = &[
+    ("stray_filter.min_points", "4"),
+    ("stray_filter.cluster_radius", "0.02"),
+];
+
+/// A wall of points 2.5 m up, 5 mm apart: something far that every frame sees.
+fn far_wall() -> Vec<[f32; 3]> {
+    (0..400)
+        .map(|i| [(i % 20) as f32 * 0.005, (i / 20) as f32 * 0.005, 2.5])
+        .collect()
+}
+
+/// One stray point 1.5 cm above the top of the arm (within the stop distance, outside the
+/// self-filter padding), beside a mixed-pixel fringe on the arm's own surface that the
+/// self-filter takes as the robot: without the filter it stops the cell; with it (4 points
+/// within 2 cm), it is rejected (the robot's points are not its neighbours) and counted, and the
+/// far wall is the distance. A real obstacle of 4 points at the same place stops the cell on
+/// its first frame.
+#[test]
+fn a_stray_point_next_to_the_arm_stops_nothing_with_the_filter_on() {
+    let (mut plain, _, (c, r)) = arm_at_rest_with(&[]);
+    let (mut filtered, _, _) = arm_at_rest_with(STRAY_FILTER);
+    let top = [c[0], c[1], c[2] + r];
+    // Points on the top sphere's cap: the robot (distance 0 to an inner sphere).
+    let fringe: Vec<[f32; 3]> = (0..12)
+        .map(|k| {
+            let a = k as f32 * 0.5;
+            let (dx, dy) = (0.1 * r * a.cos(), 0.1 * r * a.sin());
+            let dz = (r * r - dx * dx - dy * dy).sqrt();
+            [c[0] + dx, c[1] + dy, c[2] + dz * 0.999]
+        })
+        .collect();
+    let stray = [top[0], top[1], top[2] + 0.015];
+    let mut cloud = far_wall();
+    cloud.extend(&fringe);
+    cloud.push(stray);
+    let f = frame(&mut plain, &cloud);
+    assert_eq!(
+        f.outputs.level,
+        Level::Error,
+        "without the filter the stray stops"
+    );
+    let f = frame(&mut filtered, &cloud);
+    assert_ne!(f.outputs.level, Level::Error);
+    let d = f.outputs.min_distance.unwrap().data;
+    assert!(d > 1.0, "the wall's distance, got {d}");
+    assert_eq!(value(&f, "points_stray_rejected"), Some("1"));
+    // A real obstacle: 4 points within 1 cm of each other at the stray's place.
+    let (mut fresh, _, _) = arm_at_rest_with(STRAY_FILTER);
+    let mut cloud = far_wall();
+    cloud.extend((0..4).map(|k| [stray[0] + 0.003 * k as f32, stray[1], stray[2] + 0.002]));
+    let f = frame(&mut fresh, &cloud);
+    assert_eq!(
+        f.outputs.level,
+        Level::Error,
+        "a real obstacle stops at once"
+    );
+    assert_eq!(value(&f, "points_stray_rejected"), Some("0"));
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig {
+        cases: 48,
+        ..proptest::prelude::ProptestConfig::default()
+    })]
+
+    /// The filter never raises the distance above that of any cluster of `min_points` points
+    /// within `cluster_radius` of each other, whatever strays lie around it.
+    #[test]
+    fn the_stray_filter_never_hides_a_cluster(
+        strays in proptest::collection::vec(
+            (-0.6f32..0.6, -0.6f32..0.6, 0.0f32..1.2), 0..24),
+        centre in (-0.6f32..0.6, -0.6f32..0.6, 0.0f32..1.2),
+        offsets in proptest::collection::vec(
+            (-0.005f32..0.005, -0.005f32..0.005, -0.005f32..0.005), 4..8),
+    ) {
+        use std::cell::RefCell;
+        thread_local! {
+            static MONITORS: RefCell<Option<(Monitor, Monitor)>> = const { RefCell::new(None) };
+        }
+        MONITORS.with(|m| {
+            let mut m = m.borrow_mut();
+            let (plain, filtered) = m.get_or_insert_with(|| {
+                (arm_at_rest_with(&[]).0, arm_at_rest_with(STRAY_FILTER).0)
+            });
+            let cluster: Vec<[f32; 3]> = offsets
+                .iter()
+                .map(|o| [centre.0 + o.0, centre.1 + o.1, centre.2 + o.2])
+                .collect();
+            let alone = frame(plain, &cluster);
+            let counts = value(&alone, "points_self_filtered").unwrap().to_string();
+            // A cluster that touches the robot is not an obstacle the property is about.
+            proptest::prop_assume!(counts == "0");
+            let Some(d_cluster) = alone.outputs.min_distance.map(|d| d.data) else {
+                return Ok(());
+            };
+            let mut cloud: Vec<[f32; 3]> = strays.iter().map(|s| [s.0, s.1, s.2]).collect();
+            cloud.extend(&cluster);
+            let f = frame(filtered, &cloud);
+            match f.outputs.min_distance {
+                Some(d) => proptest::prop_assert!(
+                    d.data <= d_cluster + 1e-9,
+                    "filtered {} > the cluster's {d_cluster}", d.data
+                ),
+                // Every stray and the cluster point all self-filtered can leave no distance:
+                // never a released stop (the level is held).
+                None => proptest::prop_assert!(f.outputs.level >= Level::Warn),
+            }
+            Ok(())
+        })?;
+    }
 }

@@ -34,6 +34,20 @@ use crate::query::{Outcome, QueryResult};
 
 use super::outputs::{closest_markers, link_positions, Level, LevelTracker, Outputs, SourceReport};
 
+/// What the fused outputs are made for: a frame of `source` stamped `stamp_ns`, or a
+/// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
+struct Moment {
+    source: usize,
+    stamp_ns: i64,
+    /// The clock the sources' results are aged by.
+    now_ns: i64,
+    /// The frame took longer than `latency_budget`.
+    over_budget: bool,
+    /// The speed scaler's factor (`None` with the separation monitor off).
+    factor: Option<f64>,
+    beat: bool,
+}
+
 /// One source's latest frame.
 #[derive(Debug, Clone)]
 struct Latest {
@@ -102,17 +116,15 @@ impl Fusion {
             report,
         });
         let now_ns = now_ns.unwrap_or(stamp_ns);
-        let factor = speed.map(|s| s.factor);
-        self.outputs(
-            config,
-            root_frame,
-            robot,
+        let moment = Moment {
             source,
             stamp_ns,
             now_ns,
             over_budget,
-            factor,
-        )
+            factor: speed.map(|s| s.factor),
+            beat: false,
+        };
+        self.outputs(config, root_frame, robot, moment)
     }
 
     /// The fused outputs at `now_ns` without a new frame (the node's heartbeat): every source's
@@ -126,10 +138,15 @@ impl Fusion {
         now_ns: i64,
         factor: Option<f64>,
     ) -> Outputs {
-        let source = config.sources.iter().position(|s| s.enabled).unwrap_or(0);
-        self.outputs(
-            config, root_frame, robot, source, now_ns, now_ns, false, factor,
-        )
+        let moment = Moment {
+            source: config.sources.iter().position(|s| s.enabled).unwrap_or(0),
+            stamp_ns: now_ns,
+            now_ns,
+            over_budget: false,
+            factor,
+            beat: true,
+        };
+        self.outputs(config, root_frame, robot, moment)
     }
 
     /// Source `k`'s part at `now_ns`.
@@ -165,18 +182,21 @@ impl Fusion {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn outputs(
         &mut self,
         config: &Config,
         root_frame: &str,
         robot: &str,
-        source: usize,
-        stamp_ns: i64,
-        now_ns: i64,
-        over_budget: bool,
-        factor: Option<f64>,
+        moment: Moment,
     ) -> Outputs {
+        let Moment {
+            source,
+            stamp_ns,
+            now_ns,
+            over_budget,
+            factor,
+            beat,
+        } = moment;
         let kv = |key: &str, value: String| KeyValue {
             key: key.into(),
             value,
@@ -231,6 +251,9 @@ impl Fusion {
         };
         let mut level = if !faults.is_empty() {
             fused.update(None)
+        } else if beat {
+            // A heartbeat brings no new result: the level stays as the results left it.
+            fused.level()
         } else if let Some(d) = distance {
             let before = fused.level();
             let level = fused.update(Some(d));

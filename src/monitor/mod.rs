@@ -662,7 +662,7 @@ impl Monitor {
             }
         }
         let width = (cloud.height > 1).then_some(cloud.width as usize);
-        self.measure(stamp_ns, &frame, &cloud.points, width, now_ns)
+        self.measure(stamp_ns, &frame, &mut cloud.points, width, now_ns)
     }
 
     /// A depth image: its points made with the source's camera model (`cloud::depth`), then
@@ -695,7 +695,7 @@ impl Monitor {
             .map_err(Fault::Decode)
             .and_then(|()| {
                 let width = (image.height > 1).then_some(image.width as usize);
-                self.measure(stamp_ns, &frame, &points, width, now_ns)
+                self.measure(stamp_ns, &frame, &mut points, width, now_ns)
             });
         self.depth_points = points;
         result
@@ -707,7 +707,7 @@ impl Monitor {
         &mut self,
         stamp_ns: i64,
         frame: &str,
-        points: &[[f32; 3]],
+        points: &mut [[f32; 3]],
         width: Option<usize>,
         now_ns: Option<i64>,
     ) -> Result<(QueryResult, Motion), Fault> {
@@ -726,13 +726,16 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
-        let result = self.engine.query_image(
+        let mut result = self.engine.query_image(
             points,
             width,
             &root_from_sensor,
             &poses,
             &self.config.query,
         )?;
+        if self.config.stray.enabled() {
+            result = self.reject_strays(points, width, &root_from_sensor, &poses, result)?;
+        }
         if result.outcome == Outcome::NoPoints {
             return Err(Fault::NoValidPoints {
                 total: result.counts.total,
@@ -744,5 +747,63 @@ impl Monitor {
             age_s: now_ns.map_or(0.0, |n| ((n - stamp_ns) as f64 * 1e-9).max(0.0)),
         };
         Ok((result, motion))
+    }
+
+    /// The stray-point filter (`stray_filter`): while the nearest point has fewer than
+    /// `min_points` obstacle points (itself included) within `cluster_radius` — its neighbours
+    /// that the self-filter takes as the robot do not count — it is made invalid and the query
+    /// repeated, at most `max_rejected` times; after that the nearest point counts, whatever its
+    /// neighbours. A real obstacle of `min_points` points within `cluster_radius` of each other
+    /// is never rejected, so the distance is never above that of any such cluster.
+    fn reject_strays(
+        &mut self,
+        points: &mut [[f32; 3]],
+        width: Option<usize>,
+        root_from_sensor: &Isometry3<f64>,
+        poses: &[Isometry3<f64>],
+        mut result: QueryResult,
+    ) -> Result<QueryResult, Fault> {
+        let stray = self.config.stray;
+        let r2 = stray.cluster_radius_m * stray.cluster_radius_m;
+        let mut rejected = 0;
+        let mut neighbours = Vec::new();
+        while rejected < stray.max_rejected {
+            let Some(i) = result.nearest.as_ref().map(|n| n.point_index as usize) else {
+                break;
+            };
+            let p = points[i].map(f64::from);
+            neighbours.clear();
+            neighbours.extend(points.iter().enumerate().filter_map(|(j, q)| {
+                let d2: f64 = (0..3).map(|k| (f64::from(q[k]) - p[k]).powi(2)).sum();
+                (j != i && d2 <= r2).then_some(*q)
+            }));
+            // The neighbours the self-filter keeps: obstacle points, not the robot.
+            let obstacle = if neighbours.is_empty() {
+                0
+            } else {
+                let n = self.engine.query_image(
+                    &neighbours,
+                    None,
+                    root_from_sensor,
+                    poses,
+                    &self.config.query,
+                )?;
+                n.counts.total - n.counts.invalid - n.counts.self_filtered
+            };
+            if obstacle + 1 >= u64::from(stray.min_points) {
+                break;
+            }
+            points[i] = [f32::NAN; 3];
+            rejected += 1;
+            result = self.engine.query_image(
+                points,
+                width,
+                root_from_sensor,
+                poses,
+                &self.config.query,
+            )?;
+        }
+        result.stray_rejected = u64::from(rejected);
+        Ok(result)
     }
 }

@@ -65,6 +65,10 @@ pub struct LevelTracker {
     stop_m: f64,
     hysteresis_m: f64,
     level: Level,
+    /// A lower level is taken after this many consecutive updates allow it.
+    release_frames: u32,
+    /// Consecutive updates so far that allowed a lower level.
+    lower_streak: u32,
 }
 
 impl LevelTracker {
@@ -74,13 +78,18 @@ impl LevelTracker {
             stop_m: config.stop_distance_m,
             hysteresis_m: config.hysteresis_m,
             level: Level::Ok,
+            release_frames: config.release_frames.max(1),
+            lower_streak: 0,
         }
     }
 
     /// The level when nothing about the distance can be said but no input failed either: at
     /// least `floor`, and never below the level held (the stop stays as it was).
     pub fn hold_at_least(&mut self, floor: Level) -> Level {
-        self.level = self.level.max(floor);
+        if floor > self.level {
+            self.level = floor;
+            self.lower_streak = 0;
+        }
         self.level
     }
 
@@ -93,6 +102,7 @@ impl LevelTracker {
     pub fn update(&mut self, d: Option<f64>) -> Level {
         let Some(d) = d else {
             self.level = Level::Error;
+            self.lower_streak = 0;
             return self.level;
         };
         // Thresholds are raised by the hysteresis for the levels we are above.
@@ -104,13 +114,24 @@ impl LevelTracker {
             }
         };
         let current = self.level;
-        self.level = if d < up(Level::Error, self.stop_m, current) {
+        let target = if d < up(Level::Error, self.stop_m, current) {
             Level::Error
         } else if d < up(Level::Warn, self.warn_m, current) {
             Level::Warn
         } else {
             Level::Ok
         };
+        // Raising is immediate; lowering waits for `release_frames` results in a row.
+        if target >= current {
+            self.lower_streak = 0;
+            self.level = target;
+        } else {
+            self.lower_streak += 1;
+            if self.lower_streak >= self.release_frames {
+                self.lower_streak = 0;
+                self.level = target;
+            }
+        }
         self.level
     }
 }
@@ -363,6 +384,9 @@ impl SourceReport {
                     kv("points_self_filtered", c.self_filtered.to_string()),
                     kv("points_invalid", c.invalid.to_string()),
                 ]);
+                if config.stray.enabled() {
+                    values.push(kv("points_stray_rejected", r.stray_rejected.to_string()));
+                }
                 values.extend(
                     r.self_filtered_by_link.iter().map(|(link, n)| {
                         kv(&format!("points_self_filtered.{link}"), n.to_string())
@@ -566,5 +590,24 @@ mod tests {
         }
         assert_eq!(t.update(None), Level::Error);
         assert_eq!(t.update(Some(0.11)), Level::Error);
+    }
+
+    #[test]
+    fn a_level_is_lowered_only_after_release_frames_in_a_row() {
+        let config = Config {
+            release_frames: 3,
+            ..Config::default()
+        };
+        let mut t = LevelTracker::new(&config);
+        // Raising is immediate.
+        assert_eq!(t.update(Some(0.05)), Level::Error);
+        // Two clear results are not enough; one near result starts the count again.
+        assert_eq!(t.update(Some(1.0)), Level::Error);
+        assert_eq!(t.update(Some(1.0)), Level::Error);
+        assert_eq!(t.update(Some(0.05)), Level::Error);
+        assert_eq!(t.update(Some(1.0)), Level::Error);
+        assert_eq!(t.update(Some(1.0)), Level::Error);
+        assert_eq!(t.update(Some(1.0)), Level::Ok);
+        assert_eq!(t.update(Some(0.2)), Level::Warn);
     }
 }

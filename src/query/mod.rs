@@ -732,6 +732,8 @@ pub struct QueryResult {
     /// The spacing of the cloud's f32 coordinates where the robot is, m: every point is known to
     /// within √3/2 of it, and the interval holds for the points as given.
     pub point_spacing_m: f32,
+    /// Points the monitor's stray-point filter rejected (`config::StrayFilter`; 0 here).
+    pub stray_rejected: u64,
 }
 
 /// What one query asks: the cloud, where its sensor is, how the robot is posed, the options.

@@ -256,6 +256,7 @@ fn assemble(
         nearest,
         links: link_results,
         counts,
+        stray_rejected: 0,
         self_filtered_by_link: links
             .iter()
             .zip(&bounds.self_filtered)
