@@ -131,6 +131,8 @@ pub struct Frame {
     pub processing_s: f64,
     /// Speed and separation monitoring (`None` when `speed_scaling.enabled` is off).
     pub speed: Option<SpeedScaling>,
+    /// Fusion with the other sources' latest results and the outputs' messages, s.
+    pub outputs_s: f64,
     pub outputs: Outputs,
 }
 
@@ -538,6 +540,7 @@ impl Monitor {
             .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
         let result = processed.map(|(r, _)| r);
         let name = self.config.sources[source].name.clone();
+        let fusion_start = Instant::now();
         let outputs = self.fusion.frame(
             &self.config,
             self.model.kinematics.root_link(),
@@ -555,6 +558,7 @@ impl Monitor {
             result,
             processing_s,
             speed,
+            outputs_s: fusion_start.elapsed().as_secs_f64(),
             outputs,
         }
     }
@@ -767,30 +771,47 @@ impl Monitor {
         let r2 = stray.cluster_radius_m * stray.cluster_radius_m;
         let mut rejected = 0;
         let mut neighbours = Vec::new();
+        let self_filter_only = crate::query::QueryOptions {
+            mode: crate::query::Mode::Fast,
+            per_link: false,
+            backend: crate::query::Backend::Cpu,
+            ..self.config.query
+        };
         while rejected < stray.max_rejected {
             let Some(i) = result.nearest.as_ref().map(|n| n.point_index as usize) else {
                 break;
             };
-            let p = points[i].map(f64::from);
+            let p = points[i];
+            // An f32 test with a margin over every point, then the exact one in f64 on the few
+            // it keeps; NaN points fail both.
+            let r2_f32 = (r2 * (1.0 + 1e-4)) as f32;
             neighbours.clear();
-            neighbours.extend(points.iter().enumerate().filter_map(|(j, q)| {
-                let d2: f64 = (0..3).map(|k| (f64::from(q[k]) - p[k]).powi(2)).sum();
-                (j != i && d2 <= r2).then_some(*q)
-            }));
-            // The neighbours the self-filter keeps: obstacle points, not the robot.
-            let obstacle = if neighbours.is_empty() {
-                0
-            } else {
-                let n = self.engine.query_image(
-                    &neighbours,
-                    None,
-                    root_from_sensor,
-                    poses,
-                    &self.config.query,
-                )?;
-                n.counts.total - n.counts.invalid - n.counts.self_filtered
-            };
-            if obstacle + 1 >= u64::from(stray.min_points) {
+            for (j, q) in points.iter().enumerate() {
+                let (dx, dy, dz) = (q[0] - p[0], q[1] - p[1], q[2] - p[2]);
+                if dx * dx + dy * dy + dz * dz <= r2_f32 && j != i {
+                    let d2: f64 = (0..3)
+                        .map(|k| (f64::from(q[k]) - f64::from(p[k])).powi(2))
+                        .sum();
+                    if d2 <= r2 {
+                        neighbours.push(*q);
+                    }
+                }
+            }
+            // The neighbours the self-filter keeps: obstacle points, not the robot. Asked in
+            // batches (most neighbours of a real obstacle are obstacle points), with the
+            // self-filter of the query and nothing else.
+            let needed = u64::from(stray.min_points) - 1;
+            let mut obstacle = 0;
+            for batch in neighbours.chunks(8 * stray.min_points as usize) {
+                let n = self
+                    .engine
+                    .query(batch, root_from_sensor, poses, &self_filter_only)?;
+                obstacle += n.counts.total - n.counts.invalid - n.counts.self_filtered;
+                if obstacle >= needed {
+                    break;
+                }
+            }
+            if obstacle >= needed {
                 break;
             }
             points[i] = [f32::NAN; 3];

@@ -61,6 +61,8 @@ pub struct ReplayFrame {
     pub ssm_link: Option<String>,
     /// Time of the separation stage, ms.
     pub ssm_ms: Option<f64>,
+    /// Time of the fusion across sources and the output messages, ms.
+    pub outputs_ms: f64,
     /// Why the separation monitor gave 0, when it did.
     pub ssm_fault: Option<String>,
     /// The recorded approach speed and separation margin, when the bag has them.
@@ -280,6 +282,7 @@ pub fn replay(
             nearest_approach_mps: separation.and_then(|s| s.nearest_approach_mps),
             ssm_link: separation.map(|s| s.link.clone()),
             ssm_ms: frame.speed.as_ref().map(|s| s.stage_s * 1e3),
+            outputs_ms: frame.outputs_s * 1e3,
             ssm_fault: frame
                 .speed
                 .as_ref()

@@ -1,9 +1,11 @@
 //! Benchmarks: `bench packing` (here), `bench query` (`query.rs`, with its plot in `plot.rs`),
-//! `bench gpu` (`gpu.rs`) and `bench ssm` (`ssm.rs`, the separation monitor), over the real scenes of `scenes.rs`. Figures are medians with
+//! `bench gpu` (`gpu.rs`), `bench ssm` (`ssm.rs`, the separation monitor) and `bench monitor`
+//! (`monitor.rs`, fusion and the stray-point filter), over the real scenes of `scenes.rs`. Figures are medians with
 //! the 10th and 90th percentiles ([`ist_monitor::stats::Spread`]), each beside a floor or a
 //! peer measured in the same run.
 
 mod gpu;
+mod monitor;
 mod plot;
 mod query;
 pub mod scenes;
@@ -35,6 +37,9 @@ pub enum Bench {
     /// The speed and separation monitor over the generated approach scene: its cost against
     /// the query of the same frames; with --plot, distance, S_p and the factor over time.
     Ssm(ssm::BenchSsmArgs),
+    /// What the monitor adds to the query on the real Kinect cloud: the fusion across sources
+    /// with the output messages, and the stray-point filter, as ratios to the query.
+    Monitor(monitor::BenchMonitorArgs),
 }
 
 pub fn run(bench: Bench) -> Result<()> {
@@ -43,6 +48,7 @@ pub fn run(bench: Bench) -> Result<()> {
         Bench::Query(args) => query::bench_query(args),
         Bench::Gpu(args) => gpu::bench_gpu(args),
         Bench::Ssm(args) => ssm::bench_ssm(args),
+        Bench::Monitor(args) => monitor::bench_monitor(args),
     }
 }
 
