@@ -15,16 +15,27 @@
 //! clock. Whatever ends the serving (a signal, an error, a panic), the node's last word —
 //! `safety_stop` true, factor 0, "not monitoring: REASON" — goes out before the participant
 //! closes.
+//!
+//! Here: the node's start, serving loop and stop. `ros_args`: the command line after
+//! `--ros-args`. `inputs`: the sources' slots and the forwarded TF, joint states and camera
+//! info. `publishers`: the output table's publishers and the last word. `transport` and
+//! `rmw_zenoh`: DDS or zenoh underneath.
 
+mod inputs;
 pub mod play;
+mod publishers;
 pub mod record;
 pub mod rmw_zenoh;
+mod ros_args;
 pub mod transport;
+
+use inputs::{forward, source_task, Shared, Slot, SourceMessage};
+pub use publishers::PANIC_AFTER_ENV;
+use publishers::{last_word, panic_text, Publishers};
+pub use ros_args::{expand_topic, parse_ros_args, remap_topic, RosArgs};
 
 pub use transport::{Pub, RosNode, Transport};
 
-use std::any::Any;
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -34,11 +45,9 @@ use ros2_client::{MessageTypeName, Name, NodeName};
 
 use crate::config::Config;
 use crate::config::{RobotSource, SourceKind};
-use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
-use crate::monitor::{Frame, Monitor, Outputs};
+use crate::monitor::{Monitor, Outputs};
 use crate::msg::{
-    CameraInfo, Image, JointState, OwnedMessage, PointCloud2, RosMessage, StringMessage, TfMessage,
-    Time,
+    CameraInfo, Image, JointState, PointCloud2, RosMessage, StringMessage, TfMessage, Time,
 };
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
@@ -199,304 +208,6 @@ pub fn source_subscription<T: RosMessage + 'static>(
 pub fn granted_receive_buffer(requested: usize) -> Option<usize> {
     let max = std::fs::read_to_string("/proc/sys/net/core/rmem_max").ok()?;
     Some(requested.min(max.trim().parse().ok()?))
-}
-
-/// The node's command-line remappings (`--ros-args -r __node:=… -r __ns:=… -r FROM:=TO -p
-/// name:=value`).
-#[derive(Debug, Default, Clone)]
-pub struct RosArgs {
-    pub node: Option<String>,
-    pub namespace: Option<String>,
-    /// Topic remappings, `FROM` as given (`~/x`, `x` or `/x`); they apply to the node's output
-    /// topics (its inputs are parameters).
-    pub remaps: Vec<(String, String)>,
-    pub params: Vec<(String, String)>,
-}
-
-/// A topic name as ROS 2 expands it for the node at `node_path` (`/ns/name`): `~/x` is private
-/// to the node, `x` lies in its namespace, `/x` is absolute.
-pub fn expand_topic(name: &str, node_path: &str) -> String {
-    let node_path = node_path.trim_end_matches('/');
-    if let Some(rest) = name.strip_prefix("~/") {
-        return format!("{node_path}/{rest}");
-    }
-    if name.starts_with('/') {
-        return name.to_owned();
-    }
-    let ns = node_path.rsplit_once('/').map_or("", |(ns, _)| ns);
-    format!("{ns}/{name}")
-}
-
-/// The topic `full` (fully qualified) after the first remapping whose `FROM` expands to it.
-pub fn remap_topic(full: &str, remaps: &[(String, String)], node_path: &str) -> String {
-    remaps
-        .iter()
-        .find(|(from, _)| expand_topic(from, node_path) == full)
-        .map_or_else(|| full.to_owned(), |(_, to)| expand_topic(to, node_path))
-}
-
-/// Parses the arguments after `--ros-args`.
-pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
-    let mut out = RosArgs::default();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--ros-args" => {}
-            "-r" | "--remap" => {
-                let r = it
-                    .next()
-                    .ok_or_else(|| NodeError::RosArgs(format!("{a} needs FROM:=TO")))?;
-                let (from, to) = r.split_once(":=").ok_or_else(|| {
-                    NodeError::RosArgs(format!("remapping '{r}' is not FROM:=TO"))
-                })?;
-                match from {
-                    "__node" | "__name" => out.node = Some(to.to_owned()),
-                    "__ns" => out.namespace = Some(to.to_owned()),
-                    _ if from.is_empty() || to.is_empty() || from.starts_with("__") => {
-                        return Err(NodeError::RosArgs(format!(
-                            "remapping '{r}': only __node, __ns and topic names FROM:=TO"
-                        )))
-                    }
-                    _ => out.remaps.push((from.to_owned(), to.to_owned())),
-                }
-            }
-            "-p" | "--param" => {
-                let p = it
-                    .next()
-                    .ok_or_else(|| NodeError::RosArgs(format!("{a} needs NAME:=VALUE")))?;
-                out.params
-                    .push(crate::config::parse_override(p).map_err(NodeError::RosArgs)?);
-            }
-            other => {
-                return Err(NodeError::RosArgs(format!(
-                    "unsupported ROS argument '{other}'"
-                )))
-            }
-        }
-    }
-    Ok(out)
-}
-
-/// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer
-/// numbers its own samples, so two publishers on one topic are followed separately.
-struct SequenceGaps<K> {
-    last: HashMap<K, i64>,
-}
-
-impl<K> Default for SequenceGaps<K> {
-    fn default() -> Self {
-        Self {
-            last: HashMap::new(),
-        }
-    }
-}
-
-impl<K: std::hash::Hash + Eq> SequenceGaps<K> {
-    /// How many samples of `writer` were skipped before `seq`.
-    fn lost(&mut self, writer: K, seq: i64) -> u64 {
-        match self.last.insert(writer, seq) {
-            Some(prev) if seq > prev + 1 => (seq - prev - 1) as u64,
-            _ => 0,
-        }
-    }
-}
-
-/// A source's message: a cloud or a depth image.
-enum SourceMessage {
-    Cloud(PointCloud2<'static>),
-    Depth(Image<'static>),
-}
-
-impl SourceMessage {
-    /// Width, height, frame and bytes of data.
-    fn describe(&self) -> (u32, u32, &str, usize) {
-        match self {
-            Self::Cloud(c) => (c.width, c.height, &c.header.frame_id, c.data.len()),
-            Self::Depth(i) => (i.width, i.height, &i.header.frame_id, i.data.len()),
-        }
-    }
-}
-
-/// The newest unprocessed cloud (or depth image) of a source.
-#[derive(Default)]
-struct Slot {
-    /// The message, when it was received, and the clock then (ns since the epoch).
-    cloud: Option<(SourceMessage, Instant, i64)>,
-    last_received: Option<Instant>,
-}
-
-/// Subscribes to source `k`'s messages of type `T`: each replaces the slot's unprocessed one
-/// (counted as dropped), and gaps in each writer's sequence numbers count as dropped too.
-fn source_task<T: OwnedMessage>(
-    node: &mut RosNode,
-    topic: &str,
-    qos: QosProfile,
-    executor: &smol::Executor<'static>,
-    k: usize,
-    shared: &Arc<Shared>,
-    wrap: fn(T) -> SourceMessage,
-) -> Result<smol::Task<()>> {
-    let shared = shared.clone();
-    let mut gaps = SequenceGaps::default();
-    node.subscribe::<T>(topic, qos, true, executor, move |item| {
-        match item {
-            Ok((m, info)) => {
-                let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
-                shared.dropped.fetch_add(lost, Ordering::Relaxed);
-                let now = Instant::now();
-                let mut slot = lock(&shared.slots[k]);
-                if slot
-                    .cloud
-                    .replace((wrap(m), now, Time::now_nanos()))
-                    .is_some()
-                {
-                    shared.dropped.fetch_add(1, Ordering::Relaxed);
-                }
-                slot.last_received = Some(now);
-                drop(slot);
-                *lock(&shared.wake_lock) = true;
-                shared.wake.notify_one();
-            }
-            Err(e) => {
-                log::warn!("source message: {e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-        true
-    })
-}
-
-/// Forwards each message on `topic`, as `wrap` makes it, to `tx` (the processing thread); a
-/// message that fails to decode is counted and skipped.
-#[allow(clippy::too_many_arguments)]
-fn forward<T: OwnedMessage, U: Send + 'static>(
-    node: &mut RosNode,
-    topic: &str,
-    qos: QosProfile,
-    executor: &smol::Executor<'static>,
-    what: &'static str,
-    tx: std::sync::mpsc::Sender<U>,
-    wrap: impl Fn(T) -> U + Send + 'static,
-    shared: &Arc<Shared>,
-) -> Result<smol::Task<()>> {
-    let shared = shared.clone();
-    node.subscribe::<T>(topic, qos, false, executor, move |item| match item {
-        Ok((m, _)) => tx.send(wrap(m)).is_ok(),
-        Err(e) => {
-            log::warn!("{what}: {e}");
-            shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            true
-        }
-    })
-}
-
-struct Shared {
-    slots: Vec<Mutex<Slot>>,
-    wake: Condvar,
-    wake_lock: Mutex<bool>,
-    dropped: AtomicU64,
-    input_errors: AtomicU64,
-}
-
-/// The node's publishers, one per row of the output table (`OutputTopic`), each a
-/// [`Pub<T>`] of that row's message type.
-struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
-
-impl Publishers {
-    /// A publisher for every output topic of the node at `node_path`.
-    fn new(
-        node: &mut RosNode,
-        node_path: &str,
-        remaps: &[(String, String)],
-        qos: QosProfile,
-    ) -> Result<Self> {
-        struct Create<'a> {
-            node: &'a mut RosNode,
-            node_path: &'a str,
-            remaps: &'a [(String, String)],
-            qos: QosProfile,
-            made: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
-        }
-        impl OutputVisitor for Create<'_> {
-            type Error = NodeError;
-            fn visit<T: OwnedMessage>(&mut self, topic: OutputTopic, _: Option<T>) -> Result<()> {
-                let qos = if topic.transient_local() {
-                    // Reliable, keep the last: what a late-joining controller reads first.
-                    self.qos
-                        .clone()
-                        .durability(Durability::TransientLocal)
-                        .history(History::KeepLast { depth: 1 })
-                } else {
-                    self.qos.clone()
-                };
-                let name = remap_topic(&topic.topic(self.node_path), self.remaps, self.node_path);
-                let p = self.node.publisher::<T>(&name, qos)?;
-                self.made.push((topic, Box::new(p)));
-                Ok(())
-            }
-        }
-        let mut create = Create {
-            node,
-            node_path,
-            remaps,
-            qos,
-            made: Vec::new(),
-        };
-        visit_output_topics(&mut create)?;
-        Ok(Self(create.made))
-    }
-
-    /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
-    /// join the diagnostics.
-    fn publish(&self, frame: Frame, dropped: u64, input_errors: u64) {
-        let mut o = frame.outputs;
-        add_counts(&mut o, dropped, input_errors);
-        self.publish_outputs(o);
-    }
-
-    fn publish_outputs(&self, o: Outputs) {
-        struct Publish<'a>(&'a Publishers);
-        impl OutputVisitor for Publish<'_> {
-            type Error = String;
-            fn visit<T: OwnedMessage>(
-                &mut self,
-                topic: OutputTopic,
-                message: Option<T>,
-            ) -> Result<(), String> {
-                let Some(m) = message else {
-                    return Ok(());
-                };
-                let publisher = (self.0)
-                    .0
-                    .iter()
-                    .find(|(t, _)| *t == topic)
-                    .and_then(|(_, p)| p.downcast_ref::<Pub<T>>())
-                    .ok_or_else(|| format!("{}: no publisher", topic.name()))?;
-                publisher
-                    .publish(m)
-                    .map_err(|e| format!("{}: {e}", topic.name()))
-            }
-        }
-        if let Err(e) = o.visit(&mut Publish(self)) {
-            log::warn!("publishing: {e}");
-        }
-    }
-}
-
-/// The node's own counts (`dropped` clouds, refused inputs), added to every status.
-fn add_counts(o: &mut Outputs, dropped: u64, input_errors: u64) {
-    for status in &mut o.diagnostics.status {
-        status.values.extend([
-            crate::msg::KeyValue {
-                key: "clouds_dropped".into(),
-                value: dropped.to_string(),
-            },
-            crate::msg::KeyValue {
-                key: "input_errors".into(),
-                value: input_errors.to_string(),
-            },
-        ]);
-    }
 }
 
 fn mib(bytes: usize) -> String {
@@ -737,31 +448,6 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     }
 }
 
-/// A panic's message.
-fn panic_text(panic: &(dyn Any + Send)) -> String {
-    panic
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "(no message)".into())
-}
-
-/// The node's last word before it leaves the network: `~/safety_stop` true, `~/speed_scaling` 0
-/// and an ERROR status "not monitoring: REASON", published twice 0.1 s apart on the reliable
-/// outputs so that it is delivered before the participant closes (a controller keeps the last
-/// factor it received: it must be 0).
-fn last_word(outputs: &Publishers, config: &Config, reason: &str) {
-    log::info!("not monitoring: {reason}: safety_stop and a speed-scaling factor of 0 published");
-    for _ in 0..2 {
-        outputs.publish_outputs(Outputs::not_monitoring(config, reason, Time::now_nanos()));
-        std::thread::sleep(Duration::from_millis(100));
-    }
-}
-
-/// The environment variable that makes the node panic after that many published frames: a
-/// fault injection for the tests of the last word (never set in use).
-pub const PANIC_AFTER_ENV: &str = "IST_MONITOR_PANIC_AFTER";
-
 /// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
 /// through the monitor, the fused outputs published, silent sources reported, and the fused
 /// state published at least every `heartbeat_period`.
@@ -945,7 +631,7 @@ fn serve(
                 };
                 {
                     let (d, e) = counts();
-                    outputs.publish(frame, d, e);
+                    outputs.publish(frame.outputs, d, e);
                 }
                 last_published = Instant::now();
                 published_frames += 1;
@@ -973,7 +659,7 @@ fn serve(
                 let frame = monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none());
                 {
                     let (d, e) = counts();
-                    outputs.publish(frame, d, e);
+                    outputs.publish(frame.outputs, d, e);
                 }
                 last_published = Instant::now();
                 last_fault_report[k] = Some(now);
@@ -983,9 +669,7 @@ fn serve(
         // heartbeat period (a subscriber can tell a quiet monitor from a dead one).
         if last_published.elapsed() >= heartbeat {
             let (d, e) = counts();
-            let mut o = monitor.heartbeat(Time::now_nanos());
-            add_counts(&mut o, d, e);
-            outputs.publish_outputs(o);
+            outputs.publish(monitor.heartbeat(Time::now_nanos()), d, e);
             last_published = Instant::now();
         }
     }
@@ -996,52 +680,6 @@ fn serve(
 mod tests {
     use super::*;
     use crate::msg::DiagnosticArray;
-
-    #[test]
-    fn ros_args_remap_and_set_parameters() {
-        let args: Vec<String> = [
-            "--ros-args",
-            "-r",
-            "__node:=watch",
-            "-r",
-            "__ns:=/robot1",
-            "-r",
-            "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
-            "-p",
-            "mode:=exact",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-        let r = parse_ros_args(&args).unwrap();
-        assert_eq!(r.node.as_deref(), Some("watch"));
-        assert_eq!(r.namespace.as_deref(), Some("/robot1"));
-        assert_eq!(r.params, vec![("mode".to_string(), "exact".to_string())]);
-        let to = "/joint_trajectory_controller/speed_scaling_input";
-        assert_eq!(
-            remap_topic("/robot1/watch/speed_scaling", &r.remaps, "/robot1/watch"),
-            to
-        );
-        assert_eq!(
-            remap_topic("/robot1/watch/min_distance", &r.remaps, "/robot1/watch"),
-            "/robot1/watch/min_distance"
-        );
-        let relative = vec![("min_distance".to_string(), "d".to_string())];
-        assert_eq!(
-            remap_topic("/robot1/min_distance", &relative, "/robot1/watch"),
-            "/robot1/d"
-        );
-        for bad in [
-            &["-r", "__foo:=bar"][..],
-            &["-r", ":=bar"],
-            &["-p", "mode"],
-            &["--enclave", "x"],
-            &["-r"],
-        ] {
-            let bad: Vec<String> = bad.iter().map(|s| s.to_string()).collect();
-            assert!(parse_ros_args(&bad).is_err(), "{bad:?}");
-        }
-    }
 
     #[test]
     fn source_topics_keep_two_samples() {
@@ -1061,22 +699,6 @@ mod tests {
                 qos == SENSOR_QOS
             );
         }
-    }
-
-    #[test]
-    fn sequence_gaps_are_counted_per_writer() {
-        let mut g = SequenceGaps::default();
-        // Two writers interleaved, each without a gap: nothing lost.
-        let lost: u64 = [(1, 1), (2, 1), (1, 2), (2, 2), (1, 3), (2, 3)]
-            .into_iter()
-            .map(|(w, s)| g.lost(w, s))
-            .sum();
-        assert_eq!(lost, 0);
-        // Writer 1 skips 4 and 5.
-        assert_eq!(g.lost(1, 6), 2);
-        assert_eq!(g.lost(2, 4), 0);
-        // A restarted writer (its numbers start again) is not a loss.
-        assert_eq!(g.lost(2, 1), 0);
     }
 
     #[test]

@@ -1,0 +1,153 @@
+//! The node's inputs on their way to the processing thread: each source's newest message in its
+//! slot (an older unprocessed one, and a gap in a writer's sequence numbers, count as dropped),
+//! and TF, joint states and camera info forwarded in order through a channel.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Instant;
+
+use super::{lock, QosProfile, Result, RosNode};
+use crate::msg::{Image, OwnedMessage, PointCloud2, Time};
+
+/// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer
+/// numbers its own samples, so two publishers on one topic are followed separately.
+struct SequenceGaps<K> {
+    last: HashMap<K, i64>,
+}
+
+impl<K> Default for SequenceGaps<K> {
+    fn default() -> Self {
+        Self {
+            last: HashMap::new(),
+        }
+    }
+}
+
+impl<K: std::hash::Hash + Eq> SequenceGaps<K> {
+    /// How many samples of `writer` were skipped before `seq`.
+    fn lost(&mut self, writer: K, seq: i64) -> u64 {
+        match self.last.insert(writer, seq) {
+            Some(prev) if seq > prev + 1 => (seq - prev - 1) as u64,
+            _ => 0,
+        }
+    }
+}
+
+/// A source's message: a cloud or a depth image.
+pub(super) enum SourceMessage {
+    Cloud(PointCloud2<'static>),
+    Depth(Image<'static>),
+}
+
+impl SourceMessage {
+    /// Width, height, frame and bytes of data.
+    pub(super) fn describe(&self) -> (u32, u32, &str, usize) {
+        match self {
+            Self::Cloud(c) => (c.width, c.height, &c.header.frame_id, c.data.len()),
+            Self::Depth(i) => (i.width, i.height, &i.header.frame_id, i.data.len()),
+        }
+    }
+}
+
+/// The newest unprocessed cloud (or depth image) of a source.
+#[derive(Default)]
+pub(super) struct Slot {
+    /// The message, when it was received, and the clock then (ns since the epoch).
+    pub(super) cloud: Option<(SourceMessage, Instant, i64)>,
+    pub(super) last_received: Option<Instant>,
+}
+
+/// Subscribes to source `k`'s messages of type `T`: each replaces the slot's unprocessed one
+/// (counted as dropped), and gaps in each writer's sequence numbers count as dropped too.
+pub(super) fn source_task<T: OwnedMessage>(
+    node: &mut RosNode,
+    topic: &str,
+    qos: QosProfile,
+    executor: &smol::Executor<'static>,
+    k: usize,
+    shared: &Arc<Shared>,
+    wrap: fn(T) -> SourceMessage,
+) -> Result<smol::Task<()>> {
+    let shared = shared.clone();
+    let mut gaps = SequenceGaps::default();
+    node.subscribe::<T>(topic, qos, true, executor, move |item| {
+        match item {
+            Ok((m, info)) => {
+                let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
+                shared.dropped.fetch_add(lost, Ordering::Relaxed);
+                let now = Instant::now();
+                let mut slot = lock(&shared.slots[k]);
+                if slot
+                    .cloud
+                    .replace((wrap(m), now, Time::now_nanos()))
+                    .is_some()
+                {
+                    shared.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+                slot.last_received = Some(now);
+                drop(slot);
+                *lock(&shared.wake_lock) = true;
+                shared.wake.notify_one();
+            }
+            Err(e) => {
+                log::warn!("source message: {e}");
+                shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        true
+    })
+}
+
+/// Forwards each message on `topic`, as `wrap` makes it, to `tx` (the processing thread); a
+/// message that fails to decode is counted and skipped.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn forward<T: OwnedMessage, U: Send + 'static>(
+    node: &mut RosNode,
+    topic: &str,
+    qos: QosProfile,
+    executor: &smol::Executor<'static>,
+    what: &'static str,
+    tx: std::sync::mpsc::Sender<U>,
+    wrap: impl Fn(T) -> U + Send + 'static,
+    shared: &Arc<Shared>,
+) -> Result<smol::Task<()>> {
+    let shared = shared.clone();
+    node.subscribe::<T>(topic, qos, false, executor, move |item| match item {
+        Ok((m, _)) => tx.send(wrap(m)).is_ok(),
+        Err(e) => {
+            log::warn!("{what}: {e}");
+            shared.input_errors.fetch_add(1, Ordering::Relaxed);
+            true
+        }
+    })
+}
+
+pub(super) struct Shared {
+    pub(super) slots: Vec<Mutex<Slot>>,
+    pub(super) wake: Condvar,
+    pub(super) wake_lock: Mutex<bool>,
+    pub(super) dropped: AtomicU64,
+    pub(super) input_errors: AtomicU64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sequence_gaps_are_counted_per_writer() {
+        let mut g = SequenceGaps::default();
+        // Two writers interleaved, each without a gap: nothing lost.
+        let lost: u64 = [(1, 1), (2, 1), (1, 2), (2, 2), (1, 3), (2, 3)]
+            .into_iter()
+            .map(|(w, s)| g.lost(w, s))
+            .sum();
+        assert_eq!(lost, 0);
+        // Writer 1 skips 4 and 5.
+        assert_eq!(g.lost(1, 6), 2);
+        assert_eq!(g.lost(2, 4), 0);
+        // A restarted writer (its numbers start again) is not a loss.
+        assert_eq!(g.lost(2, 1), 0);
+    }
+}

@@ -1,0 +1,138 @@
+//! The node's publishers: one per row of the output table (`monitor::outputs::OutputTopic`),
+//! the node's own counts added to every status, and the last word published before the node
+//! leaves the network.
+
+use std::any::Any;
+use std::time::Duration;
+
+use super::{remap_topic, Pub, QosProfile, Result, RosNode};
+use super::{Durability, History, NodeError};
+use crate::config::Config;
+use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
+use crate::monitor::Outputs;
+use crate::msg::{OwnedMessage, Time};
+
+/// The node's publishers, one per row of the output table (`OutputTopic`), each a
+/// [`Pub<T>`] of that row's message type.
+pub(super) struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
+
+impl Publishers {
+    /// A publisher for every output topic of the node at `node_path`.
+    pub(super) fn new(
+        node: &mut RosNode,
+        node_path: &str,
+        remaps: &[(String, String)],
+        qos: QosProfile,
+    ) -> Result<Self> {
+        struct Create<'a> {
+            node: &'a mut RosNode,
+            node_path: &'a str,
+            remaps: &'a [(String, String)],
+            qos: QosProfile,
+            made: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
+        }
+        impl OutputVisitor for Create<'_> {
+            type Error = NodeError;
+            fn visit<T: OwnedMessage>(&mut self, topic: OutputTopic, _: Option<T>) -> Result<()> {
+                let qos = if topic.transient_local() {
+                    // Reliable, keep the last: what a late-joining controller reads first.
+                    self.qos
+                        .clone()
+                        .durability(Durability::TransientLocal)
+                        .history(History::KeepLast { depth: 1 })
+                } else {
+                    self.qos.clone()
+                };
+                let name = remap_topic(&topic.topic(self.node_path), self.remaps, self.node_path);
+                let p = self.node.publisher::<T>(&name, qos)?;
+                self.made.push((topic, Box::new(p)));
+                Ok(())
+            }
+        }
+        let mut create = Create {
+            node,
+            node_path,
+            remaps,
+            qos,
+            made: Vec::new(),
+        };
+        visit_output_topics(&mut create)?;
+        Ok(Self(create.made))
+    }
+
+    /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
+    /// join the diagnostics.
+    pub(super) fn publish(&self, mut o: Outputs, dropped: u64, input_errors: u64) {
+        add_counts(&mut o, dropped, input_errors);
+        self.publish_outputs(o);
+    }
+
+    pub(super) fn publish_outputs(&self, o: Outputs) {
+        struct Publish<'a>(&'a Publishers);
+        impl OutputVisitor for Publish<'_> {
+            type Error = String;
+            fn visit<T: OwnedMessage>(
+                &mut self,
+                topic: OutputTopic,
+                message: Option<T>,
+            ) -> Result<(), String> {
+                let Some(m) = message else {
+                    return Ok(());
+                };
+                let publisher = (self.0)
+                    .0
+                    .iter()
+                    .find(|(t, _)| *t == topic)
+                    .and_then(|(_, p)| p.downcast_ref::<Pub<T>>())
+                    .ok_or_else(|| format!("{}: no publisher", topic.name()))?;
+                publisher
+                    .publish(m)
+                    .map_err(|e| format!("{}: {e}", topic.name()))
+            }
+        }
+        if let Err(e) = o.visit(&mut Publish(self)) {
+            log::warn!("publishing: {e}");
+        }
+    }
+}
+
+/// The node's own counts (`dropped` clouds, refused inputs), added to every status.
+fn add_counts(o: &mut Outputs, dropped: u64, input_errors: u64) {
+    for status in &mut o.diagnostics.status {
+        status.values.extend([
+            crate::msg::KeyValue {
+                key: "clouds_dropped".into(),
+                value: dropped.to_string(),
+            },
+            crate::msg::KeyValue {
+                key: "input_errors".into(),
+                value: input_errors.to_string(),
+            },
+        ]);
+    }
+}
+
+/// A panic's message.
+pub(super) fn panic_text(panic: &(dyn Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".into())
+}
+
+/// The node's last word before it leaves the network: `~/safety_stop` true, `~/speed_scaling` 0
+/// and an ERROR status "not monitoring: REASON", published twice 0.1 s apart on the reliable
+/// outputs so that it is delivered before the participant closes (a controller keeps the last
+/// factor it received: it must be 0).
+pub(super) fn last_word(outputs: &Publishers, config: &Config, reason: &str) {
+    log::info!("not monitoring: {reason}: safety_stop and a speed-scaling factor of 0 published");
+    for _ in 0..2 {
+        outputs.publish_outputs(Outputs::not_monitoring(config, reason, Time::now_nanos()));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// The environment variable that makes the node panic after that many published frames: a
+/// fault injection for the tests of the last word (never set in use).
+pub const PANIC_AFTER_ENV: &str = "IST_MONITOR_PANIC_AFTER";
