@@ -238,17 +238,15 @@ impl Fusion {
             }
         }
         let max_distance = f64::from(config.query.max_distance_m);
-        let holding = measured.iter().any(|(_, l)| l.report.all_self);
+        // What the picture rests on: every measured source, or nothing while one is in fault.
+        let contributing: &[(usize, &Latest)] = if faults.is_empty() { &measured } else { &[] };
+        let holding = contributing.iter().any(|(_, l)| l.report.all_self);
         // The nearest source: the smallest conservative distance.
-        let nearest = measured
+        let nearest = contributing
             .iter()
             .filter_map(|(k, l)| l.report.distance.map(|d| (*k, *l, d)))
             .min_by(|a, b| a.2.total_cmp(&b.2));
-        let distance = if faults.is_empty() {
-            nearest.map(|(_, _, d)| d)
-        } else {
-            None
-        };
+        let distance = nearest.map(|(_, _, d)| d);
         let mut level = if !faults.is_empty() {
             fused.update(None)
         } else if beat {
@@ -270,17 +268,14 @@ impl Fusion {
         if over_budget {
             level = level.max(Level::Warn);
         }
-        let fused_stamp = if faults.is_empty() {
-            measured
-                .iter()
-                .map(|(_, l)| l.stamp_ns)
-                .min()
-                .unwrap_or(stamp_ns)
-        } else {
-            stamp_ns
-        };
         let header = Header {
-            stamp: Time::from_nanos(fused_stamp),
+            stamp: Time::from_nanos(
+                contributing
+                    .iter()
+                    .map(|(_, l)| l.stamp_ns)
+                    .min()
+                    .unwrap_or(stamp_ns),
+            ),
             frame_id: root_frame.to_owned(),
         };
         // Per link, the minimum over the sources (every source's links come in the engine's
@@ -289,29 +284,21 @@ impl Fusion {
             header: header.clone(),
             ..JointState::default()
         };
-        if faults.is_empty() {
-            for (_, l) in &measured {
-                let Ok(r) = &l.result else { continue };
-                let positions = link_positions(r, max_distance);
-                if link_distances.name.is_empty() {
-                    link_distances.name = r.links.iter().map(|l| l.link.clone()).collect();
-                    link_distances.position = positions;
-                } else {
-                    for (p, q) in link_distances.position.iter_mut().zip(positions) {
-                        *p = p.min(q);
-                    }
+        let mut markers = Vec::new();
+        for (k, l) in contributing {
+            let Ok(r) = &l.result else { continue };
+            let positions = link_positions(r, max_distance);
+            if link_distances.name.is_empty() {
+                link_distances.name = r.links.iter().map(|l| l.link.clone()).collect();
+                link_distances.position = positions;
+            } else {
+                for (p, q) in link_distances.position.iter_mut().zip(positions) {
+                    *p = p.min(q);
                 }
             }
-        }
-        let mut markers = Vec::new();
-        if faults.is_empty() {
-            for (k, l) in &measured {
-                if let (Ok(r), Some(d)) = (&l.result, l.report.distance) {
-                    if let Some(n) = &r.nearest {
-                        let name = &config.sources[*k].name;
-                        markers.extend(closest_markers(&header, name, n, d, level));
-                    }
-                }
+            if let (Some(n), Some(d)) = (&r.nearest, l.report.distance) {
+                let name = &config.sources[*k].name;
+                markers.extend(closest_markers(&header, name, n, d, level));
             }
         }
         if markers.is_empty() {
@@ -337,17 +324,15 @@ impl Fusion {
             let name = &config.sources[k].name;
             values.push(kv("distance_m", format!("{d:.6}")));
             values.push(kv("nearest_source", name.clone()));
-            let seen = l.result.as_ref().ok().and_then(|r| r.nearest.as_ref());
+            let seen = (l.result.as_ref().ok())
+                .filter(|r| r.outcome == Outcome::Nearest)
+                .and_then(|r| r.nearest.as_ref());
             match seen {
-                Some(n)
-                    if l.result
-                        .as_ref()
-                        .is_ok_and(|r| r.outcome == Outcome::Nearest) =>
-                {
+                Some(n) => {
                     values.push(kv("link", n.link.clone()));
                     format!("min distance {d:.3} m (source {name}, link {})", n.link)
                 }
-                _ => format!("nothing within {d:.3} m"),
+                None => format!("nothing within {d:.3} m"),
             }
         } else {
             "every source's valid points were all self-filtered: only the robot is seen, or an \

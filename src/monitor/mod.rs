@@ -9,9 +9,11 @@
 //! `source_timeout` or ahead by more than `future_stamp_tolerance` is a fault) → drop points
 //! outside the source's `min_range`/`max_range` (they become invalid points) → the joint values
 //! at the cloud's stamp (`tf::JointStateBuffer`) → forward kinematics → the sensor frame in the
-//! robot's root frame at the stamp (`tf::root_from_sensor`) → the query (`query::Engine`) → the
+//! robot's root frame at the stamp (`tf::root_from_sensor`) → the query (`query::Engine`; with
+//! `stray_filter` on, `stray` rejects isolated nearest points) → the
 //! separation stage (`crate::separation`: joint velocities at the stamp, link twists, the
-//! speed-scaling factor through [`SpeedScaler`]) → outputs. A decode error, a missing or stale
+//! speed-scaling factor through [`SpeedScaler`]) → the outputs, fused over every source's latest
+//! result (`fusion`). A decode error, a missing or stale
 //! transform or joint, and a failed query are faults of that frame: reported with their reason
 //! and an ERROR level, never as a distance (and a speed-scaling factor of 0). The next message is
 //! processed as usual.
@@ -22,6 +24,7 @@
 pub mod fusion;
 pub mod outputs;
 pub mod replay;
+mod stray;
 
 pub use fusion::Fusion;
 pub use outputs::{Level, LevelTracker, Outputs};
@@ -738,7 +741,14 @@ impl Monitor {
             &self.config.query,
         )?;
         if self.config.stray.enabled() {
-            result = self.reject_strays(points, width, &root_from_sensor, &poses, result)?;
+            let input = stray::Input {
+                points,
+                width,
+                root_from_sensor: &root_from_sensor,
+                poses: &poses,
+                options: &self.config.query,
+            };
+            result = stray::reject_strays(&mut self.engine, &self.config.stray, input, result)?;
         }
         if result.outcome == Outcome::NoPoints {
             return Err(Fault::NoValidPoints {
@@ -751,80 +761,5 @@ impl Monitor {
             age_s: now_ns.map_or(0.0, |n| ((n - stamp_ns) as f64 * 1e-9).max(0.0)),
         };
         Ok((result, motion))
-    }
-
-    /// The stray-point filter (`stray_filter`): while the nearest point has fewer than
-    /// `min_points` obstacle points (itself included) within `cluster_radius` — its neighbours
-    /// that the self-filter takes as the robot do not count — it is made invalid and the query
-    /// repeated, at most `max_rejected` times; after that the nearest point counts, whatever its
-    /// neighbours. A real obstacle of `min_points` points within `cluster_radius` of each other
-    /// is never rejected, so the distance is never above that of any such cluster.
-    fn reject_strays(
-        &mut self,
-        points: &mut [[f32; 3]],
-        width: Option<usize>,
-        root_from_sensor: &Isometry3<f64>,
-        poses: &[Isometry3<f64>],
-        mut result: QueryResult,
-    ) -> Result<QueryResult, Fault> {
-        let stray = self.config.stray;
-        let r2 = stray.cluster_radius_m * stray.cluster_radius_m;
-        let mut rejected = 0;
-        let mut neighbours = Vec::new();
-        let self_filter_only = crate::query::QueryOptions {
-            mode: crate::query::Mode::Fast,
-            per_link: false,
-            backend: crate::query::Backend::Cpu,
-            ..self.config.query
-        };
-        while rejected < stray.max_rejected {
-            let Some(i) = result.nearest.as_ref().map(|n| n.point_index as usize) else {
-                break;
-            };
-            let p = points[i];
-            // An f32 test with a margin over every point, then the exact one in f64 on the few
-            // it keeps; NaN points fail both.
-            let r2_f32 = (r2 * (1.0 + 1e-4)) as f32;
-            neighbours.clear();
-            for (j, q) in points.iter().enumerate() {
-                let (dx, dy, dz) = (q[0] - p[0], q[1] - p[1], q[2] - p[2]);
-                if dx * dx + dy * dy + dz * dz <= r2_f32 && j != i {
-                    let d2: f64 = (0..3)
-                        .map(|k| (f64::from(q[k]) - f64::from(p[k])).powi(2))
-                        .sum();
-                    if d2 <= r2 {
-                        neighbours.push(*q);
-                    }
-                }
-            }
-            // The neighbours the self-filter keeps: obstacle points, not the robot. Asked in
-            // batches (most neighbours of a real obstacle are obstacle points), with the
-            // self-filter of the query and nothing else.
-            let needed = u64::from(stray.min_points) - 1;
-            let mut obstacle = 0;
-            for batch in neighbours.chunks(8 * stray.min_points as usize) {
-                let n = self
-                    .engine
-                    .query(batch, root_from_sensor, poses, &self_filter_only)?;
-                obstacle += n.counts.total - n.counts.invalid - n.counts.self_filtered;
-                if obstacle >= needed {
-                    break;
-                }
-            }
-            if obstacle >= needed {
-                break;
-            }
-            points[i] = [f32::NAN; 3];
-            rejected += 1;
-            result = self.engine.query_image(
-                points,
-                width,
-                root_from_sensor,
-                poses,
-                &self.config.query,
-            )?;
-        }
-        result.stray_rejected = u64::from(rejected);
-        Ok(result)
     }
 }
