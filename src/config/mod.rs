@@ -8,6 +8,9 @@
 //! `<transform>.` prefix are declared per entry of the `sources` and `static_transforms` lists.
 //! `-p name:=value` overrides (value in YAML) are applied after the file. Every value is
 //! checked at load, and a bad one is an error that names the parameter.
+//!
+//! `params`: the declaration table. `values`: the flattened values and their typed, checked
+//! accessors. Here: the typed [`Config`] they make.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -20,92 +23,11 @@ use crate::query::{Backend, LinkSelection, Mode, QueryOptions};
 use crate::robot::{urdf::resolve_uri, PackagePath};
 use crate::separation::{SsmParams, StoppingTable};
 
-/// One declared parameter. `default` is YAML text; `~` means "no value" (optional).
-#[derive(Debug, Clone, Copy)]
-pub struct ParamDecl {
-    pub name: &'static str,
-    pub default: &'static str,
-    pub unit: &'static str,
-    pub doc: &'static str,
-}
+mod params;
+mod values;
 
-const fn p(
-    name: &'static str,
-    default: &'static str,
-    unit: &'static str,
-    doc: &'static str,
-) -> ParamDecl {
-    ParamDecl {
-        name,
-        default,
-        unit,
-        doc,
-    }
-}
-
-/// Every parameter of the node. `<source>.x` and `<transform>.x` are declared for each name in
-/// `sources` and `static_transforms`.
-pub const PARAMETERS: &[ParamDecl] = &[
-    p("robot_description", "~", "path", "the robot: a URDF file (relative paths are relative to this file), a package:// URI (resolved through package_paths, ROS_PACKAGE_PATH, AMENT_PREFIX_PATH) or the URDF text itself; required unless robot_description_topic is set"),
-    p("robot_description_topic", "~", "topic", "without robot_description: the node takes the URDF from this std_msgs/String topic (transient local, as robot_state_publisher publishes /robot_description) and reports 'not monitoring' until it arrives"),
-    p("package_paths", "[]", "NAME=DIR", "where package://NAME is found"),
-    p("mode", "certified", "", "fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or exact (distance to the collision meshes)"),
-    p("max_distance", "2.0", "m", "points farther than this from the robot's bounding box are culled"),
-    p("self_filter", "true", "", "drop cloud points on the robot itself"),
-    p("self_filter_padding", "0.01", "m", "a point this close to the robot is the robot"),
-    p("per_link", "true", "", "also compute the minimum of every link"),
-    p("per_link_range", "~", "m", "per-link minima are measured up to this distance; a link farther away is reported as farther than a certified bound, which costs far less (default: warn_distance + hysteresis; .inf: every link measured)"),
-    p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points on a hardware GPU"),
-    p("gpu_min_points", "100000", "points", "crossover of backend auto (measure it with `ist_monitor bench gpu`)"),
-    p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
-    p("exclude_links", "[]", "", "leave these links out"),
-    p("convex_hull_links", "[]", "", "pack these links' convex hulls instead of their meshes ([\"*\"]: every link); a hull contains the link, so only its certified lower bound holds for the link, and that is what is published as its distance"),
-    p("max_spheres", "65536", "", "most inner spheres per link: a link starts with start_spheres and doubles its budget while its certified surface gap h is above target_gap (set it to start_spheres for a fixed budget)"),
-    p("start_spheres", "8192", "", "the sphere budget a link starts with"),
-    p("target_gap", "0.0015", "m", "the surface gap h a link is packed for: the budget grows until h is at most this, or max_spheres is reached"),
-    p("cache_dir", "~", "path", "where the trees are cached (default: $IST_MONITOR_CACHE or ~/.cache/ist_monitor)"),
-    p("joint_states_topic", "/joint_states", "topic", "sensor_msgs/JointState input"),
-    p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
-    p("joint_state_tolerance", "0.1", "s", "a joint state may be this much older or newer than the cloud"),
-    p("future_stamp_tolerance", "0.1", "s", "a cloud stamped more than this ahead of the clock is a fault (clock skew between machines)"),
-    p("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),
-    p("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
-    p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
-    p("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
-    p("release_frames", "1", "frames", "a level is lowered only after this many consecutive results allow it (raising is immediate); the delay adds (release_frames − 1) frame periods to the time a stop is held, never to the reaction time"),
-    p("stray_filter.min_points", "1", "points", "a source's nearest point counts only when at least this many of its valid points (itself included) lie within stray_filter.cluster_radius of it; a nearer isolated point is rejected and the query repeated without it. 1: off. The distance is then that of the nearest cluster of min_points points, not of the nearest point"),
-    p("stray_filter.cluster_radius", "0.02", "m", "the radius of a cluster for stray_filter.min_points"),
-    p("stray_filter.max_rejected", "16", "points", "at most this many points are rejected per frame; the nearest point after that counts whatever its neighbours (the conservative side)"),
-    p("heartbeat_period", "0.1", "s", "the node publishes the cell's fused state at least this often, also when no cloud arrives, so that a subscriber can tell a quiet monitor from a dead one (> 0)"),
-    p("sources", "[camera]", "", "names of the point cloud sources"),
-    p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
-    p("<source>.topic", "/camera/depth/points", "topic", "the source's PointCloud2 or depth Image topic"),
-    p("<source>.camera_info_topic", "~", "topic", "depth_image: the CameraInfo topic (default: camera_info beside the image topic, as image_transport pairs them)"),
-    p("<source>.enabled", "true", "", "whether the source is used"),
-    p("<source>.source_timeout", "0.5", "s", "no cloud for this long, or a cloud stamped longer ago than this, is a fault (as Nav2's collision monitor)"),
-    p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
-    p("<source>.max_range", "~", "m", "points farther from the sensor than this are dropped (default: none)"),
-    p("<source>.qos", "sensor_data", "", "sensor_data (best effort) or reliable"),
-    p("static_transforms", "[]", "", "names of static transforms given here, for bags and setups without /tf_static"),
-    p("<transform>.parent_frame", "~", "frame", "parent frame of the static transform"),
-    p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),
-    p("<transform>.translation", "[0.0, 0.0, 0.0]", "m", "parent_from_child translation x y z"),
-    p("<transform>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "parent_from_child rotation as a quaternion x y z w"),
-    p("fixed_joint_state.names", "[]", "", "joints held at fixed values (for bags without /joint_states)"),
-    p("fixed_joint_state.positions", "[]", "rad or m", "their values, in the same order"),
-    p("speed_scaling.enabled", "true", "", "publish ~/speed_scaling (control_msgs/SpeedScalingFactor) from speed and separation monitoring (ISO/TS 15066); needs joint velocities"),
-    p("speed_scaling.human_speed", "1.6", "m/s", "v_h: the speed a person approaches at (ISO 13855 walking speed)"),
-    p("speed_scaling.reaction_time", "0.1", "s", "T_r without the cloud's age, which is measured and added per cloud"),
-    p("speed_scaling.stopping.speeds", "[0.0, 1.0]", "m/s", "speeds of the stopping table (from 0, increasing); replace the defaults by the robot's stopping measurements"),
-    p("speed_scaling.stopping.times", "[0.0, 0.3]", "s", "T_s: stopping time at each speed (linear between, extrapolated beyond)"),
-    p("speed_scaling.stopping.distances", "[0.0, 0.15]", "m", "S_s: stopping distance at each speed"),
-    p("speed_scaling.intrusion_distance", "0.0", "m", "C: intrusion distance from the sensor's detection capability (ISO 13855)"),
-    p("speed_scaling.sensor_uncertainty", "0.02", "m", "Z_d without the surface gap h (added where the distance is the inner-sphere one)"),
-    p("speed_scaling.robot_uncertainty", "0.01", "m", "Z_r: robot position uncertainty"),
-    p("speed_scaling.hysteresis", "0.05", "", "the factor rises only when the allowed factor exceeds it by this"),
-    p("speed_scaling.max_increase_rate", "0.5", "1/s", "largest rise of the factor per second (decreases are immediate)"),
-    p("speed_scaling.velocities_scaled", "true", "", "the measured joint velocities already carry the factor in effect (a controller obeying ~/speed_scaling): they are divided by it to get the nominal motion"),
-];
+pub use params::{default_of, markdown_table, ParamDecl, PARAMETERS};
+use values::{flatten, scalar_yaml, Values};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
@@ -225,181 +147,6 @@ impl Default for Config {
         Self::from_values("ist_monitor", "/", None, BTreeMap::new())
             .expect("the declared defaults are valid")
     }
-}
-
-fn scalar_yaml(text: &str) -> Yaml {
-    YamlLoader::load_from_str(text)
-        .ok()
-        .and_then(|d| d.into_iter().next())
-        .unwrap_or(Yaml::Null)
-}
-
-/// Flattens nested maps into dotted names.
-fn flatten(prefix: &str, y: &Yaml, out: &mut BTreeMap<String, Yaml>) {
-    match y {
-        Yaml::Hash(h) => {
-            for (k, v) in h {
-                let key = match k {
-                    Yaml::String(s) => s.clone(),
-                    other => format!("{other:?}"),
-                };
-                let name = if prefix.is_empty() {
-                    key
-                } else {
-                    format!("{prefix}.{key}")
-                };
-                flatten(&name, v, out);
-            }
-        }
-        _ => {
-            out.insert(prefix.to_owned(), y.clone());
-        }
-    }
-}
-
-/// Typed access to the flattened values with the declared defaults.
-struct Values {
-    values: BTreeMap<String, Yaml>,
-}
-
-impl Values {
-    fn raw(&self, name: &str, template: &str) -> Yaml {
-        if let Some(v) = self.values.get(name) {
-            return v.clone();
-        }
-        let decl = PARAMETERS
-            .iter()
-            .find(|d| d.name == template)
-            .expect("every read parameter is declared");
-        scalar_yaml(decl.default)
-    }
-    fn bad(name: &str, message: impl Into<String>) -> ConfigError {
-        ConfigError::Invalid {
-            name: name.to_owned(),
-            message: message.into(),
-        }
-    }
-    fn f64_of(name: &str, y: &Yaml) -> Result<f64, ConfigError> {
-        match y {
-            Yaml::Real(_) => y.as_f64(),
-            Yaml::Integer(i) => Some(*i as f64),
-            _ => None,
-        }
-        .ok_or_else(|| Self::bad(name, format!("expected a number, got {}", show(y))))
-    }
-    fn opt_f64(&self, name: &str, template: &str) -> Result<Option<f64>, ConfigError> {
-        match self.raw(name, template) {
-            Yaml::Null => Ok(None),
-            y => Self::f64_of(name, &y).map(Some),
-        }
-    }
-    /// A number ≥ 0 (finite unless `infinite_ok`).
-    fn distance(&self, name: &str, template: &str) -> Result<f64, ConfigError> {
-        let v = self
-            .opt_f64(name, template)?
-            .ok_or_else(|| Self::bad(name, "a value is required"))?;
-        if !(v >= 0.0 && v.is_finite()) {
-            return Err(Self::bad(name, format!("must be finite and ≥ 0, got {v}")));
-        }
-        Ok(v)
-    }
-    /// A whole number ≥ 1.
-    fn count(&self, name: &str) -> Result<u32, ConfigError> {
-        let n = self.distance(name, name)?;
-        if n < 1.0 || n.fract() != 0.0 || n > u32::MAX as f64 {
-            return Err(Self::bad(name, "must be a whole number ≥ 1"));
-        }
-        Ok(n as u32)
-    }
-    fn bool(&self, name: &str, template: &str) -> Result<bool, ConfigError> {
-        let y = self.raw(name, template);
-        y.as_bool()
-            .ok_or_else(|| Self::bad(name, format!("expected true or false, got {}", show(&y))))
-    }
-    fn opt_string(&self, name: &str, template: &str) -> Result<Option<String>, ConfigError> {
-        match self.raw(name, template) {
-            Yaml::Null => Ok(None),
-            Yaml::String(s) => Ok(Some(s)),
-            y => Err(Self::bad(
-                name,
-                format!("expected a string, got {}", show(&y)),
-            )),
-        }
-    }
-    fn string(&self, name: &str, template: &str) -> Result<String, ConfigError> {
-        self.opt_string(name, template)?
-            .ok_or_else(|| Self::bad(name, "a value is required"))
-    }
-    fn strings(&self, name: &str) -> Result<Vec<String>, ConfigError> {
-        let y = self.raw(name, name);
-        let list = y.as_vec().ok_or_else(|| {
-            Self::bad(
-                name,
-                format!("expected a list of strings, got {}", show(&y)),
-            )
-        })?;
-        list.iter()
-            .map(|v| {
-                v.as_str()
-                    .map(str::to_owned)
-                    .ok_or_else(|| Self::bad(name, format!("{} is not a string", show(v))))
-            })
-            .collect()
-    }
-    fn numbers(&self, name: &str, template: &str) -> Result<Vec<f64>, ConfigError> {
-        let y = self.raw(name, template);
-        let list = y.as_vec().ok_or_else(|| {
-            Self::bad(
-                name,
-                format!("expected a list of numbers, got {}", show(&y)),
-            )
-        })?;
-        list.iter()
-            .map(|v| {
-                let x = Self::f64_of(name, v)?;
-                x.is_finite()
-                    .then_some(x)
-                    .ok_or_else(|| Self::bad(name, "values must be finite"))
-            })
-            .collect()
-    }
-}
-
-fn show(y: &Yaml) -> String {
-    match y {
-        Yaml::Real(s) | Yaml::String(s) => s.clone(),
-        Yaml::Integer(i) => i.to_string(),
-        Yaml::Boolean(b) => b.to_string(),
-        Yaml::Null => "nothing".into(),
-        Yaml::Array(_) => "a list".into(),
-        Yaml::Hash(_) => "a map".into(),
-        _ => format!("{y:?}"),
-    }
-}
-
-/// The parameter table in Markdown, as `config/README.md` shows it (`ist_monitor params`).
-pub fn markdown_table() -> String {
-    let mut out = String::from("| parameter | default | unit | meaning |\n|---|---|---|---|\n");
-    for d in PARAMETERS {
-        let default = if d.default == "~" {
-            "(none)"
-        } else {
-            d.default
-        };
-        out.push_str(&format!(
-            "| `{}` | `{default}` | {} | {} |\n",
-            d.name, d.unit, d.doc
-        ));
-    }
-    out
-}
-
-/// The declared default (YAML text) of parameter `name`; `None` for an undeclared name.
-pub fn default_of(name: &str) -> Option<&'static str> {
-    PARAMETERS
-        .iter()
-        .find(|d| d.name == name)
-        .map(|d| d.default)
 }
 
 /// Parses `name:=value` (a `-p` override; the value is YAML).
