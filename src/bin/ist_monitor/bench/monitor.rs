@@ -5,29 +5,24 @@
 //! query of the same frames. The variants are alternated frame by frame in one run, so the
 //! machine's drift hits them alike.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 
 use ist_monitor::bag::read_messages;
-use ist_monitor::config::parse_override;
 use ist_monitor::monitor::Monitor;
 use ist_monitor::stats::Spread;
 
-use crate::cli::{load_config, monitor_from_config};
+use crate::cli::{monitor_from_config, ConfigArgs};
 
 #[derive(Args)]
 pub struct BenchMonitorArgs {
     /// Bag whose first cloud of the first source is measured (default: the Kinect bag of
     /// ../shared/bags/moveit_perception_tutorial).
     bag: Option<PathBuf>,
-    /// ROS 2 parameters file (default: config/panda_perception_tutorial.yaml).
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// Override a parameter, NAME:=VALUE (value in YAML); repeatable.
-    #[arg(short = 'p', long = "param", value_name = "NAME:=VALUE", value_parser = parse_override)]
-    params: Vec<(String, String)>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// The shared data folder (default: ../shared beside the demo folder, or $IST_MONITOR_SHARED).
     #[arg(long)]
     shared: Option<PathBuf>,
@@ -36,11 +31,15 @@ pub struct BenchMonitorArgs {
     runs: usize,
 }
 
+/// The bench's default config.
+const CONFIG: &str = "config/panda_perception_tutorial.yaml";
+
 /// A monitor of the config with `extra` parameters.
-fn monitor(args: &BenchMonitorArgs, config: &Path, extra: &[(&str, &str)]) -> Result<Monitor> {
-    let mut params = args.params.clone();
-    params.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
-    monitor_from_config(load_config(&Some(config.to_path_buf()), &params)?)
+fn monitor(args: &BenchMonitorArgs, extra: &[(&str, &str)]) -> Result<Monitor> {
+    let extra: Vec<(String, String)> = (extra.iter())
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    monitor_from_config(args.config.load(CONFIG, &extra)?)
 }
 
 pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
@@ -49,8 +48,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         None => crate::demo::shared(&args.shared)?
             .join("bags/moveit_perception_tutorial/perception_tutorial_mcap"),
     };
-    let config = crate::demo::or_demo(&args.config, "config/panda_perception_tutorial.yaml")?;
-    let mut plain = monitor(&args, &config, &[])?;
+    let mut plain = monitor(&args, &[])?;
     let source = plain
         .config
         .sources
@@ -68,10 +66,9 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
     let second_topic = format!("{name}_2.topic");
     let mut two = monitor(
         &args,
-        &config,
         &[("sources", &sources), (&second_topic, "/bench/second")],
     )?;
-    let mut stray = monitor(&args, &config, &[("stray_filter.min_points", "4")])?;
+    let mut stray = monitor(&args, &[("stray_filter.min_points", "4")])?;
     // Warm-up: the GPU probe (backend auto), the caches and the self-filter's grids.
     for m in [&mut plain, &mut two, &mut stray] {
         for _ in 0..3 {

@@ -8,21 +8,16 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 
-use ist_monitor::config::parse_override;
 use ist_monitor::monitor::replay::{self, Clock, ReplayFrame};
 use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
 use ist_monitor::stats::Spread;
 
-use crate::cli::{load_config, monitor_from_config};
+use crate::cli::{monitor_from_config, ConfigArgs};
 
 #[derive(Args)]
 pub struct BenchSsmArgs {
-    /// ROS 2 parameters file (default: config/demo_arm.yaml).
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// Override a parameter, NAME:=VALUE (value in YAML); repeatable.
-    #[arg(short = 'p', long = "param", value_name = "NAME:=VALUE", value_parser = parse_override)]
-    params: Vec<(String, String)>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Clouds of the generated approach (10 Hz).
     #[arg(long, default_value_t = 60, value_parser = crate::cli::parse_count)]
     frames: usize,
@@ -46,7 +41,7 @@ pub fn bench_ssm(args: BenchSsmArgs) -> Result<()> {
     if args.width == 0 || args.height == 0 {
         bail!("--width and --height must be at least 1");
     }
-    let config = load_config(&args.config, &args.params)?;
+    let config = args.config.load(crate::demo::CONFIG, &[])?;
     if !config.ssm.enabled {
         bail!("speed_scaling.enabled is false: nothing to measure");
     }

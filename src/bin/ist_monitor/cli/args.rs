@@ -15,6 +15,38 @@ use ist_monitor::robot::{LinkSelection, PackagePath, RobotModel};
 
 use crate::demo;
 
+/// A ROS 2 parameters file and `-p` overrides, as `replay`, `bench ssm` and `bench monitor`
+/// take them.
+#[derive(Args)]
+pub struct ConfigArgs {
+    /// ROS 2 parameters file (default: config/demo_arm.yaml; bench monitor:
+    /// config/panda_perception_tutorial.yaml).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Override a parameter, NAME:=VALUE (value in YAML); repeatable.
+    #[arg(short = 'p', long = "param", value_name = "NAME:=VALUE", value_parser = config::parse_override)]
+    pub params: Vec<(String, String)>,
+}
+
+impl ConfigArgs {
+    /// The file given, or the demo file `default`, with the overrides, then `extra`.
+    pub fn load(&self, default: &str, extra: &[(String, String)]) -> Result<Config> {
+        let mut params = self.params.clone();
+        params.extend_from_slice(extra);
+        load_config(&self.config, default, &params)
+    }
+}
+
+/// The config file given, or the demo file `default`, with `params` applied.
+pub fn load_config(
+    path: &Option<PathBuf>,
+    default: &str,
+    params: &[(String, String)],
+) -> Result<Config> {
+    let path = demo::or_demo(path, default)?;
+    Config::load(&path, params).with_context(|| format!("config {}", path.display()))
+}
+
 /// The declared default of a node parameter (clap shows it in `--help`).
 pub fn param(name: &str) -> &'static str {
     config::default_of(name).unwrap_or("")

@@ -14,9 +14,9 @@ mod query;
 mod replay;
 mod ros;
 
-pub use args::{param, parse_count, RobotArgs};
+pub use args::{param, parse_count, ConfigArgs, RobotArgs};
 pub use build::cached_trees;
-pub use replay::{load_config, monitor_from_config};
+pub use replay::monitor_from_config;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

@@ -8,25 +8,21 @@ use clap::Args;
 
 use ist_monitor::bag::writer::Compression;
 use ist_monitor::cloud::depth::DepthEncoding;
-use ist_monitor::config::{parse_override, Config};
+use ist_monitor::config::Config;
 use ist_monitor::monitor::replay;
 use ist_monitor::monitor::Monitor;
 use ist_monitor::query::Backend;
 use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
 
-use super::args::RobotArgs;
+use super::args::{ConfigArgs, RobotArgs};
 use crate::demo;
 
 #[derive(Args)]
 pub struct ReplayArgs {
     /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag, bags/demo).
     bag: Option<PathBuf>,
-    /// ROS 2 parameters file (default: config/demo_arm.yaml).
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// Override a parameter, NAME:=VALUE (value in YAML); repeatable.
-    #[arg(short = 'p', long = "param", value_name = "NAME:=VALUE", value_parser = parse_override)]
-    params: Vec<(String, String)>,
+    #[command(flatten)]
+    config: ConfigArgs,
     /// Write the node's outputs to this MCAP (`.mcap` file, or a rosbag2 folder otherwise).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -99,18 +95,11 @@ pub fn monitor_from_config(config: Config) -> Result<Monitor> {
     Ok(monitor?)
 }
 
-/// The config file given, or the demo arm's.
-pub fn load_config(path: &Option<PathBuf>, params: &[(String, String)]) -> Result<Config> {
-    let path = demo::or_demo(path, demo::CONFIG)?;
-    Config::load(&path, params).with_context(|| format!("config {}", path.display()))
-}
-
 pub fn replay(args: ReplayArgs) -> Result<()> {
-    let mut params = args.params.clone();
-    if let Some(backend) = args.backend {
-        params.push(("backend".into(), super::args::enum_name(&backend)));
-    }
-    let config = load_config(&args.config, &params)?;
+    let backend = (args.backend.iter())
+        .map(|b| ("backend".to_string(), super::args::enum_name(b)))
+        .collect::<Vec<_>>();
+    let config = args.config.load(demo::CONFIG, &backend)?;
     let bag = demo::or_demo(&args.bag, demo::BAG)?;
     let mut monitor = monitor_from_config(config)?;
     let out = args.out.as_deref().map(|p| (p, args.out_compression));

@@ -9,8 +9,8 @@ use clap::Args;
 
 use ist_monitor::node;
 
+use super::args::load_config;
 use super::args::{parse_positive, parse_seconds};
-use super::replay::load_config;
 use crate::demo;
 
 #[derive(Args)]
@@ -76,7 +76,7 @@ pub struct RecordArgs {
 
 pub fn node(args: NodeArgs) -> Result<()> {
     let ros = node::parse_ros_args(&args.ros_args)?;
-    let mut config = load_config(&args.config, &ros.params)?;
+    let mut config = load_config(&args.config, crate::demo::CONFIG, &ros.params)?;
     if let Some(name) = ros.node {
         config.node_name = name;
     }
