@@ -65,6 +65,25 @@ impl Drop for Reap {
     }
 }
 
+/// `--ros-args` that start the node on the CPU with the demo arm's joints held at 0 (these tests
+/// publish no `/joint_states`); more arguments follow.
+fn at_rest_args() -> Vec<String> {
+    let joints =
+        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
+    [
+        "node",
+        "--ros-args",
+        "-p",
+        "backend:=cpu",
+        "-p",
+        &format!("fixed_joint_state.names:={joints}"),
+        "-p",
+        "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
 /// The node with `args`, its output and log kept (read them with `wait_with_output`).
 fn spawn_node(args: &[&str]) -> Child {
     ist_monitor()
@@ -430,25 +449,20 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
         return;
     };
     let (model, trees) = common::demo_trees();
-    let joints =
-        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
     // The robot comes from the peer on /robot_description, as robot_state_publisher gives it.
-    let mut node = spawn(&[
-        "node",
-        "--ros-args",
-        "-p",
-        "backend:=cpu",
-        "-p",
-        "robot_description:=~",
-        "-p",
-        "robot_description_topic:=/robot_description",
-        "-p",
-        &format!("fixed_joint_state.names:={joints}"),
-        "-p",
-        "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
-        "-r",
-        "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
-    ]);
+    let mut node = ist_monitor()
+        .args(at_rest_args())
+        .args([
+            "-p",
+            "robot_description:=~",
+            "-p",
+            "robot_description_topic:=/robot_description",
+            "-r",
+            "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
+        ])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
     std::thread::sleep(Duration::from_millis(1500));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
     let out = common::json_output(Command::new(python).arg(script).arg(common::DEMO_URDF));
@@ -503,9 +517,6 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
         return;
     };
     common::demo_trees();
-    let joints =
-        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
-    let fixed = format!("fixed_joint_state.names:={joints}");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
     for crash in [false, true] {
         let mut node = ist_monitor();
@@ -513,15 +524,8 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
             node.env(ist_monitor::node::PANIC_AFTER_ENV, "40");
         }
         let node = node
+            .args(at_rest_args())
             .args([
-                "node",
-                "--ros-args",
-                "-p",
-                "backend:=cpu",
-                "-p",
-                &fixed,
-                "-p",
-                "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
                 "-r",
                 "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
             ])
@@ -802,20 +806,11 @@ fn zenoh_transport_serves_the_node() {
         .spawn()
         .unwrap();
     std::thread::sleep(Duration::from_millis(1000));
-    let joints =
-        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
     let mut node = ist_monitor();
     zenoh(&mut node);
     let node = node
+        .args(at_rest_args())
         .args([
-            "node",
-            "--ros-args",
-            "-p",
-            "backend:=cpu",
-            "-p",
-            &format!("fixed_joint_state.names:={joints}"),
-            "-p",
-            "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
             "-p",
             "sources:=[camera, depth]",
             "-p",
