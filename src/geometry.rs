@@ -160,6 +160,82 @@ pub fn ball_volume(r: f64) -> f64 {
     4.0 / 3.0 * std::f64::consts::PI * r * r * r
 }
 
+/// A solid primitive as URDF describes one: centred on its frame's origin, a cylinder's axis
+/// along z. Exclusion volumes (`cloud::exclusion`) and attached objects (`robot::attach`) are
+/// these.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Primitive {
+    /// Edge lengths along x, y and z.
+    Box {
+        size: P3,
+    },
+    Sphere {
+        radius: f64,
+    },
+    Cylinder {
+        radius: f64,
+        length: f64,
+    },
+}
+
+impl Primitive {
+    /// Whether `p` (in the primitive's frame) lies inside or on it.
+    pub fn contains(&self, p: P3) -> bool {
+        match *self {
+            Primitive::Box { size } => (0..3).all(|a| p[a].abs() <= 0.5 * size[a]),
+            Primitive::Sphere { radius } => dot(p, p) <= radius * radius,
+            Primitive::Cylinder { radius, length } => {
+                p[0] * p[0] + p[1] * p[1] <= radius * radius && p[2].abs() <= 0.5 * length
+            }
+        }
+    }
+
+    /// The half extents of its bounding box in its frame.
+    pub fn half_extents(&self) -> P3 {
+        match *self {
+            Primitive::Box { size } => scale(size, 0.5),
+            Primitive::Sphere { radius } => [radius; 3],
+            Primitive::Cylinder { radius, length } => [radius, radius, 0.5 * length],
+        }
+    }
+
+    /// Its volume, m³.
+    pub fn volume_m3(&self) -> f64 {
+        match *self {
+            Primitive::Box { size } => size[0] * size[1] * size[2],
+            Primitive::Sphere { radius } => ball_volume(radius),
+            Primitive::Cylinder { radius, length } => {
+                std::f64::consts::PI * radius * radius * length
+            }
+        }
+    }
+
+    /// As a URDF geometry, for the robot model.
+    pub fn to_urdf(&self) -> urdf_rs::Geometry {
+        match *self {
+            Primitive::Box { size } => urdf_rs::Geometry::Box {
+                size: urdf_rs::Vec3(size),
+            },
+            Primitive::Sphere { radius } => urdf_rs::Geometry::Sphere { radius },
+            Primitive::Cylinder { radius, length } => {
+                urdf_rs::Geometry::Cylinder { radius, length }
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for Primitive {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Primitive::Box { size } => write!(f, "box {} × {} × {} m", size[0], size[1], size[2]),
+            Primitive::Sphere { radius } => write!(f, "sphere r = {radius} m"),
+            Primitive::Cylinder { radius, length } => {
+                write!(f, "cylinder r = {radius} m, length {length} m")
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,8 +2,8 @@
 //!
 //! A simulated depth camera — pinhole model, range noise, dropped pixels — looks at the demo
 //! robot moving along a joint trajectory and at an obstacle: a person-sized capsule that walks
-//! up to the arm (`person`; `approach`: up to the swinging arm and back), or a box the arm
-//! reaches over (`shelf`). Every frame is ray cast
+//! up to the arm (`person`; `approach`: up to the swinging arm and back; `table`: with a work
+//! table beside the arm), or a box the arm reaches over (`shelf`). Every frame is ray cast
 //! against the robot's collision meshes (the same tessellated meshes the monitor uses), the
 //! obstacle and a back wall; rays that hit nothing within the camera's range give NaN, like a
 //! real depth camera.
@@ -64,6 +64,23 @@ pub enum SceneKind {
     /// The person walks up to the arm while it swings toward them, and both go back: the
     /// approach and the recovery of the speed and separation monitor.
     Approach,
+    /// The person scene with a 0.5 m work table beside the arm, which the gripper passes
+    /// above: a fixture for exclusion volumes.
+    Table,
+}
+
+/// The table of [`SceneKind::Table`]: its centre in the root frame and its edge lengths, m.
+pub const TABLE_CENTER: [f64; 3] = [0.35, 0.45, 0.275];
+pub const TABLE_SIZE: [f64; 3] = [0.5, 0.5, 0.55];
+
+/// What a pixel's ray hit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Hit {
+    /// No return, or a dropped pixel.
+    Nothing,
+    Robot,
+    /// A shape of the scene: 0 the back wall, 1 the obstacle (person or box), 2 the table.
+    Scene(u8),
 }
 
 impl SceneKind {
@@ -174,7 +191,7 @@ fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
     let ease = 0.5 - 0.5 * (std::f64::consts::PI * scene.progress(s)).cos();
     let (from, to): ([f64; 7], [f64; 7]) = match scene {
         // pan, lift, elbow, wrist_1, wrist_2, wrist_3, finger
-        SceneKind::Person | SceneKind::Approach => (
+        SceneKind::Person | SceneKind::Approach | SceneKind::Table => (
             [0.9, 0.2, 1.1, 0.6, 0.0, 0.0, 0.015],
             [-0.95, 0.55, 0.95, 0.5, 0.8, 0.3, 0.005],
         ),
@@ -200,16 +217,19 @@ fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
 }
 
 /// The environment of a scene: shapes with their world poses at `s` ∈ [0, 1].
-fn obstacles(scene: SceneKind, s: f64) -> Vec<(Box<dyn RayCast + Send + Sync>, Isometry3<f64>)> {
+fn obstacles(
+    scene_kind: SceneKind,
+    s: f64,
+) -> Vec<(Box<dyn RayCast + Send + Sync>, Isometry3<f64>)> {
     // A wall 1.4 m behind the robot, seen past it.
     let wall: Box<dyn RayCast + Send + Sync> = Box::new(Cuboid::new(Vector::new(0.05, 2.0, 1.2)));
     let wall_pose = Isometry3::translation(-1.4, 0.0, 1.2);
-    let obstacle: (Box<dyn RayCast + Send + Sync>, Isometry3<f64>) = match scene {
-        SceneKind::Person | SceneKind::Approach => {
+    let obstacle: (Box<dyn RayCast + Send + Sync>, Isometry3<f64>) = match scene_kind {
+        SceneKind::Person | SceneKind::Approach | SceneKind::Table => {
             // Radius 0.18 m, 1.7 m tall, walking from 1.1 m to 0.58 m beside the base (the
             // approach scene: from 1.2 m, and back).
-            let (walk, from) = match scene {
-                SceneKind::Approach => (scene.progress(s), -1.2),
+            let (walk, from) = match scene_kind {
+                SceneKind::Approach => (scene_kind.progress(s), -1.2),
                 _ => ((s * 1.2).min(1.0), -1.1),
             };
             let y = from + walk * (-from - 0.58);
@@ -223,7 +243,16 @@ fn obstacles(scene: SceneKind, s: f64) -> Vec<(Box<dyn RayCast + Send + Sync>, I
             Isometry3::translation(0.62, 0.05, 0.2),
         ),
     };
-    vec![(wall, wall_pose), obstacle]
+    let mut scene = vec![(wall, wall_pose), obstacle];
+    if scene_kind == SceneKind::Table {
+        let [x, y, z] = TABLE_SIZE.map(|e| 0.5 * e);
+        let [cx, cy, cz] = TABLE_CENTER;
+        scene.push((
+            Box::new(Cuboid::new(Vector::new(x as f32, y as f32, z as f32))),
+            Isometry3::translation(cx, cy, cz),
+        ));
+    }
+    scene
 }
 
 fn ray_hit(
@@ -305,6 +334,8 @@ pub struct Frame {
     pub truth_witness: Option<Witness>,
     pub obstacle_points: usize,
     pub robot_points: usize,
+    /// What each point's ray hit (`Nothing` where the point is NaN).
+    pub hits: Vec<Hit>,
 }
 
 /// The two points of a frame's exact minimum.
@@ -459,21 +490,21 @@ impl<'a> Renderer<'a> {
         let origin = world_from_optical.translation.vector.into();
         let scene = obstacles(params.scene, s);
         let solids = &self.solids;
-        // One ray per pixel: (range, on the robot), in row-major order.
-        let hits: Vec<Option<(f64, bool)>> = (0..w * h)
+        // One ray per pixel: (range, what it hit), in row-major order.
+        let hits: Vec<Option<(f64, Hit)>> = (0..w * h)
             .into_par_iter()
             .map(|i| {
                 let d = world_from_optical.rotation * self.ray(i);
-                let mut best: Option<(f64, bool)> = None;
-                let mut take = |t: Option<f64>, robot: bool| {
+                let mut best: Option<(f64, Hit)> = None;
+                let mut take = |t: Option<f64>, hit: Hit| {
                     if let Some(t) = t.filter(|t| best.is_none_or(|b| *t < b.0)) {
-                        best = Some((t, robot));
+                        best = Some((t, hit));
                     }
                 };
-                for (shape, pose) in &scene {
+                for (k, (shape, pose)) in scene.iter().enumerate() {
                     take(
                         ray_hit(shape.as_ref(), pose, &origin, &d, params.max_range_m),
-                        false,
+                        Hit::Scene(k as u8),
                     );
                 }
                 for (link, elements) in solids {
@@ -485,7 +516,7 @@ impl<'a> Renderer<'a> {
                             [ld.x as f32, ld.y as f32, ld.z as f32],
                             params.max_range_m as f32,
                         );
-                        take(hit.map(f64::from), true);
+                        take(hit.map(f64::from), Hit::Robot);
                     }
                 }
                 best
@@ -522,12 +553,14 @@ impl<'a> Renderer<'a> {
         };
         let mut obstacle = Vec::new();
         let mut robot_points = 0;
-        for (p, hit) in points.iter().zip(&hits) {
-            let Some((_, on_robot)) = *hit else { continue };
+        let mut labels = vec![Hit::Nothing; points.len()];
+        for ((p, hit), label) in points.iter().zip(&hits).zip(&mut labels) {
+            let Some((_, what)) = *hit else { continue };
             if p[0].is_nan() {
                 continue;
             }
-            if on_robot {
+            *label = what;
+            if what == Hit::Robot {
                 robot_points += 1;
             } else {
                 obstacle
@@ -583,6 +616,7 @@ impl<'a> Renderer<'a> {
             truth_witness,
             obstacle_points: obstacle.len(),
             robot_points,
+            hits: labels,
         })
     }
 }

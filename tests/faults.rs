@@ -362,3 +362,43 @@ proptest::proptest! {
         })?;
     }
 }
+
+/// An exclusion volume whose frame has no transform is a fault of the frame that names the
+/// volume (its points would stop the cell, or be dropped in the wrong place); a cloud whose
+/// every valid point lies in exclusion volumes is clear, not blind: the sensor sees, and what it
+/// sees is known.
+#[test]
+fn exclusion_volumes_fault_without_their_frame_and_clear_when_all_is_known() {
+    let wall = |m: &mut Monitor| frame(m, &far_wall());
+    let volume = [
+        ("exclusion_volumes", "[fixture]"),
+        ("fixture.size", "[0.5, 0.5, 0.2]"),
+        ("fixture.translation", "[0.05, 0.05, 2.5]"),
+    ];
+    let (mut unplaced, _, _) =
+        arm_at_rest_with(&[volume[0], volume[1], ("fixture.frame", "nowhere")]);
+    let f = wall(&mut unplaced);
+    let e = f.result.as_ref().unwrap_err();
+    assert_eq!(e.kind(), "exclusion_tf");
+    assert!(e.to_string().contains("exclusion volume fixture"), "{e}");
+    assert_eq!(f.outputs.level, Level::Error);
+    assert!(f.outputs.min_distance.is_none());
+
+    let mut placed: Vec<(&str, &str)> = volume.to_vec();
+    placed.push(("fixture.frame", "cam"));
+    let (mut m, _, _) = arm_at_rest_with(&placed);
+    let f = wall(&mut m);
+    let r = f.result.as_ref().unwrap();
+    assert_eq!(r.excluded, vec![("fixture".to_string(), 400)]);
+    assert_eq!(
+        r.outcome,
+        ist_monitor::query::Outcome::NothingWithinMaxDistance
+    );
+    assert_eq!(f.outputs.level, Level::Ok);
+    assert_eq!(value(&f, "points_excluded.fixture"), Some("400"));
+    // A volume for another source only leaves this one's points alone.
+    placed.extend([("sources", "[cam0, cam1]"), ("fixture.sources", "[cam1]")]);
+    let (mut other, _, _) = arm_at_rest_with(&placed);
+    let r = wall(&mut other).result.unwrap();
+    assert!(r.excluded.is_empty() && r.nearest.is_some());
+}

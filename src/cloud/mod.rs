@@ -20,6 +20,7 @@
 //! what the header says.
 
 pub mod depth;
+pub mod exclusion;
 pub mod pcd;
 pub mod ply;
 pub mod pointcloud2;

@@ -17,13 +17,15 @@ use std::path::{Path, PathBuf};
 
 use yaml_rust2::{Yaml, YamlLoader};
 
+use crate::cloud::exclusion::ExclusionVolume;
 use crate::ist::BuildOptions;
 use crate::msg::{Header, Quaternion, Time, Transform, TransformStamped, Vector3};
 use crate::query::{Backend, LinkSelection, Mode, QueryOptions};
-use crate::robot::{urdf::resolve_uri, PackagePath};
+use crate::robot::{urdf::resolve_uri, AttachedObject, PackagePath};
 use crate::separation::{SsmParams, StoppingTable};
 
 mod params;
+mod shapes;
 mod values;
 
 pub use params::{default_of, markdown_table, ParamDecl, PARAMETERS};
@@ -136,6 +138,10 @@ pub struct Config {
     pub sources: Vec<SourceConfig>,
     pub static_transforms: Vec<TransformStamped>,
     pub fixed_joint_state: Vec<(String, f64)>,
+    /// Known objects whose points are dropped before the query (`cloud::exclusion`).
+    pub exclusion_volumes: Vec<ExclusionVolume>,
+    /// Shapes joined to the robot's links (`robot::attach`).
+    pub attached_objects: Vec<AttachedObject>,
     /// Speed and separation monitoring.
     pub ssm: SsmParams,
     /// Output topic remappings of the live node (`--ros-args -r FROM:=TO`; not a parameter).
@@ -224,21 +230,43 @@ impl Config {
         let v = Values { values };
         let sources = v.strings("sources")?;
         let transforms = v.strings("static_transforms")?;
-        // Every given name must be declared, directly or under a listed source or transform.
+        let volumes = v.strings("exclusion_volumes")?;
+        let objects = v.strings("attached_objects")?;
+        // The lists whose entries declare `<entry>.x` parameters; an entry's name is its
+        // parameters' prefix, so it may be used once across them.
+        let lists = [
+            ("sources", "<source>.", &sources),
+            ("static_transforms", "<transform>.", &transforms),
+            ("exclusion_volumes", "<volume>.", &volumes),
+            ("attached_objects", "<object>.", &objects),
+        ];
+        let mut seen: BTreeMap<&str, &str> = BTreeMap::new();
+        for (list, _, entries) in &lists {
+            for e in entries.iter() {
+                if let Some(other) = seen.insert(e.as_str(), list) {
+                    return Err(Values::bad(
+                        list,
+                        format!("'{e}' is also an entry of {other}: names must differ"),
+                    ));
+                }
+            }
+        }
+        // Every given name must be declared, directly or under a listed entry.
         for name in v.values.keys() {
             let declared = PARAMETERS.iter().any(|d| {
                 d.name == name
-                    || d.name
-                        .strip_prefix("<source>.")
-                        .is_some_and(|rest| sources.iter().any(|s| name == &format!("{s}.{rest}")))
-                    || d.name.strip_prefix("<transform>.").is_some_and(|rest| {
-                        transforms.iter().any(|t| name == &format!("{t}.{rest}"))
+                    || lists.iter().any(|(_, prefix, entries)| {
+                        d.name.strip_prefix(prefix).is_some_and(|rest| {
+                            entries.iter().any(|e| name == &format!("{e}.{rest}"))
+                        })
                     })
             });
             if !declared {
                 return Err(ConfigError::Unknown(name.clone()));
             }
         }
+        let exclusion_volumes = shapes::exclusion_volumes(&v, &volumes, &sources)?;
+        let attached_objects = shapes::attached_objects(&v, &objects)?;
         let path = |s: String| {
             let p = PathBuf::from(&s);
             match base {
@@ -465,7 +493,11 @@ impl Config {
             package_paths,
             query,
             selection: LinkSelection {
-                include: v.strings("links")?,
+                // An attached object is a link the list cannot have named.
+                include: match v.strings("links")? {
+                    l if l.is_empty() => l,
+                    l => l.into_iter().chain(objects.iter().cloned()).collect(),
+                },
                 exclude: v.strings("exclude_links")?,
                 convex_hull: v.strings("convex_hull_links")?,
             },
@@ -500,6 +532,8 @@ impl Config {
             sources,
             static_transforms,
             fixed_joint_state: names.into_iter().zip(positions).collect(),
+            exclusion_volumes,
+            attached_objects,
             ssm: Self::ssm(&v)?,
             remaps: Vec::new(),
         })
@@ -680,6 +714,17 @@ mod tests {
             ("    speed_scaling.stopping.speeds: [0.5, 1.0]\n", "speed_scaling.stopping.speeds"),
             ("    speed_scaling.hysteresis: 2\n", "speed_scaling.hysteresis"),
             ("    speed_scaling.human_speed: -1\n", "speed_scaling.human_speed"),
+            ("    exclusion_volumes: [t]\n    t.size: [1, 1, 1]\n", "t.frame"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1]\n", "t.size"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.shape: cone\n", "t.shape"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.shape: sphere\n", "t.radius"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.shape: cylinder\n    t.radius: 0.1\n    t.length: -1\n", "t.length"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1, 1]\n    t.sources: [cam]\n", "t.sources"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1, 1]\n    t.rotation: [0, 0, 0, 0]\n", "t.rotation"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1, 1]\n    t.link: x\n", "t.link"),
+            ("    exclusion_volumes: [camera]\n", "exclusion_volumes"),
+            ("    attached_objects: [p]\n    p.size: [1, 1, 1]\n", "p.link"),
+            ("    attached_objects: [p]\n    p.link: l\n    p.shape: sphere\n    p.radius: 0\n", "p.radius"),
         ] {
             let e = load(&format!("{base}{body}"), &[]).unwrap_err().to_string();
             assert!(e.contains(name), "{body}: {e}");

@@ -25,8 +25,9 @@ const fn p(
     }
 }
 
-/// Every parameter of the node. `<source>.x` and `<transform>.x` are declared for each name in
-/// `sources` and `static_transforms`.
+/// Every parameter of the node. `<source>.x`, `<transform>.x`, `<volume>.x` and `<object>.x`
+/// are declared for each name in `sources`, `static_transforms`, `exclusion_volumes` and
+/// `attached_objects`.
 pub const PARAMETERS: &[ParamDecl] = &[
     p("robot_description", "~", "path", "the robot: a URDF file (relative paths are relative to this file), a package:// URI (resolved through package_paths, ROS_PACKAGE_PATH, AMENT_PREFIX_PATH) or the URDF text itself; required unless robot_description_topic is set"),
     p("robot_description_topic", "~", "topic", "without robot_description: the node takes the URDF from this std_msgs/String topic (transient local, as robot_state_publisher publishes /robot_description) and reports 'not monitoring' until it arrives"),
@@ -73,6 +74,23 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),
     p("<transform>.translation", "[0.0, 0.0, 0.0]", "m", "parent_from_child translation x y z"),
     p("<transform>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "parent_from_child rotation as a quaternion x y z w"),
+    p("exclusion_volumes", "[]", "", "names of exclusion volumes: known objects of the cell (a table, a fixture, a conveyor) whose points are dropped before the query, counted per volume in the diagnostics (points_excluded.<volume>) and drawn in RViz. A person inside one is not seen"),
+    p("<volume>.frame", "~", "frame", "the TF frame (or robot link) the volume is fixed in; required. It is looked up at each cloud's stamp as the sensor's frame is: a missing transform is a fault"),
+    p("<volume>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation"),
+    p("<volume>.size", "~", "m", "box: edge lengths [x, y, z]"),
+    p("<volume>.radius", "~", "m", "sphere or cylinder radius"),
+    p("<volume>.length", "~", "m", "cylinder length along its z axis"),
+    p("<volume>.translation", "[0.0, 0.0, 0.0]", "m", "frame_from_volume translation x y z"),
+    p("<volume>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "frame_from_volume rotation as a quaternion x y z w"),
+    p("<volume>.sources", "[]", "", "the sources whose points it drops (empty: every source)"),
+    p("attached_objects", "[]", "", "names of attached objects: shapes fixed to a robot link that the URDF lacks (a held part, a tool). Each joins the robot as a link of its own, named after it: packed and certified like any link, its points self-filtered, its distance to the world measured and published under its name"),
+    p("<object>.link", "~", "link", "the robot link it is fixed to; required"),
+    p("<object>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation"),
+    p("<object>.size", "~", "m", "box: edge lengths [x, y, z]"),
+    p("<object>.radius", "~", "m", "sphere or cylinder radius"),
+    p("<object>.length", "~", "m", "cylinder length along its z axis"),
+    p("<object>.translation", "[0.0, 0.0, 0.0]", "m", "link_from_object translation x y z"),
+    p("<object>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "link_from_object rotation as a quaternion x y z w"),
     p("fixed_joint_state.names", "[]", "", "joints held at fixed values (for bags without /joint_states)"),
     p("fixed_joint_state.positions", "[]", "rad or m", "their values, in the same order"),
     p("speed_scaling.enabled", "true", "", "publish ~/speed_scaling (control_msgs/SpeedScalingFactor) from speed and separation monitoring (ISO/TS 15066); needs joint velocities"),

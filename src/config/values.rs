@@ -115,7 +115,14 @@ impl Values {
             .ok_or_else(|| Self::bad(name, "a value is required"))
     }
     pub(super) fn strings(&self, name: &str) -> Result<Vec<String>, ConfigError> {
-        let y = self.raw(name, name);
+        self.strings_of(name, name)
+    }
+    pub(super) fn strings_of(
+        &self,
+        name: &str,
+        template: &str,
+    ) -> Result<Vec<String>, ConfigError> {
+        let y = self.raw(name, template);
         let list = y.as_vec().ok_or_else(|| {
             Self::bad(
                 name,

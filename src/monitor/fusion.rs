@@ -32,7 +32,9 @@ use crate::msg::{
 };
 use crate::query::{Outcome, QueryResult};
 
-use super::outputs::{closest_markers, link_positions, Level, LevelTracker, Outputs, SourceReport};
+use super::outputs::{
+    closest_markers, link_positions, shape_markers, Level, LevelTracker, Outputs, SourceReport,
+};
 
 /// What the fused outputs are made for: a frame of `source` stamped `stamp_ns`, or a
 /// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
@@ -309,6 +311,7 @@ impl Fusion {
                 ..Marker::default()
             });
         }
+        markers.extend(shape_markers(config, header.stamp));
         let mut values = vec![kv(
             "sources",
             enabled

@@ -9,7 +9,9 @@
 //! `source_timeout` or ahead by more than `future_stamp_tolerance` is a fault) → drop points
 //! outside the source's `min_range`/`max_range` (they become invalid points) → the joint values
 //! at the cloud's stamp (`tf::JointStateBuffer`) → forward kinematics → the sensor frame in the
-//! robot's root frame at the stamp (`tf::root_from_sensor`) → the query (`query::Engine`; with
+//! robot's root frame at the stamp (`tf::root_from_sensor`) → the points of the source's
+//! exclusion volumes dropped (`cloud::exclusion`, each volume placed in the sensor frame at the
+//! stamp) → the query (`query::Engine`; with
 //! `stray_filter` on, `stray` rejects isolated nearest points) → the
 //! separation stage (`crate::separation`: joint velocities at the stamp, link twists, the
 //! speed-scaling factor through [`SpeedScaler`]) → the outputs, fused over every source's latest
@@ -34,6 +36,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 
 use crate::cloud::depth::{self, PinholeCamera};
+use crate::cloud::exclusion::{self, ExclusionVolume};
 use crate::cloud::{pointcloud2, CloudError, RangeLimits};
 use crate::config::{Config, RobotSource, SourceKind};
 use crate::ist::{self, cache::TreeCache, LinkTree};
@@ -78,6 +81,9 @@ pub enum Fault {
     /// covered sensor. Nothing is known about the scene, so this is a fault, never "clear".
     #[error("no valid points in the cloud ({total} points)")]
     NoValidPoints { total: u64 },
+    /// An exclusion volume whose frame has no transform at the cloud's stamp.
+    #[error("exclusion volume {volume}: {source}")]
+    ExclusionFrame { volume: String, source: TfError },
     #[error("source {source_name}: {what} for {silent_s:.2} s (source_timeout {timeout_s} s)")]
     SourceTimeout {
         source_name: String,
@@ -104,6 +110,7 @@ impl Fault {
             Fault::FutureCloud { .. } => "future_cloud",
             Fault::NoValidPoints { .. } => "no_valid_points",
             Fault::SourceTimeout { .. } => "stale_source",
+            Fault::ExclusionFrame { .. } => "exclusion_tf",
         }
     }
 }
@@ -173,6 +180,8 @@ pub enum MonitorError {
         urdf: std::path::PathBuf,
         source: crate::robot::RobotError,
     },
+    #[error("parameter attached_objects: {0}: {1}")]
+    Attached(String, crate::robot::RobotError),
     #[error("inner sphere trees: {0}")]
     Trees(#[from] crate::ist::IstError),
     #[error("query: {0}")]
@@ -229,9 +238,14 @@ impl Monitor {
     /// As [`Monitor::new`], with the robot loaded.
     pub fn with_model(
         config: Config,
-        model: RobotModel,
+        mut model: RobotModel,
         built: &(dyn Fn(&str) + Sync),
     ) -> Result<Self, MonitorError> {
+        for object in &config.attached_objects {
+            model
+                .attach(object)
+                .map_err(|e| MonitorError::Attached(object.name.clone(), e))?;
+        }
         // The selection is checked before any tree is built (a robot with too many links, or a
         // misspelt link, is refused at once), and only the selected links are built.
         config.selection.check(&model)?;
@@ -245,12 +259,24 @@ impl Monitor {
         Self::with_trees(config, model, &trees)
     }
 
-    /// As [`Monitor::new`], with the model and trees given.
+    /// As [`Monitor::new`], with the model and trees given (the model with the config's
+    /// attached objects attached).
     pub fn with_trees(
         config: Config,
         model: RobotModel,
         trees: &[LinkTree],
     ) -> Result<Self, MonitorError> {
+        for object in &config.attached_objects {
+            if model.kinematics.link_index(&object.name).is_none() {
+                return Err(MonitorError::Attached(
+                    object.name.clone(),
+                    crate::robot::RobotError::Topology {
+                        path: model.urdf_path.display().to_string(),
+                        message: "not attached to the model the trees were built for".into(),
+                    },
+                ));
+            }
+        }
         config.query.validate()?;
         let mut engine = Engine::new(&model, trees, &config.selection)?;
         // The self-filter's grids now, not on the first cloud.
@@ -669,7 +695,7 @@ impl Monitor {
             }
         }
         let width = (cloud.height > 1).then_some(cloud.width as usize);
-        self.measure(stamp_ns, &frame, &mut cloud.points, width, now_ns)
+        self.measure(source, stamp_ns, &frame, &mut cloud.points, width, now_ns)
     }
 
     /// A depth image: its points made with the source's camera model (`cloud::depth`), then
@@ -702,16 +728,18 @@ impl Monitor {
             .map_err(Fault::Decode)
             .and_then(|()| {
                 let width = (image.height > 1).then_some(image.width as usize);
-                self.measure(stamp_ns, &frame, &mut points, width, now_ns)
+                self.measure(source, stamp_ns, &frame, &mut points, width, now_ns)
             });
         self.depth_points = points;
         result
     }
 
-    /// The query of a cloud's points in `frame` at `stamp_ns`, and the motion the separation
+    /// The query of source `source`'s cloud, its points in `frame` at `stamp_ns` (the
+    /// exclusion volumes that apply to it drop theirs first), and the motion the separation
     /// stage needs.
     fn measure(
         &mut self,
+        source: usize,
         stamp_ns: i64,
         frame: &str,
         points: &mut [[f32; 3]],
@@ -733,6 +761,7 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
+        let excluded = self.exclude(source, points, &root_from_sensor, stamp, &link_pose)?;
         let mut result = self.engine.query_image(
             points,
             width,
@@ -750,10 +779,17 @@ impl Monitor {
             };
             result = stray::reject_strays(&mut self.engine, &self.config.stray, input, result)?;
         }
+        let excluded_any = excluded.iter().any(|(_, n)| *n > 0);
+        result.excluded = excluded;
         if result.outcome == Outcome::NoPoints {
-            return Err(Fault::NoValidPoints {
-                total: result.counts.total,
-            });
+            // Valid points that all lay in exclusion volumes: the sensor sees, and what it sees
+            // is known. Only a cloud without valid points is blind.
+            if !excluded_any {
+                return Err(Fault::NoValidPoints {
+                    total: result.counts.total,
+                });
+            }
+            result.outcome = Outcome::NothingWithinMaxDistance;
         }
         let motion = Motion {
             poses,
@@ -761,5 +797,48 @@ impl Monitor {
             age_s: now_ns.map_or(0.0, |n| ((n - stamp_ns) as f64 * 1e-9).max(0.0)),
         };
         Ok((result, motion))
+    }
+
+    /// Drops the points of source `source` that lie in its exclusion volumes (each placed in
+    /// the sensor's frame at `stamp`, as the sensor itself is); the count of each volume that
+    /// applies. A volume whose frame cannot be placed is a fault: its points would otherwise
+    /// stop the cell, or be dropped in the wrong place.
+    fn exclude(
+        &self,
+        source: usize,
+        points: &mut [[f32; 3]],
+        root_from_sensor: &Isometry3<f64>,
+        stamp: Option<i64>,
+        link_pose: &dyn Fn(&str) -> Option<Isometry3<f64>>,
+    ) -> Result<Vec<(String, u64)>, Fault> {
+        let name = &self.config.sources[source].name;
+        let volumes: Vec<&ExclusionVolume> = (self.config.exclusion_volumes.iter())
+            .filter(|v| v.applies_to(name))
+            .collect();
+        if volumes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let sensor_from_root = root_from_sensor.inverse();
+        let placed = volumes
+            .iter()
+            .map(|v| {
+                let root_from_frame = tf::root_from_sensor(
+                    &self.tf,
+                    &v.frame,
+                    self.model.kinematics.root_link(),
+                    stamp,
+                    self.config.tf_tolerance_s,
+                    link_pose,
+                )
+                .map_err(|source| Fault::ExclusionFrame {
+                    volume: v.name.clone(),
+                    source,
+                })?;
+                let sensor_from_volume = sensor_from_root * root_from_frame * v.frame_from_volume;
+                Ok(exclusion::Placed::new(&v.shape, &sensor_from_volume))
+            })
+            .collect::<Result<Vec<_>, Fault>>()?;
+        let counts = exclusion::exclude(points, &placed);
+        Ok(volumes.iter().map(|v| v.name.clone()).zip(counts).collect())
     }
 }

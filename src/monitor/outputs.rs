@@ -24,11 +24,12 @@
 use crate::config::Config;
 use crate::msg::{
     Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
-    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, Range, SpeedScalingFactor, Time,
-    Vector3,
+    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, Quaternion, Range,
+    SpeedScalingFactor, Time, Vector3,
 };
 use crate::query::{Outcome, QueryResult};
 use crate::separation::SpeedScaling;
+use nalgebra::Isometry3;
 
 use super::Fault;
 
@@ -388,6 +389,10 @@ impl SourceReport {
                     values.push(kv("points_stray_rejected", r.stray_rejected.to_string()));
                 }
                 values.extend(
+                    (r.excluded.iter())
+                        .map(|(v, n)| kv(&format!("points_excluded.{v}"), n.to_string())),
+                );
+                values.extend(
                     r.self_filtered_by_link.iter().map(|(link, n)| {
                         kv(&format!("points_self_filtered.{link}"), n.to_string())
                     }),
@@ -530,6 +535,90 @@ pub fn closest_markers(
             ..base
         },
     ]
+}
+
+/// The exclusion volumes (grey) and attached objects (blue) as RViz shapes, each in its own
+/// frame (a volume's TF frame, an object's link) at `stamp`.
+pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
+    use crate::geometry::Primitive;
+    let marker = |ns: &str, id: usize, frame: &str, shape: &Primitive, pose: &Isometry3<f64>| {
+        let (r#type, scale) = match *shape {
+            Primitive::Box { size } => (Marker::CUBE, size),
+            Primitive::Sphere { radius } => (Marker::SPHERE, [2.0 * radius; 3]),
+            Primitive::Cylinder { radius, length } => {
+                (Marker::CYLINDER, [2.0 * radius, 2.0 * radius, length])
+            }
+        };
+        let (t, q) = (pose.translation.vector, pose.rotation.coords);
+        Marker {
+            header: Header {
+                stamp,
+                frame_id: frame.to_owned(),
+            },
+            ns: ns.to_owned(),
+            id: id as i32,
+            r#type,
+            action: Marker::ADD,
+            pose: Pose {
+                position: point([t.x, t.y, t.z]),
+                orientation: Quaternion {
+                    x: q.x,
+                    y: q.y,
+                    z: q.z,
+                    w: q.w,
+                },
+            },
+            scale: Vector3 {
+                x: scale[0],
+                y: scale[1],
+                z: scale[2],
+            },
+            lifetime: Duration { sec: 1, nanosec: 0 },
+            frame_locked: true,
+            ..Marker::default()
+        }
+    };
+    let volumes = config
+        .exclusion_volumes
+        .iter()
+        .enumerate()
+        .map(|(k, v)| Marker {
+            color: ColorRgba {
+                r: 0.5,
+                g: 0.5,
+                b: 0.5,
+                a: 0.3,
+            },
+            text: v.name.clone(),
+            ..marker(
+                "exclusion_volumes",
+                k,
+                &v.frame,
+                &v.shape,
+                &v.frame_from_volume,
+            )
+        });
+    let objects = config
+        .attached_objects
+        .iter()
+        .enumerate()
+        .map(|(k, o)| Marker {
+            color: ColorRgba {
+                r: 0.2,
+                g: 0.4,
+                b: 0.9,
+                a: 0.6,
+            },
+            text: o.name.clone(),
+            ..marker(
+                "attached_objects",
+                k,
+                &o.link,
+                &o.shape,
+                &o.link_from_object,
+            )
+        });
+    volumes.chain(objects).collect()
 }
 
 #[cfg(test)]

@@ -64,7 +64,9 @@ ros_message!(
 
 impl Marker<'_> {
     pub const ARROW: i32 = 0;
+    pub const CUBE: i32 = 1;
     pub const SPHERE: i32 = 2;
+    pub const CYLINDER: i32 = 3;
     pub const LINE_LIST: i32 = 5;
     pub const SPHERE_LIST: i32 = 7;
     pub const TEXT_VIEW_FACING: i32 = 9;

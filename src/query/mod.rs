@@ -734,6 +734,9 @@ pub struct QueryResult {
     pub point_spacing_m: f32,
     /// Points the monitor's stray-point filter rejected (`config::StrayFilter`; 0 here).
     pub stray_rejected: u64,
+    /// Points the monitor's exclusion volumes dropped before the query, per volume that applies
+    /// to the source (`cloud::exclusion`; none here). They are among `counts.invalid`.
+    pub excluded: Vec<(String, u64)>,
 }
 
 /// What one query asks: the cloud, where its sensor is, how the robot is posed, the options.

@@ -257,6 +257,7 @@ fn assemble(
         links: link_results,
         counts,
         stray_rejected: 0,
+        excluded: Vec::new(),
         self_filtered_by_link: links
             .iter()
             .zip(&bounds.self_filtered)

@@ -57,10 +57,10 @@ pub struct Joint {
 /// The kinematic tree of a robot.
 #[derive(Debug, Clone)]
 pub struct Kinematics {
-    link_names: Vec<String>,
+    pub(super) link_names: Vec<String>,
     root: usize,
     /// Joints in an order where each parent link is posed before the child.
-    joints: Vec<Joint>,
+    pub(super) joints: Vec<Joint>,
     /// Names of the joints whose values drive the robot (the entries of `q`).
     variables: Vec<String>,
 }

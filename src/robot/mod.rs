@@ -2,6 +2,7 @@
 //! metres) and the kinematic tree that poses the links (f64). Its output feeds the sphere
 //! packing (`packing`), and the link poses that the query (`query`) and the monitor use.
 
+pub mod attach;
 pub mod collada;
 pub mod exact;
 pub mod fill;
@@ -11,6 +12,7 @@ pub mod mesh;
 pub mod solid;
 pub mod urdf;
 
+pub use attach::AttachedObject;
 pub use intake::MeshReport;
 pub use kinematics::{Kinematics, LinkVelocity};
 pub use mesh::{ClosedMesh, MeshError};

@@ -429,6 +429,21 @@ fn load_element(
     }
 }
 
+/// A primitive (box, sphere, cylinder) as link `link`'s one collision element, centred on the
+/// link's frame (`robot::attach`).
+pub(super) fn load_primitive(
+    link: &str,
+    geometry: &urdf_rs::Geometry,
+) -> Result<CollisionElement, RobotError> {
+    let collision = urdf_rs::Collision {
+        name: None,
+        origin: urdf_rs::Pose::default(),
+        geometry: geometry.clone(),
+    };
+    let (mut elements, _) = load_element(link, 0, &collision, Path::new("."), &[])?;
+    Ok(elements.remove(0))
+}
+
 /// The convex hull of every vertex of a link's elements (parry3d's quickhull), as one element.
 fn convex_hull(link: &LinkGeometry) -> Result<CollisionElement, String> {
     let points: Vec<parry3d::math::Vector> = link

@@ -1,8 +1,9 @@
 //! `bench monitor`: what the monitor adds to the query on one real cloud (by default the Kinect
 //! cloud of ../shared's MoveIt perception tutorial bag, with the Panda and
 //! `config/panda_perception_tutorial.yaml`): the fusion across sources with the output messages
-//! (one source, and two), and the stray-point filter, each as a ratio to the decode + poses +
-//! query of the same frames. The variants are alternated frame by frame in one run, so the
+//! (one source, and two), the stray-point filter and ten exclusion volumes (placed where the
+//! cloud has points, and where it has none: the filter's own cost), each as a ratio to the
+//! decode + poses + query of the same frames. The variants are alternated frame by frame in one run, so the
 //! machine's drift hits them alike.
 
 use std::path::PathBuf;
@@ -35,9 +36,12 @@ pub struct BenchMonitorArgs {
 const CONFIG: &str = "config/panda_perception_tutorial.yaml";
 
 /// A monitor of the config with `extra` parameters.
-fn monitor(args: &BenchMonitorArgs, extra: &[(&str, &str)]) -> Result<Monitor> {
+fn monitor(
+    args: &BenchMonitorArgs,
+    extra: &[(impl AsRef<str>, impl AsRef<str>)],
+) -> Result<Monitor> {
     let extra: Vec<(String, String)> = (extra.iter())
-        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .map(|(k, v)| (k.as_ref().to_owned(), v.as_ref().to_owned()))
         .collect();
     monitor_from_config(args.config.load(CONFIG, &extra)?)
 }
@@ -48,7 +52,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         None => crate::demo::shared(&args.shared)?
             .join("bags/moveit_perception_tutorial/perception_tutorial_mcap"),
     };
-    let mut plain = monitor(&args, &[])?;
+    let mut plain = monitor(&args, &[] as &[(&str, &str)])?;
     let source = plain
         .config
         .sources
@@ -66,11 +70,23 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
     let second_topic = format!("{name}_2.topic");
     let mut two = monitor(
         &args,
-        &[("sources", &sources), (&second_topic, "/bench/second")],
+        &[
+            ("sources", sources.as_str()),
+            (&second_topic, "/bench/second"),
+        ],
     )?;
     let mut stray = monitor(&args, &[("stray_filter.min_points", "4")])?;
+    let root = plain.model.kinematics.root_link().to_owned();
+    let mut excluding = monitor(&args, &ten_volumes(&root, 0.0))?;
+    let mut excluding_nothing = monitor(&args, &ten_volumes(&root, 10.0))?;
     // Warm-up: the GPU probe (backend auto), the caches and the self-filter's grids.
-    for m in [&mut plain, &mut two, &mut stray] {
+    for m in [
+        &mut plain,
+        &mut two,
+        &mut stray,
+        &mut excluding,
+        &mut excluding_nothing,
+    ] {
         for _ in 0..3 {
             m.on_cloud(0, payload, None);
         }
@@ -78,7 +94,8 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
     two.on_cloud(1, payload, None);
     let (mut query, mut outputs, mut query_two, mut outputs_two, mut query_stray) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut rejected = 0;
+    let (mut query_excluding, mut query_excluding_nothing) = (Vec::new(), Vec::new());
+    let (mut rejected, mut excluded, mut excluded_far) = (0, 0, 0);
     for run in 0..args.runs {
         let f = plain.on_cloud(0, payload, None);
         if let Err(e) = &f.result {
@@ -92,6 +109,15 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         let f = stray.on_cloud(0, payload, None);
         query_stray.push(f.processing_s * 1e3);
         rejected += f.result.as_ref().map_or(0, |r| r.stray_rejected);
+        let count = |f: &ist_monitor::monitor::Frame| -> u64 {
+            (f.result.as_ref()).map_or(0, |r| r.excluded.iter().map(|(_, n)| n).sum())
+        };
+        let f = excluding.on_cloud(0, payload, None);
+        query_excluding.push(f.processing_s * 1e3);
+        excluded += count(&f);
+        let f = excluding_nothing.on_cloud(0, payload, None);
+        query_excluding_nothing.push(f.processing_s * 1e3);
+        excluded_far += count(&f);
     }
     let ratio = |a: &[f64], b: &[f64]| Spread::of(a.iter().zip(b).map(|(x, y)| x / y).collect());
     let ms = |s: Spread| format!("{:.3} ms [{:.3}, {:.3}]", s.median, s.p10, s.p90);
@@ -133,5 +159,49 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         "points the stray filter rejected:            {rejected} in {} frames",
         args.runs
     );
+    println!(
+        "decode + poses + exclusion (10) + query:     {}  = {} of the query alone ({} points excluded per frame)",
+        ms(Spread::of(query_excluding.clone())),
+        pct(ratio(&query_excluding, &query)),
+        excluded / args.runs as u64
+    );
+    println!(
+        "the same, the 10 volumes 10 m away:          {}  = {} of the query alone ({} points excluded)",
+        ms(Spread::of(query_excluding_nothing.clone())),
+        pct(ratio(&query_excluding_nothing, &query)),
+        excluded_far
+    );
     Ok(())
+}
+
+/// Ten exclusion volumes in frame `root`, `away` metres up: nine 0.3 m boxes on a grid in front
+/// of the robot, from the floor up, and one cylinder around its base.
+fn ten_volumes(root: &str, away: f64) -> Vec<(String, String)> {
+    let mut names = Vec::new();
+    let mut p = Vec::new();
+    for (k, (x, y)) in [-0.4, 0.0, 0.4]
+        .iter()
+        .flat_map(|x| [-0.4, 0.0, 0.4].map(|y| (0.6 + x, y)))
+        .enumerate()
+    {
+        let name = format!("box{k}");
+        p.push((format!("{name}.frame"), root.to_owned()));
+        p.push((format!("{name}.size"), "[0.3, 0.3, 0.3]".to_owned()));
+        p.push((
+            format!("{name}.translation"),
+            format!("[{x}, {y}, {}]", 0.15 * k as f64 / 8.0 + away),
+        ));
+        names.push(name);
+    }
+    p.push(("base.frame".into(), root.to_owned()));
+    p.push(("base.shape".into(), "cylinder".into()));
+    p.push(("base.radius".into(), "0.2".into()));
+    p.push(("base.length".into(), "0.4".into()));
+    p.push(("base.translation".into(), format!("[0, 0, {}]", away)));
+    names.push("base".into());
+    p.push((
+        "exclusion_volumes".into(),
+        format!("[{}]", names.join(", ")),
+    ));
+    p
 }

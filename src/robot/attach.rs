@@ -1,0 +1,89 @@
+//! Attached objects: a shape fixed to a link that the URDF does not have — the part in the
+//! gripper, a tool, a cable guide. An object joins the robot as a link of its own, named after
+//! it, under its `link` by a fixed joint at `link_from_object`, with the primitive as its one
+//! collision element. From there it is a link like any other: it is packed and certified, its
+//! points are self-filtered (a held part is not an obstacle), and its distance to the world is
+//! measured and published under its name (a held part that reaches a person stops the cell).
+
+use nalgebra::Isometry3;
+
+use super::kinematics::{Joint, JointMotion, JointSource, Kinematics};
+use super::urdf::{load_primitive, RobotModel};
+use super::{LinkGeometry, RobotError};
+use crate::geometry::Primitive;
+
+/// A shape fixed to a link of the robot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttachedObject {
+    /// Its link's name (unique in the robot).
+    pub name: String,
+    /// The robot link it is fixed to.
+    pub link: String,
+    pub shape: Primitive,
+    pub link_from_object: Isometry3<f64>,
+}
+
+impl Kinematics {
+    /// Adds link `child` under `parent` by a fixed joint `joint` at `parent_from_child`.
+    pub fn add_fixed_link(
+        &mut self,
+        joint: &str,
+        child: &str,
+        parent: usize,
+        parent_from_child: Isometry3<f64>,
+    ) {
+        let child_index = self.link_names.len();
+        self.link_names.push(child.to_owned());
+        // The parent is posed already (it is in the tree), so the joint goes last.
+        self.joints.push(Joint {
+            name: joint.to_owned(),
+            parent,
+            child: child_index,
+            parent_from_joint: parent_from_child,
+            motion: JointMotion::Fixed,
+            source: JointSource::None,
+        });
+    }
+}
+
+impl RobotModel {
+    /// Joins `object` to the robot as a link of its own (see the module doc).
+    pub fn attach(&mut self, object: &AttachedObject) -> Result<(), RobotError> {
+        let topology = |message: String| RobotError::Topology {
+            path: self.urdf_path.display().to_string(),
+            message,
+        };
+        let parent = self.kinematics.link_index(&object.link).ok_or_else(|| {
+            topology(format!(
+                "link {} is not a link of robot {}",
+                object.link, self.name
+            ))
+        })?;
+        if self.kinematics.link_index(&object.name).is_some() {
+            return Err(topology(format!(
+                "robot {} already has a link named {}",
+                self.name, object.name
+            )));
+        }
+        let element = load_primitive(&object.name, &object.shape.to_urdf())?;
+        self.kinematics.add_fixed_link(
+            &format!("{}_attachment", object.name),
+            &object.name,
+            parent,
+            object.link_from_object,
+        );
+        self.links.push(LinkGeometry {
+            name: object.name.clone(),
+            elements: vec![element],
+            intake: Vec::new(),
+            hull_of_volume_m3: None,
+        });
+        log::info!(
+            "attached object {}: {} on link {}",
+            object.name,
+            object.shape,
+            object.link
+        );
+        Ok(())
+    }
+}
