@@ -199,17 +199,6 @@ impl Primitive {
         }
     }
 
-    /// Its volume, m³.
-    pub fn volume_m3(&self) -> f64 {
-        match *self {
-            Primitive::Box { size } => size[0] * size[1] * size[2],
-            Primitive::Sphere { radius } => ball_volume(radius),
-            Primitive::Cylinder { radius, length } => {
-                std::f64::consts::PI * radius * radius * length
-            }
-        }
-    }
-
     /// As a URDF geometry, for the robot model.
     pub fn to_urdf(&self) -> urdf_rs::Geometry {
         match *self {

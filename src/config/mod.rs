@@ -19,7 +19,7 @@ use yaml_rust2::{Yaml, YamlLoader};
 
 use crate::cloud::exclusion::ExclusionVolume;
 use crate::ist::BuildOptions;
-use crate::msg::{Header, Quaternion, Time, Transform, TransformStamped, Vector3};
+use crate::msg::{Header, Time, TransformStamped};
 use crate::query::{Backend, LinkSelection, Mode, QueryOptions};
 use crate::robot::{urdf::resolve_uri, AttachedObject, PackagePath};
 use crate::separation::{SsmParams, StoppingTable};
@@ -421,39 +421,13 @@ impl Config {
                 let n = |rest: &str| (format!("{t}.{rest}"), format!("<transform>.{rest}"));
                 let (parent, pt) = n("parent_frame");
                 let (child, ct) = n("child_frame");
-                let (tr, trt) = n("translation");
-                let (rot, rott) = n("rotation");
-                let xyz = v.numbers(&tr, &trt)?;
-                let q = v.numbers(&rot, &rott)?;
-                if xyz.len() != 3 {
-                    return Err(Values::bad(&tr, "expected [x, y, z]"));
-                }
-                if q.len() != 4 {
-                    return Err(Values::bad(&rot, "expected [x, y, z, w]"));
-                }
-                let rotation = Quaternion {
-                    x: q[0],
-                    y: q[1],
-                    z: q[2],
-                    w: q[3],
-                };
-                if rotation.to_unit().is_none() {
-                    return Err(Values::bad(&rot, "the quaternion is zero"));
-                }
                 Ok(TransformStamped {
                     header: Header {
                         stamp: Time::default(),
                         frame_id: v.string(&parent, &pt)?,
                     },
                     child_frame_id: v.string(&child, &ct)?,
-                    transform: Transform {
-                        translation: Vector3 {
-                            x: xyz[0],
-                            y: xyz[1],
-                            z: xyz[2],
-                        },
-                        rotation,
-                    },
+                    transform: shapes::transform(&v, t, "<transform>")?,
                 })
             })
             .collect::<Result<Vec<_>, ConfigError>>()?;

@@ -4,17 +4,44 @@
 //! `length`, as URDF gives them) at `translation`/`rotation` in a frame: a TF frame for a volume
 //! (`frame`), a link for an object (`link`).
 
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::Isometry3;
 
 use super::values::Values;
 use super::ConfigError;
 use crate::cloud::exclusion::ExclusionVolume;
 use crate::geometry::Primitive;
+use crate::msg::{Quaternion, Transform, Vector3};
 use crate::robot::attach::AttachedObject;
 
 /// The names of one list entry's parameters: `("<name>.rest", "<template>.rest")`.
 fn names(entry: &str, template: &str, rest: &str) -> (String, String) {
     (format!("{entry}.{rest}"), format!("{template}.{rest}"))
+}
+
+/// The `translation` ([x, y, z]) and `rotation` (quaternion [x, y, z, w], not zero) of list
+/// entry `entry` (declared as `template`): static transforms, volumes and objects.
+pub(super) fn transform(v: &Values, entry: &str, template: &str) -> Result<Transform, ConfigError> {
+    let (tr, trt) = names(entry, template, "translation");
+    let (rot, rott) = names(entry, template, "rotation");
+    let [x, y, z] = v.numbers(&tr, &trt)?[..] else {
+        return Err(Values::bad(&tr, "expected [x, y, z]"));
+    };
+    let [qx, qy, qz, qw] = v.numbers(&rot, &rott)?[..] else {
+        return Err(Values::bad(&rot, "expected [x, y, z, w]"));
+    };
+    let rotation = Quaternion {
+        x: qx,
+        y: qy,
+        z: qz,
+        w: qw,
+    };
+    if rotation.to_unit().is_none() {
+        return Err(Values::bad(&rot, "the quaternion is zero"));
+    }
+    Ok(Transform {
+        translation: Vector3 { x, y, z },
+        rotation,
+    })
 }
 
 /// The primitive and pose of list entry `entry` (declared as `template`).
@@ -66,24 +93,9 @@ fn placed(
             ))
         }
     };
-    let (tr, trt) = n("translation");
-    let (rot, rott) = n("rotation");
-    let xyz = v.numbers(&tr, &trt)?;
-    let q = v.numbers(&rot, &rott)?;
-    let [x, y, z] = xyz[..] else {
-        return Err(Values::bad(&tr, "expected [x, y, z]"));
-    };
-    let [qx, qy, qz, qw] = q[..] else {
-        return Err(Values::bad(&rot, "expected [x, y, z, w]"));
-    };
-    let q = Quaternion::new(qw, qx, qy, qz);
-    if q.norm() <= 1e-9 {
-        return Err(Values::bad(&rot, "the quaternion is zero"));
-    }
-    let pose = Isometry3::from_parts(
-        Translation3::new(x, y, z),
-        UnitQuaternion::from_quaternion(q),
-    );
+    let pose = transform(v, entry, template)?
+        .to_isometry()
+        .expect("a checked, finite transform");
     Ok((shape, pose))
 }
 

@@ -7,7 +7,6 @@
 
 use nalgebra::Isometry3;
 
-use super::kinematics::{Joint, JointMotion, JointSource, Kinematics};
 use super::urdf::{load_primitive, RobotModel};
 use super::{LinkGeometry, RobotError};
 use crate::geometry::Primitive;
@@ -21,29 +20,6 @@ pub struct AttachedObject {
     pub link: String,
     pub shape: Primitive,
     pub link_from_object: Isometry3<f64>,
-}
-
-impl Kinematics {
-    /// Adds link `child` under `parent` by a fixed joint `joint` at `parent_from_child`.
-    pub fn add_fixed_link(
-        &mut self,
-        joint: &str,
-        child: &str,
-        parent: usize,
-        parent_from_child: Isometry3<f64>,
-    ) {
-        let child_index = self.link_names.len();
-        self.link_names.push(child.to_owned());
-        // The parent is posed already (it is in the tree), so the joint goes last.
-        self.joints.push(Joint {
-            name: joint.to_owned(),
-            parent,
-            child: child_index,
-            parent_from_joint: parent_from_child,
-            motion: JointMotion::Fixed,
-            source: JointSource::None,
-        });
-    }
 }
 
 impl RobotModel {

@@ -57,10 +57,10 @@ pub struct Joint {
 /// The kinematic tree of a robot.
 #[derive(Debug, Clone)]
 pub struct Kinematics {
-    pub(super) link_names: Vec<String>,
+    link_names: Vec<String>,
     root: usize,
     /// Joints in an order where each parent link is posed before the child.
-    pub(super) joints: Vec<Joint>,
+    joints: Vec<Joint>,
     /// Names of the joints whose values drive the robot (the entries of `q`).
     variables: Vec<String>,
 }
@@ -231,6 +231,27 @@ impl Kinematics {
             joints,
             variables,
         })
+    }
+
+    /// Adds link `child` under `parent` by a fixed joint `joint` at `parent_from_child`.
+    pub fn add_fixed_link(
+        &mut self,
+        joint: &str,
+        child: &str,
+        parent: usize,
+        parent_from_child: Isometry3<f64>,
+    ) {
+        let child_index = self.link_names.len();
+        self.link_names.push(child.to_owned());
+        // The parent is posed already (it is in the tree), so the joint goes last.
+        self.joints.push(Joint {
+            name: joint.to_owned(),
+            parent,
+            child: child_index,
+            parent_from_joint: parent_from_child,
+            motion: JointMotion::Fixed,
+            source: JointSource::None,
+        });
     }
 
     pub fn link_names(&self) -> &[String] {
