@@ -20,7 +20,9 @@ const MAGIC: &[u8; 8] = b"ISTCACHE";
 /// Bump when the file layout or anything that changes the trees for the same key changes.
 /// 3: trees validated before they are stored (`ist::validate`), the files' sampled gap and the
 /// grown budget recorded, no wall times; deterministic intake.
-pub const FORMAT_VERSION: u32 = 3;
+/// 4: walls thinner than the fill's voxel packed (each closed shell's own inside test), the
+/// gap pass's second seed at half the thickness, T-junction cracks sewn in full.
+pub const FORMAT_VERSION: u32 = 4;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CacheError {

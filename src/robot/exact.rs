@@ -142,9 +142,24 @@ impl ExactSurface {
         self.full_winding(p)
     }
 
-    /// Whether `p` lies inside a closed, outward-oriented surface.
+    /// Whether `p` lies inside a closed, outward-oriented surface (never outside its box).
     pub fn contains(&self, p: P3) -> bool {
-        self.winding(p) >= 0.5
+        self.contains_by_rays(p)
+            .unwrap_or_else(|| self.full_winding(p) >= 0.5)
+    }
+
+    /// [`Self::contains`] by the ray count alone: `None` where every ray is ambiguous (a
+    /// point on the surface, or within rounding of it), which the full sum would decide at
+    /// the cost of every triangle's solid angle.
+    pub fn contains_by_rays(&self, p: P3) -> Option<bool> {
+        let root = &self.nodes[0];
+        if !(0..3).all(|k| root.lo[k] <= p[k] && p[k] <= root.hi[k]) {
+            return Some(false);
+        }
+        DIRECTIONS
+            .iter()
+            .find_map(|&d| self.ray_winding(p, d))
+            .map(|w| w as f64 >= 0.5)
     }
 
     /// Every triangle's solid angle (the generalized winding number).
@@ -207,7 +222,7 @@ impl ExactSolid {
     /// Whether `p` is inside (a point the fill cannot place counts as outside).
     pub fn contains(&self, p: P3) -> bool {
         match &self.fill {
-            Some(fill) => fill.contains(p.map(|x| x as f32), false),
+            Some(fill) => fill.contains(p, false),
             None => self.surface.contains(p),
         }
     }

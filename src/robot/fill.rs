@@ -17,8 +17,13 @@
 //! them; a sphere's radius is bounded by the distance to the kept triangles, which is at most
 //! the distance to the solid's boundary. Inside or outside for a point in a boundary voxel: the
 //! label of a neighbouring pure voxel whose centre a segment reaches without crossing any
-//! triangle; when every such segment is blocked the caller says which answer is safe (outside
-//! for the packing, inside for a distance).
+//! triangle; failing that, inside when the point is inside one of the closed shells the solid
+//! was made of (their f64 winding number counted along rays, `robot::exact`: a wall thinner
+//! than a voxel is still solid there, so spheres are packed into it); when neither decides (a
+//! point on a shell's surface) the caller says which answer is safe (outside for the packing,
+//! inside for a distance). A point in a boundary voxel with no exterior voxel among its 26
+//! neighbours is inside without a test: any way from it to the outside passes through a gap
+//! narrower than a voxel, which the fill takes as closed.
 //!
 //! Cost: O(voxels) memory (one byte each, ≤ 16.8 M) and time for the fill; a few triangle–box
 //! tests per voxel a triangle's box covers.
@@ -29,6 +34,7 @@ use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
 use parry3d::shape::TriMesh;
 
+use super::exact::ExactSurface;
 use super::mesh::bounds_f64;
 
 /// Voxels along the longest side of the mesh's box.
@@ -50,6 +56,9 @@ pub struct Fill {
     dims: [usize; 3],
     labels: Vec<u8>,
     surface: TriMesh,
+    /// The closed, outward-oriented shells among the triangles: everything inside one of them
+    /// is in the solid.
+    shells: Vec<ExactSurface>,
 }
 
 impl std::fmt::Debug for Fill {
@@ -62,9 +71,14 @@ impl std::fmt::Debug for Fill {
 }
 
 impl Fill {
-    /// The fill of `triangles`, and for each triangle whether it faces the exterior.
-    /// `None` when parry3d refuses the triangles (none left).
-    pub fn new(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Option<(Self, Vec<bool>)> {
+    /// The fill of `triangles`, and for each triangle whether it faces the exterior. `shells`
+    /// are the closed, outward-oriented shells among the triangles. `None` when parry3d
+    /// refuses the triangles (none left).
+    pub fn new(
+        vertices: &[[f32; 3]],
+        triangles: &[[u32; 3]],
+        shells: Vec<ExactSurface>,
+    ) -> Option<(Self, Vec<bool>)> {
         let (lo, hi) = bounds_f64(vertices);
         let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
         let voxel_m = extent / MAX_VOXELS_PER_AXIS as f64;
@@ -85,6 +99,7 @@ impl Fill {
             dims,
             labels: vec![UNKNOWN; dims[0] * dims[1] * dims[2]],
             surface,
+            shells,
         };
         let corners = |t: &[u32; 3]| t.map(|i| vertices[i as usize].map(f64::from));
         for t in triangles {
@@ -198,15 +213,18 @@ impl Fill {
     }
 
     /// Whether `p` (link frame) is in the solid; `ambiguous` is the answer when `p` lies in a
-    /// boundary voxel and no segment to a pure neighbour is free of triangles.
-    pub fn contains(&self, p: [f32; 3], ambiguous: bool) -> bool {
-        let p = p.map(f64::from);
+    /// boundary voxel, no segment to a pure neighbour is free of triangles and no closed shell
+    /// holds it.
+    pub fn contains(&self, p: [f64; 3], ambiguous: bool) -> bool {
         let Some(c) = self.cell(p) else {
             return false;
         };
         match self.labels[self.index(c)] {
             EXTERIOR => false,
             INTERIOR => true,
+            // No exterior voxel among its neighbours: any way out leads through a gap narrower
+            // than a voxel, which the fill takes as closed.
+            BOUNDARY => true,
             _ => {
                 for n in self.neighbours(c) {
                     let label = self.labels[self.index(n)];
@@ -233,7 +251,11 @@ impl Fill {
                         return label == INTERIOR;
                     }
                 }
-                ambiguous
+                // On a shell's surface (no ray decides) the caller's answer stands.
+                self.shells
+                    .iter()
+                    .any(|s| s.contains_by_rays(p) == Some(true))
+                    || ambiguous
             }
         }
     }

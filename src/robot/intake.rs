@@ -32,7 +32,9 @@
 //!    closed, manifold and oriented, are one solid decided by an exterior flood fill
 //!    (`robot::fill`): overlapping parts are their union, and the space they enclose together
 //!    (a thin wall closed at its ends by other parts) is filled, with the triangles inside the
-//!    solid dropped so that spheres grow across them.
+//!    solid dropped so that spheres grow across them. A wall thinner than the fill's voxel is
+//!    still solid: the closed shells go with the fill, and a point inside one of them is inside
+//!    (its own winding number), so a vendor's 1 mm housing open at its tube ends gets spheres.
 //!
 //! The guarantee stays: no inner sphere outside the solid, and h certified against the surface
 //! that faces the outside. Refused, with the reason: a mesh whose surface, after all this,
@@ -40,10 +42,11 @@
 
 use std::collections::HashMap;
 
+use super::exact::ExactSurface;
 use super::fill::Fill;
 use super::mesh::{check_soup, extent, ClosedMesh, MeshError};
 use super::solid::Solid;
-use crate::geometry::{dist, mesh_volume, triangle_area, widen};
+use crate::geometry::{dist, dot, mesh_volume, sub, triangle_area, widen};
 
 /// Welding tolerance relative to the mesh's largest extent.
 pub const WELD_RELATIVE: f64 = 1e-6;
@@ -569,12 +572,14 @@ fn crack(
         return false;
     };
     let (u, w) = (lp[long], lp[(long + 1) % n]);
-    // The chain w → … → u, every vertex on the segment from w to u (zero area).
-    let chain: Vec<u32> = (1..n).map(|k| lp[(long + k) % n]).collect();
-    if chain
-        .windows(2)
-        .any(|e| triangle_area(v(w), v(u), v(e[0])) > min_area || e[0] == e[1])
-    {
+    // The chain w → … → u, every vertex between on the segment from w to u (zero area).
+    let chain: Vec<u32> = (1..=n).map(|k| lp[(long + k) % n]).collect();
+    let along = sub(v(u), v(w));
+    let on_segment = |c: u32| {
+        let t = dot(sub(v(c), v(w)), along);
+        triangle_area(v(w), v(u), v(c)) <= min_area && t > 0.0 && t < dot(along, along)
+    };
+    if !chain[1..n - 1].iter().all(|&c| on_segment(c)) || chain.windows(2).any(|e| e[0] == e[1]) {
         return false;
     }
     let Some(t) = edges
@@ -631,7 +636,11 @@ fn filled(
         vertices.extend_from_slice(&s.vertices);
         triangles.extend(s.triangles.iter().map(|t| t.map(|i| i + base)));
     }
-    let (fill, facing) = Fill::new(&vertices, &triangles)
+    let closed = shells
+        .iter()
+        .map(|s| ExactSurface::new(&s.vertices, &s.triangles))
+        .collect();
+    let (fill, facing) = Fill::new(&vertices, &triangles, closed)
         .ok_or_else(|| MeshError::Load("parry3d refuses the mesh's triangles".into()))?;
     if fill.encloses_nothing() {
         return Err(MeshError::EnclosesNothing {
@@ -688,6 +697,40 @@ fn drop_inner(mut shells: Vec<(ClosedMesh, Solid)>, report: &mut MeshReport) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A box whose triangle [1, 2, 3] is split at a point `m` of its edge 1–2 while its
+    /// neighbour [0, 2, 1] is not: exactly on the edge a T-junction, off it a small hole.
+    fn split_box(off: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let b = crate::robot::mesh::tessellate_box([0.1, 0.1, 0.1]);
+        let mut vertices = b.vertices;
+        let (v1, v2, v0) = (vertices[1], vertices[2], vertices[0]);
+        vertices.push(std::array::from_fn(|k| {
+            0.5 * (v1[k] + v2[k]) + off * (v0[k] - 0.5 * (v1[k] + v2[k]))
+        }));
+        let mut triangles = b.triangles;
+        let i = triangles.iter().position(|t| *t == [1, 2, 3]).unwrap();
+        triangles[i] = [1, 8, 3];
+        triangles.push([8, 2, 3]);
+        (vertices, triangles)
+    }
+
+    #[test]
+    fn a_t_junction_is_sewn_and_a_small_hole_fanned_both_closed() {
+        let (v, t) = split_box(0.0);
+        let (meshes, report) = intake(&v, &t).unwrap();
+        assert_eq!((report.open_edges, report.cracks_sewn), (3, 1));
+        assert_eq!((report.holes_closed, report.open_shells), (0, 0));
+        assert_eq!(meshes.len(), 1);
+        assert!(meshes[0].fill.is_none(), "one closed shell, not the fill");
+        assert!((meshes[0].volume_m3 - 1e-3).abs() < 1e-9);
+        // Off the edge by 1 % of the way to vertex 0: a hole of area, not a crack.
+        let (v, t) = split_box(0.01);
+        let (meshes, report) = intake(&v, &t).unwrap();
+        assert_eq!((report.cracks_sewn, report.holes_closed), (0, 1));
+        assert_eq!((report.open_shells, meshes.len()), (0, 1));
+        assert!(meshes[0].fill.is_none());
+        assert!((meshes[0].volume_m3 - 1e-3).abs() < 1e-9);
+    }
 
     #[test]
     fn a_figure_eight_splits_at_its_repeated_vertex() {

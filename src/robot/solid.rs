@@ -66,7 +66,7 @@ impl Solid {
     #[inline]
     fn inside(&self, p: [f32; 3], parry_inside: bool, ambiguous: bool) -> bool {
         match &self.fill {
-            Some(fill) => fill.contains(p, ambiguous),
+            Some(fill) => fill.contains(p.map(f64::from), ambiguous),
             None => parry_inside,
         }
     }
@@ -126,6 +126,24 @@ impl Solid {
             Vector::new(dir[0], dir[1], dir[2]),
         );
         self.trimesh.cast_local_ray(&ray, max, true)
+    }
+
+    /// How far the surface lies from the surface point `p` along the unit `inward` direction
+    /// (the solid's thickness there, where `inward` is the inward normal), at most `max`: the
+    /// first triangle the ray meets past a tiny offset from `p`'s own.
+    pub fn thickness(&self, p: [f32; 3], inward: [f32; 3], max: f32) -> f32 {
+        let offset = 1e-6 * max.max(f32::MIN_POSITIVE);
+        let ray = Ray::new(
+            Vector::new(
+                p[0] + inward[0] * offset,
+                p[1] + inward[1] * offset,
+                p[2] + inward[2] * offset,
+            ),
+            Vector::new(inward[0], inward[1], inward[2]),
+        );
+        self.trimesh
+            .cast_local_ray(&ray, max, false)
+            .map_or(max, |t| t + offset)
     }
 
     /// [`Self::distance`] when it is at most `max`, for a point known to be outside: the BVH
