@@ -502,6 +502,60 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
     assert!((0.2..=1.0).contains(&factor), "{factor}");
 }
 
+/// A node at rest (factor remapped to joint_trajectory_controller's input, `env` set) and the
+/// Cyclone DDS peer watching it with `peer_args`, once the peer says `watching` (the factor
+/// has risen: the arm may move). Returns the node, the peer and the rest of its output to read.
+fn node_and_watching_peer(
+    python: &Path,
+    env: &[(&str, &str)],
+    peer_args: &[&str],
+) -> (
+    std::process::Child,
+    std::process::Child,
+    std::io::BufReader<std::process::ChildStdout>,
+) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
+    let node = ist_monitor()
+        .envs(env.iter().copied())
+        .args(at_rest_args())
+        .args([
+            "-r",
+            "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut peer = Command::new(python)
+        .arg(&script)
+        .args(peer_args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = std::io::BufReader::new(peer.stdout.take().unwrap());
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut stdout, &mut line).unwrap();
+    assert_eq!(line.trim(), "watching", "the peer: {line}");
+    (node, peer, stdout)
+}
+
+/// What the watching peer saw (its JSON line), once it ended well.
+fn peer_report(
+    peer: std::process::Child,
+    mut stdout: std::io::BufReader<std::process::ChildStdout>,
+) -> serde_json::Value {
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stdout, &mut rest).unwrap();
+    let peer = peer.wait_with_output().unwrap();
+    assert!(
+        peer.status.success(),
+        "the peer: {}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
+    serde_json::from_str(&rest).unwrap()
+}
+
 /// The node's last word, read by an independent DDS implementation (the Cyclone DDS peer): a
 /// node serving a cloud at full speed that is stopped by SIGTERM, or that panics (a fault
 /// injected after 40 frames), leaves `~/safety_stop` true and the speed-scaling factor 0 as the
@@ -517,35 +571,15 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
         return;
     };
     common::demo_trees();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
     for crash in [false, true] {
-        let mut node = ist_monitor();
-        if crash {
-            node.env(ist_monitor::node::PANIC_AFTER_ENV, "40");
-        }
-        let node = node
-            .args(at_rest_args())
-            .args([
-                "-r",
-                "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
-            ])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let mut peer = Command::new(&python)
-            .arg(&script)
-            .args(["--watch", if crash { "8" } else { "4" }])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
+        let env: &[(&str, &str)] = if crash {
+            &[(ist_monitor::node::PANIC_AFTER_ENV, "40")]
+        } else {
+            &[]
+        };
+        let watch = if crash { "8" } else { "4" };
+        let (node, peer, stdout) = node_and_watching_peer(&python, env, &["--watch", watch]);
         let _reap = Reap(vec![node.id(), peer.id()]);
-        // The peer says `watching` once the factor has risen: the arm may move.
-        let mut stdout = std::io::BufReader::new(peer.stdout.take().unwrap());
-        let mut line = String::new();
-        std::io::BufRead::read_line(&mut stdout, &mut line).unwrap();
-        assert_eq!(line.trim(), "watching", "the peer: {line}");
         if !crash {
             std::thread::sleep(Duration::from_millis(1500));
             Command::new("kill")
@@ -561,15 +595,7 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
         } else {
             assert!(out.status.success(), "{log}");
         }
-        let mut rest = String::new();
-        std::io::Read::read_to_string(&mut stdout, &mut rest).unwrap();
-        let peer = peer.wait_with_output().unwrap();
-        assert!(
-            peer.status.success(),
-            "the peer: {}",
-            String::from_utf8_lossy(&peer.stderr)
-        );
-        let seen: serde_json::Value = serde_json::from_str(&rest).unwrap();
+        let seen = peer_report(peer, stdout);
         let stops: Vec<bool> = serde_json::from_value(seen["stops"].clone()).unwrap();
         let factors: Vec<f64> = serde_json::from_value(seen["factors"].clone()).unwrap();
         // Running, the node allowed motion and raised no stop; its last word undid both.
@@ -578,6 +604,71 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
         assert_eq!(stops.last(), Some(&true), "crash {crash}: {seen}");
         assert_eq!(factors.last(), Some(&0.0), "crash {crash}: {seen}");
     }
+}
+
+/// A node killed outright (SIGKILL: no last word is possible) is still told apart from a quiet
+/// one: the outputs offer the QoS deadline `output_deadline` (0.5 s) and automatic liveliness
+/// with a 3 s lease, so an independent DDS subscriber (the Cyclone DDS peer) that requests them
+/// is matched, sees no missed deadline and no lost liveliness while the node runs, and is told
+/// by its own middleware within the deadline, then the lease, once the node is gone.
+#[test]
+fn a_killed_node_is_reported_by_the_offered_deadline() {
+    if !in_private_network("a_killed_node_is_reported_by_the_offered_deadline") {
+        return;
+    }
+    let Some(python) = common::venv_python() else {
+        return;
+    };
+    common::demo_trees();
+    let (node, peer, stdout) = node_and_watching_peer(
+        &python,
+        &[],
+        &["--watch", "8", "--deadline", "0.5", "--lease", "3"],
+    );
+    let _reap = Reap(vec![node.id(), peer.id()]);
+    std::thread::sleep(Duration::from_millis(1500));
+    let killed_at = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    Command::new("kill")
+        .args(["-KILL", &node.id().to_string()])
+        .status()
+        .unwrap();
+    let out = node.wait_with_output().unwrap();
+    assert!(!out.status.success());
+    let seen = peer_report(peer, stdout);
+    // Matched: a subscriber asking for a 0.5 s deadline received the stop topic.
+    let samples = seen["deadline_samples"].as_u64().unwrap();
+    assert!(samples >= 10, "{seen}");
+    let missed: Vec<f64> = serde_json::from_value(seen["deadline_missed"].clone()).unwrap();
+    assert!(
+        missed.iter().all(|&t| t >= killed_at),
+        "a deadline missed while the node ran: {seen} (killed at {killed_at})"
+    );
+    // Within the deadline, and a slack for a loaded machine (about 0.45 s when idle).
+    let first = missed.first().copied();
+    assert!(
+        first.is_some_and(|t| t <= killed_at + 0.5 + 2.0),
+        "no missed deadline within 2.5 s of the kill at {killed_at}: {seen}"
+    );
+    // Liveliness (a 3 s lease asked, 3 s offered): the writer was alive, stayed alive while
+    // the node ran, and was lost within the lease after the kill (about 2.9 s when idle; 2 s
+    // of slack for a loaded machine).
+    let changes: Vec<(f64, u64)> = serde_json::from_value(seen["liveliness"].clone()).unwrap();
+    assert!(changes.iter().any(|&(_, alive)| alive >= 1), "{seen}");
+    assert!(
+        changes
+            .iter()
+            .all(|&(t, alive)| alive >= 1 || t >= killed_at),
+        "liveliness lost while the node ran: {seen} (killed at {killed_at})"
+    );
+    assert!(
+        changes
+            .last()
+            .is_some_and(|&(t, alive)| alive == 0 && t <= killed_at + 3.0 + 2.0),
+        "liveliness not lost within 5 s of the kill at {killed_at}: {seen}"
+    );
 }
 
 /// Depth images over DDS: a generated 16UC1 bag (images and their CameraInfo) played to a node

@@ -131,6 +131,8 @@ pub struct Config {
     pub latency_budget_s: f64,
     /// The node publishes the fused state at least this often, s.
     pub heartbeat_period_s: f64,
+    /// The QoS deadline offered on the outputs published every heartbeat, s (`None`: infinite).
+    pub output_deadline_s: Option<f64>,
     /// A level is lowered only after this many consecutive results allow it.
     pub release_frames: u32,
     /// The stray-point filter (`min_points` 1: off).
@@ -503,6 +505,7 @@ impl Config {
                     ))
                 }
             },
+            output_deadline_s: Self::output_deadline(&v)?,
             sources,
             static_transforms,
             fixed_joint_state: names.into_iter().zip(positions).collect(),
@@ -511,6 +514,20 @@ impl Config {
             ssm: Self::ssm(&v)?,
             remaps: Vec::new(),
         })
+    }
+
+    /// `output_deadline`: 0 for none, else at least `heartbeat_period` (a deadline shorter than
+    /// the period the node publishes at would be missed on every beat).
+    fn output_deadline(v: &Values) -> Result<Option<f64>, ConfigError> {
+        let period = v.distance("heartbeat_period", "heartbeat_period")?;
+        match v.distance("output_deadline", "output_deadline")? {
+            0.0 => Ok(None),
+            t if t >= period => Ok(Some(t)),
+            t => Err(Values::bad(
+                "output_deadline",
+                format!("must be 0 (none) or at least heartbeat_period ({period} s), got {t}"),
+            )),
+        }
     }
 
     fn ssm(v: &Values) -> Result<SsmParams, ConfigError> {
@@ -688,6 +705,8 @@ mod tests {
             ("    speed_scaling.stopping.speeds: [0.5, 1.0]\n", "speed_scaling.stopping.speeds"),
             ("    speed_scaling.hysteresis: 2\n", "speed_scaling.hysteresis"),
             ("    speed_scaling.human_speed: -1\n", "speed_scaling.human_speed"),
+            ("    output_deadline: 0.05\n", "output_deadline"),
+            ("    output_deadline: -1\n", "output_deadline"),
             ("    exclusion_volumes: [t]\n    t.size: [1, 1, 1]\n", "t.frame"),
             ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1]\n", "t.size"),
             ("    exclusion_volumes: [t]\n    t.frame: w\n    t.shape: cone\n", "t.shape"),

@@ -60,6 +60,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("stray_filter.cluster_radius", "0.02", "m", "the radius of a cluster for stray_filter.min_points"),
     p("stray_filter.max_rejected", "16", "points", "at most this many points are rejected per frame; the nearest point after that counts whatever its neighbours (the conservative side)"),
     p("heartbeat_period", "0.1", "s", "the node publishes the cell's fused state at least this often, also when no cloud arrives, so that a subscriber can tell a quiet monitor from a dead one (> 0)"),
+    p("output_deadline", "0.5", "s", "the QoS deadline offered on every output published each heartbeat (all but ~/min_distance, which only carries a known distance; ~/speed_scaling with the separation monitor on): a DDS subscriber that requests this deadline or a longer one is matched, and its middleware tells it when no message came within it (a node killed without its last word, or hung). 0: none (infinite). At least heartbeat_period. Over zenoh only announced: rmw_zenoh enforces no deadline"),
     p("sources", "[camera]", "", "names of the point cloud sources"),
     p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
     p("<source>.topic", "/camera/depth/points", "topic", "the source's PointCloud2 or depth Image topic"),

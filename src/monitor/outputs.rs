@@ -187,6 +187,17 @@ impl OutputTopic {
         self == OutputTopic::SpeedScaling
     }
 
+    /// Whether the node publishes the topic on every heartbeat (with `ssm` the separation
+    /// monitor on): all but `~/min_distance`, which carries only a known distance. These are
+    /// the topics that can offer a QoS deadline.
+    pub fn every_beat(self, ssm: bool) -> bool {
+        match self {
+            OutputTopic::MinDistance => false,
+            OutputTopic::SpeedScaling => ssm,
+            _ => true,
+        }
+    }
+
     /// The fully qualified topic of the node at `node_path` (`/ns/name`).
     pub fn topic(self, node_path: &str) -> String {
         match self.name().strip_prefix("~/") {

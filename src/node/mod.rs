@@ -14,7 +14,9 @@
 //! is also published every `heartbeat_period` when no frame went out, the sources aged by the
 //! clock. Whatever ends the serving (a signal, an error, a panic), the node's last word —
 //! `safety_stop` true, factor 0, "not monitoring: REASON" — goes out before the participant
-//! closes.
+//! closes. For what can say nothing (SIGKILL, a power loss), the outputs published on every
+//! beat offer the QoS deadline `output_deadline` and every output automatic liveliness (a 3 s
+//! lease), so a DDS subscriber that asks for them is told by its own middleware.
 //!
 //! Here: the node's start, serving loop and stop. `ros_args`: the command line after
 //! `--ros-args`. `inputs`: the sources' slots and the forwarded TF, joint states and camera
@@ -374,7 +376,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
         .history(History::KeepLast { depth: 10 });
-    let outputs = Publishers::new(&mut node, &config.node_path(), &config.remaps, out_qos)?;
+    let outputs = Publishers::new(&mut node, &config, out_qos)?;
     let ex = executor.clone();
     // The executor outlives the node: dropping the node tells its spinner to stop.
     let stop_ex = Arc::new(AtomicBool::new(false));

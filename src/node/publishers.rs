@@ -12,29 +12,30 @@ use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::Outputs;
 use crate::msg::{OwnedMessage, Time};
 
+/// The automatic-liveliness lease every output offers. RustDDS asserts automatic liveliness
+/// on a 1 s tick once half the shortest lease has passed, so a lease under about 3 s could
+/// lapse while the node runs.
+pub const OUTPUT_LIVELINESS_LEASE: Duration = Duration::from_secs(3);
+
 /// The node's publishers, one per row of the output table (`OutputTopic`), each a
 /// [`Pub<T>`] of that row's message type.
 pub(super) struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
 
 impl Publishers {
-    /// A publisher for every output topic of the node at `node_path`.
-    pub(super) fn new(
-        node: &mut RosNode,
-        node_path: &str,
-        remaps: &[(String, String)],
-        qos: QosProfile,
-    ) -> Result<Self> {
+    /// A publisher for every output topic of `config`'s node, with `qos`; those published on
+    /// every heartbeat offer `output_deadline` as their QoS deadline.
+    pub(super) fn new(node: &mut RosNode, config: &Config, qos: QosProfile) -> Result<Self> {
         struct Create<'a> {
             node: &'a mut RosNode,
-            node_path: &'a str,
-            remaps: &'a [(String, String)],
+            node_path: String,
+            config: &'a Config,
             qos: QosProfile,
             made: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
         }
         impl OutputVisitor for Create<'_> {
             type Error = NodeError;
             fn visit<T: OwnedMessage>(&mut self, topic: OutputTopic, _: Option<T>) -> Result<()> {
-                let qos = if topic.transient_local() {
+                let mut qos = if topic.transient_local() {
                     // Reliable, keep the last: what a late-joining controller reads first.
                     self.qos
                         .clone()
@@ -43,7 +44,17 @@ impl Publishers {
                 } else {
                     self.qos.clone()
                 };
-                let name = remap_topic(&topic.topic(self.node_path), self.remaps, self.node_path);
+                // Automatic liveliness: the participant asserts it, so a subscriber that asks
+                // for this lease or a longer one learns that the node is gone.
+                qos = qos.liveliness_lease(Some(OUTPUT_LIVELINESS_LEASE));
+                if topic.every_beat(self.config.ssm.enabled) {
+                    qos = qos.deadline(self.config.output_deadline_s.map(Duration::from_secs_f64));
+                }
+                let name = remap_topic(
+                    &topic.topic(&self.node_path),
+                    &self.config.remaps,
+                    &self.node_path,
+                );
                 let p = self.node.publisher::<T>(&name, qos)?;
                 self.made.push((topic, Box::new(p)));
                 Ok(())
@@ -51,8 +62,8 @@ impl Publishers {
         }
         let mut create = Create {
             node,
-            node_path,
-            remaps,
+            node_path: config.node_path(),
+            config,
             qos,
             made: Vec::new(),
         };

@@ -20,6 +20,14 @@ package) talks to ist_monitor under the ROS 2 naming, as a standard ROS 2 node w
                             std_msgs/Bool on rt/ist_monitor/safety_stop and every factor; the
                             JSON then also has "stops" and "factors", in the order received
                             (what a controller and a safety PLC saw last when the node stopped)
+    cyclonedds_interop.py --watch S --deadline D --lease L
+                            also reads rt/ist_monitor/safety_stop with a requested QoS deadline
+                            of D seconds and automatic liveliness of lease L seconds (matched
+                            only if the node offers D and L or less); the JSON then also has
+                            "deadline_samples" (what that reader received), "deadline_missed"
+                            (the wall-clock times, s since the epoch, at which Cyclone DDS
+                            reported a missed deadline) and "liveliness" ([time, alive writers]
+                            at each change Cyclone DDS reported)
 """
 import os
 import sys
@@ -28,10 +36,11 @@ import struct
 import time
 from dataclasses import dataclass
 
-from cyclonedds.core import Qos, Policy
+from cyclonedds.core import Listener, Policy, Qos
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import float64, int32, sequence, uint8, uint32
+from cyclonedds.util import duration
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
@@ -110,6 +119,16 @@ def main():
         i = args.index("--watch")
         watch = float(args[i + 1])
         del args[i:i + 2]
+    deadline_s = lease_s = None
+    for flag in ("--deadline", "--lease"):
+        if flag in args:
+            i = args.index(flag)
+            value = float(args[i + 1])
+            del args[i:i + 2]
+            if flag == "--deadline":
+                deadline_s = value
+            else:
+                lease_s = value
     if args:
         urdf = os.path.abspath(args[0])
         text = open(urdf).read().replace('filename="meshes/',
@@ -124,6 +143,19 @@ def main():
     reader = DataReader(dp, out_topic, qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1)))
     stop_reader = DataReader(dp, Topic(dp, "rt/ist_monitor/safety_stop", Bool_), qos=Qos(
         Policy.Reliability.Reliable(max_blocking_time=1), Policy.History.KeepLast(1000)))
+    missed = []
+    liveliness = []
+    deadline_reader = None
+    if deadline_s is not None:
+        deadline_reader = DataReader(
+            dp, Topic(dp, "rt/ist_monitor/safety_stop", Bool_), qos=Qos(
+                Policy.Reliability.Reliable(max_blocking_time=1), Policy.History.KeepLast(1000),
+                Policy.Deadline(duration(seconds=deadline_s)),
+                Policy.Liveliness.Automatic(lease_duration=duration(seconds=lease_s or 3600))),
+            listener=Listener(
+                on_requested_deadline_missed=lambda r, s: missed.append(time.time()),
+                on_liveliness_changed=lambda r, s: liveliness.append(
+                    [time.time(), s.alive_count])))
     deadline = time.time() + 30
     received = None
     while time.time() < deadline and received is None:
@@ -158,6 +190,11 @@ def main():
             ]
         out["stops"] = stops
         out["factors"] = factors
+        if deadline_reader is not None:
+            out["deadline_samples"] = len(
+                [s for s in deadline_reader.take(N=100000) if isinstance(s, Bool_)])
+            out["deadline_missed"] = missed
+            out["liveliness"] = liveliness
     print(json.dumps(out))
 
 
