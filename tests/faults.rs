@@ -73,14 +73,6 @@ fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
     monitor.on_cloud(0, &msg::encode(&m).unwrap(), Some(STAMP))
 }
 
-fn value<'a>(f: &'a Frame, key: &str) -> Option<&'a str> {
-    f.outputs.diagnostics.status[0]
-        .values
-        .iter()
-        .find(|kv| kv.key == key)
-        .map(|kv| kv.value.as_str())
-}
-
 /// A frame in which the self-filter removed every valid point says so at WARN, publishes no
 /// distance, and keeps a stop that was raised: an obstacle touching the robot looks the same.
 #[test]
@@ -107,7 +99,7 @@ fn a_frame_the_self_filter_empties_never_releases_the_stop() {
         .sum();
     assert_eq!(per_link, robot.len() as u64);
     assert_eq!(
-        value(&f, "points_self_filtered"),
+        common::status_value(&f, "points_self_filtered"),
         Some(&*robot.len().to_string())
     );
     // An obstacle above the arm, moved down until it raises the stop; the robot alone next
@@ -296,7 +288,7 @@ fn a_stray_point_next_to_the_arm_stops_nothing_with_the_filter_on() {
     assert_ne!(f.outputs.level, Level::Error);
     let d = f.outputs.min_distance.unwrap().data;
     assert!(d > 1.0, "the wall's distance, got {d}");
-    assert_eq!(value(&f, "points_stray_rejected"), Some("1"));
+    assert_eq!(common::status_value(&f, "points_stray_rejected"), Some("1"));
     // A real obstacle: 4 points within 1 cm of each other at the stray's place.
     let (mut fresh, _, _) = arm_at_rest_with(STRAY_FILTER);
     let mut cloud = far_wall();
@@ -307,7 +299,7 @@ fn a_stray_point_next_to_the_arm_stops_nothing_with_the_filter_on() {
         Level::Error,
         "a real obstacle stops at once"
     );
-    assert_eq!(value(&f, "points_stray_rejected"), Some("0"));
+    assert_eq!(common::status_value(&f, "points_stray_rejected"), Some("0"));
 }
 
 proptest::proptest! {
@@ -340,7 +332,7 @@ proptest::proptest! {
                 .map(|o| [centre.0 + o.0, centre.1 + o.1, centre.2 + o.2])
                 .collect();
             let alone = frame(plain, &cluster);
-            let counts = value(&alone, "points_self_filtered").unwrap().to_string();
+            let counts = common::status_value(&alone, "points_self_filtered").unwrap().to_string();
             // A cluster that touches the robot is not an obstacle the property is about.
             proptest::prop_assume!(counts == "0");
             let Some(d_cluster) = alone.outputs.min_distance.map(|d| d.data) else {
@@ -395,7 +387,10 @@ fn exclusion_volumes_fault_without_their_frame_and_clear_when_all_is_known() {
         ist_monitor::query::Outcome::NothingWithinMaxDistance
     );
     assert_eq!(f.outputs.level, Level::Ok);
-    assert_eq!(value(&f, "points_excluded.fixture"), Some("400"));
+    assert_eq!(
+        common::status_value(&f, "points_excluded.fixture"),
+        Some("400")
+    );
     // A volume for another source only leaves this one's points alone.
     placed.extend([("sources", "[cam0, cam1]"), ("fixture.sources", "[cam1]")]);
     let (mut other, _, _) = arm_at_rest_with(&placed);

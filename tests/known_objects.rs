@@ -20,7 +20,8 @@ use nalgebra::Isometry3;
 const STAMP: i64 = 1_700_000_000_000_000_000;
 /// 1.5 s per frame.
 const PERIOD: i64 = 1_500_000_000;
-const TABLE: usize = 2;
+/// What the renderer labels the table's pixels.
+const TABLE: Hit = Hit::Scene(2);
 
 /// The demo config with the camera's optical frame given as a static transform (the frames
 /// come straight from the renderer, without the bag's /tf_static), and `extra`.
@@ -70,12 +71,6 @@ fn feed(m: &mut Monitor, k: i64, joints: &[f64], points: &[[f32; 3]], width: u32
     m.on_cloud(0, &msg::encode(&c).unwrap(), Some(stamp))
 }
 
-fn value<'a>(f: &'a Frame, key: &str) -> Option<&'a str> {
-    (f.outputs.diagnostics.status[0].values.iter())
-        .find(|kv| kv.key == key)
-        .map(|kv| kv.value.as_str())
-}
-
 /// The table scene: a box 1 cm larger than the table on every side, in `world`, takes every
 /// point of the table and nothing else — the result equals the one of the cloud with the
 /// table's points (as the renderer labels them) removed by hand, on every frame, and the count
@@ -102,11 +97,11 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
     let (mut table_stops, mut person_stops) = (0, 0);
     for k in 0..15 {
         let f = renderer.frame(k as f64 / 14.0, false).unwrap();
-        let table_points = f.hits.iter().filter(|h| **h == Hit::Scene(2)).count();
+        let table_points = f.hits.iter().filter(|h| **h == TABLE).count();
         assert!(table_points > 500, "frame {k}: the table is in view");
         let mut removed = f.points.clone();
         for (p, h) in removed.iter_mut().zip(&f.hits) {
-            if *h == Hit::Scene(TABLE as u8) {
+            if *h == TABLE {
                 *p = [f32::NAN; 3];
             }
         }
@@ -132,7 +127,7 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
             vec![("table".to_string(), table_points as u64)]
         );
         assert_eq!(
-            value(&a, "points_excluded.table"),
+            common::status_value(&a, "points_excluded.table"),
             Some(table_points.to_string().as_str())
         );
         assert_eq!(a.outputs.level, b.outputs.level, "frame {k}");

@@ -420,7 +420,7 @@ impl Config {
         let static_transforms = transforms
             .iter()
             .map(|t| {
-                let n = |rest: &str| (format!("{t}.{rest}"), format!("<transform>.{rest}"));
+                let n = |rest: &str| shapes::names(t, "<transform>", rest);
                 let (parent, pt) = n("parent_frame");
                 let (child, ct) = n("child_frame");
                 Ok(TransformStamped {
@@ -456,6 +456,15 @@ impl Config {
                 ));
             }
         }
+        let heartbeat_period_s = match v.distance("heartbeat_period", "heartbeat_period")? {
+            t if t > 0.0 => t,
+            t => {
+                return Err(Values::bad(
+                    "heartbeat_period",
+                    format!("must be > 0, got {t}"),
+                ))
+            }
+        };
         Ok(Self {
             node_name: node_name.to_owned(),
             namespace: namespace.to_owned(),
@@ -496,16 +505,8 @@ impl Config {
                     .distance("stray_filter.cluster_radius", "stray_filter.cluster_radius")?,
                 max_rejected: v.count("stray_filter.max_rejected")?,
             },
-            heartbeat_period_s: match v.distance("heartbeat_period", "heartbeat_period")? {
-                t if t > 0.0 => t,
-                t => {
-                    return Err(Values::bad(
-                        "heartbeat_period",
-                        format!("must be > 0, got {t}"),
-                    ))
-                }
-            },
-            output_deadline_s: Self::output_deadline(&v)?,
+            heartbeat_period_s,
+            output_deadline_s: Self::output_deadline(&v, heartbeat_period_s)?,
             sources,
             static_transforms,
             fixed_joint_state: names.into_iter().zip(positions).collect(),
@@ -518,8 +519,7 @@ impl Config {
 
     /// `output_deadline`: 0 for none, else at least `heartbeat_period` (a deadline shorter than
     /// the period the node publishes at would be missed on every beat).
-    fn output_deadline(v: &Values) -> Result<Option<f64>, ConfigError> {
-        let period = v.distance("heartbeat_period", "heartbeat_period")?;
+    fn output_deadline(v: &Values, period: f64) -> Result<Option<f64>, ConfigError> {
         match v.distance("output_deadline", "output_deadline")? {
             0.0 => Ok(None),
             t if t >= period => Ok(Some(t)),

@@ -14,7 +14,7 @@ use crate::msg::{Quaternion, Transform, Vector3};
 use crate::robot::attach::AttachedObject;
 
 /// The names of one list entry's parameters: `("<name>.rest", "<template>.rest")`.
-fn names(entry: &str, template: &str, rest: &str) -> (String, String) {
+pub(super) fn names(entry: &str, template: &str, rest: &str) -> (String, String) {
     (format!("{entry}.{rest}"), format!("{template}.{rest}"))
 }
 

@@ -560,7 +560,7 @@ pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
                 (Marker::CYLINDER, [2.0 * radius, 2.0 * radius, length])
             }
         };
-        let (t, q) = (pose.translation.vector, pose.rotation.coords);
+        let t = pose.translation.vector;
         Marker {
             header: Header {
                 stamp,
@@ -572,12 +572,7 @@ pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
             action: Marker::ADD,
             pose: Pose {
                 position: point([t.x, t.y, t.z]),
-                orientation: Quaternion {
-                    x: q.x,
-                    y: q.y,
-                    z: q.z,
-                    w: q.w,
-                },
+                orientation: Quaternion::from_unit(&pose.rotation),
             },
             scale: Vector3 {
                 x: scale[0],

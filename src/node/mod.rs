@@ -367,6 +367,12 @@ fn wait_for_monitor(
     }
 }
 
+/// The automatic-liveliness lease every output offers: the participant asserts it, so a
+/// subscriber that asks for this lease or a longer one learns that the node is gone. RustDDS
+/// asserts automatic liveliness on a 1 s tick once half the shortest lease has passed, so a
+/// lease under about 3 s could lapse while the node runs.
+pub const OUTPUT_LIVELINESS_LEASE: Duration = Duration::from_secs(3);
+
 /// Runs the node until `stop` is set. The node is on the network from the start: while `build`
 /// makes the monitor (loads the robot, builds or loads its trees) it reports "not monitoring"
 /// (ERROR with the reason, the safety stop), and a stop during the build ends it at once.
@@ -375,7 +381,8 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     let mut node = RosNode::new(transport, &config.namespace, &config.node_name, &executor)?;
     let out_qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::Wait(Duration::from_millis(5)))
-        .history(History::KeepLast { depth: 10 });
+        .history(History::KeepLast { depth: 10 })
+        .liveliness_lease(Some(OUTPUT_LIVELINESS_LEASE));
     let outputs = Publishers::new(&mut node, &config, out_qos)?;
     let ex = executor.clone();
     // The executor outlives the node: dropping the node tells its spinner to stop.

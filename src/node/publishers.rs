@@ -12,11 +12,6 @@ use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::Outputs;
 use crate::msg::{OwnedMessage, Time};
 
-/// The automatic-liveliness lease every output offers. RustDDS asserts automatic liveliness
-/// on a 1 s tick once half the shortest lease has passed, so a lease under about 3 s could
-/// lapse while the node runs.
-pub const OUTPUT_LIVELINESS_LEASE: Duration = Duration::from_secs(3);
-
 /// The node's publishers, one per row of the output table (`OutputTopic`), each a
 /// [`Pub<T>`] of that row's message type.
 pub(super) struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
@@ -44,9 +39,6 @@ impl Publishers {
                 } else {
                     self.qos.clone()
                 };
-                // Automatic liveliness: the participant asserts it, so a subscriber that asks
-                // for this lease or a longer one learns that the node is gone.
-                qos = qos.liveliness_lease(Some(OUTPUT_LIVELINESS_LEASE));
                 if topic.every_beat(self.config.ssm.enabled) {
                     qos = qos.deadline(self.config.output_deadline_s.map(Duration::from_secs_f64));
                 }

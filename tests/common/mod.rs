@@ -256,3 +256,10 @@ pub fn demo_trees() -> (
         .collect();
     (model, trees)
 }
+
+/// The value of `key` in a monitor frame's first diagnostic status.
+pub fn status_value<'a>(f: &'a ist_monitor::monitor::Frame, key: &str) -> Option<&'a str> {
+    (f.outputs.diagnostics.status[0].values.iter())
+        .find(|kv| kv.key == key)
+        .map(|kv| kv.value.as_str())
+}
