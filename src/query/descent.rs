@@ -1,6 +1,6 @@
 //! The depth-first descent of one point in one link's inner sphere tree, on the CPU: the
 //! nearest inner sphere within a bound, from the root or from a block's frontier. The CPU
-//! traversal (`cpu.rs`) runs it for the seeds and for a point that survives its block tests
+//! traversal (`cpu`) runs it for the seeds and for a point that survives its block tests
 //! alone in its sub-block (the others go in packets, below); the result assembly (`result.rs`)
 //! runs it once to find the closest robot point of either backend's answer. The GPU shader's
 //! `descend` follows the same rule, one child at a time.
