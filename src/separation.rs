@@ -438,6 +438,26 @@ impl SpeedScaler {
         }
     }
 
+    /// Takes new enabled flags (a run-time change): a source enabled now starts at 0, as at
+    /// start, one disabled no longer limits; a source that stays keeps its factor.
+    pub fn set_enabled(&mut self, was: &[bool], enabled: &[bool]) {
+        let mut state: Vec<(f64, Option<i64>)> = enabled
+            .iter()
+            .enumerate()
+            .map(
+                |(k, &on)| match (on, was.get(k).copied().unwrap_or(false)) {
+                    (true, true) => self.state.get(k).copied().unwrap_or((0.0, None)),
+                    (true, false) => (0.0, None),
+                    (false, _) => (1.0, None),
+                },
+            )
+            .collect();
+        if !enabled.iter().any(|&on| on) {
+            state.push((0.0, None));
+        }
+        self.state = state;
+    }
+
     /// The factor published now (the smallest over the sources).
     pub fn factor(&self) -> f64 {
         self.state.iter().map(|s| s.0).fold(1.0, f64::min)

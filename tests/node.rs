@@ -15,75 +15,6 @@ use ist_monitor::monitor::outputs::OutputTopic;
 use ist_monitor::msg::{self, DiagnosticArray, DiagnosticStatus, Float64};
 use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions};
 
-/// True inside the private network; outside, runs `test` of this binary there and returns false.
-fn in_private_network(test: &str) -> bool {
-    if std::env::var_os("IST_NETNS_INSIDE").is_some() {
-        return true;
-    }
-    let Some(shared) = common::shared() else {
-        return false;
-    };
-    let out = Command::new(shared.join("tools/netns-run"))
-        .arg(std::env::current_exe().unwrap())
-        .args(["--exact", test, "--nocapture", "--test-threads=1"])
-        .output()
-        .unwrap();
-    // The inner run's output, shown as it is (a skip inside too) but for its own summary
-    // line, which would count the test twice in `.ci/run`'s summary.
-    {
-        use std::io::Write;
-        let mut err = std::io::stderr();
-        let _ = err.write_all(&out.stderr);
-        for line in String::from_utf8_lossy(&out.stdout).lines() {
-            if !line.starts_with("test result:") {
-                let _ = writeln!(err, "{line}");
-            }
-        }
-    }
-    let status = out.status;
-    // 77: netns-run cannot make a namespace (not root, and no unprivileged user namespaces).
-    if status.code() == Some(77) && std::env::var_os("CI").is_none() {
-        common::skip("no private network namespace for this user (netns-run said why)");
-        return false;
-    }
-    assert!(status.success(), "{test} inside the private network failed");
-    false
-}
-
-/// Kills the processes it names when dropped during a panic: a failed assertion must not leave
-/// a node or a router holding the test's pipes (the outer test would wait for them forever).
-struct Reap(Vec<u32>);
-
-impl Drop for Reap {
-    fn drop(&mut self) {
-        if !std::thread::panicking() {
-            return;
-        }
-        for pid in &self.0 {
-            let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
-        }
-    }
-}
-
-/// `--ros-args` that start the node on the CPU with the demo arm's joints held at 0 (these tests
-/// publish no `/joint_states`); more arguments follow.
-fn at_rest_args() -> Vec<String> {
-    let joints =
-        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
-    [
-        "node",
-        "--ros-args",
-        "-p",
-        "backend:=cpu",
-        "-p",
-        &format!("fixed_joint_state.names:={joints}"),
-        "-p",
-        "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
-    ]
-    .map(String::from)
-    .to_vec()
-}
-
 /// The node with `args`, its output and log kept (read them with `wait_with_output`).
 fn spawn_node(args: &[&str]) -> Child {
     ist_monitor()
@@ -153,7 +84,7 @@ fn assert_no_error_lines(log: &str) {
 /// when it plays again, the node recovers.
 #[test]
 fn node_serves_clouds_and_reports_a_stopped_source() {
-    if !in_private_network("node_serves_clouds_and_reports_a_stopped_source") {
+    if !common::in_private_network("node_serves_clouds_and_reports_a_stopped_source") {
         return;
     }
     common::demo_trees();
@@ -264,7 +195,7 @@ fn node_serves_clouds_and_reports_a_stopped_source() {
 /// wall camera's frames cannot clear it), and no published distance is the wall's.
 #[test]
 fn a_far_camera_never_releases_the_nodes_stop() {
-    if !in_private_network("a_far_camera_never_releases_the_nodes_stop") {
+    if !common::in_private_network("a_far_camera_never_releases_the_nodes_stop") {
         return;
     }
     common::demo_trees();
@@ -290,7 +221,7 @@ fn a_far_camera_never_releases_the_nodes_stop() {
         "--out",
         record.to_str().unwrap(),
     ]);
-    let _reap = Reap(vec![node.id(), recorder.id()]);
+    let _reap = common::Reap(vec![node.id(), recorder.id()]);
     std::thread::sleep(Duration::from_secs(2));
     let run = play_measured(
         ist_monitor(),
@@ -334,7 +265,7 @@ fn a_far_camera_never_releases_the_nodes_stop() {
 /// them.
 #[test]
 fn every_fault_kind_reaches_the_node_as_an_error() {
-    if !in_private_network("every_fault_kind_reaches_the_node_as_an_error") {
+    if !common::in_private_network("every_fault_kind_reaches_the_node_as_an_error") {
         return;
     }
     common::demo_trees();
@@ -388,7 +319,7 @@ fn every_fault_kind_reaches_the_node_as_an_error() {
 /// distance. SIGTERM during the build ends it at once, with status 0.
 #[test]
 fn a_node_building_its_trees_says_so_and_stops_at_once() {
-    if !in_private_network("a_node_building_its_trees_says_so_and_stops_at_once") {
+    if !common::in_private_network("a_node_building_its_trees_says_so_and_stops_at_once") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -442,7 +373,7 @@ fn a_node_building_its_trees_says_so_and_stops_at_once() {
 /// and read with the QoS that controller asks.
 #[test]
 fn cyclonedds_feeds_the_node_and_reads_its_output() {
-    if !in_private_network("cyclonedds_feeds_the_node_and_reads_its_output") {
+    if !common::in_private_network("cyclonedds_feeds_the_node_and_reads_its_output") {
         return;
     }
     let Some(python) = common::venv_python() else {
@@ -451,7 +382,7 @@ fn cyclonedds_feeds_the_node_and_reads_its_output() {
     let (model, trees) = common::demo_trees();
     // The robot comes from the peer on /robot_description, as robot_state_publisher gives it.
     let mut node = ist_monitor()
-        .args(at_rest_args())
+        .args(common::at_rest_args())
         .args([
             "-p",
             "robot_description:=~",
@@ -517,7 +448,7 @@ fn node_and_watching_peer(
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/cyclonedds_interop.py");
     let node = ist_monitor()
         .envs(env.iter().copied())
-        .args(at_rest_args())
+        .args(common::at_rest_args())
         .args([
             "-r",
             "~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input",
@@ -562,7 +493,7 @@ fn peer_report(
 /// last messages a controller and a safety PLC received.
 #[test]
 fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
-    if !in_private_network(
+    if !common::in_private_network(
         "a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero",
     ) {
         return;
@@ -579,7 +510,7 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
         };
         let watch = if crash { "8" } else { "4" };
         let (node, peer, stdout) = node_and_watching_peer(&python, env, &["--watch", watch]);
-        let _reap = Reap(vec![node.id(), peer.id()]);
+        let _reap = common::Reap(vec![node.id(), peer.id()]);
         if !crash {
             std::thread::sleep(Duration::from_millis(1500));
             Command::new("kill")
@@ -613,7 +544,7 @@ fn a_stopped_or_crashed_node_leaves_the_stop_raised_and_the_factor_at_zero() {
 /// by its own middleware within the deadline, then the lease, once the node is gone.
 #[test]
 fn a_killed_node_is_reported_by_the_offered_deadline() {
-    if !in_private_network("a_killed_node_is_reported_by_the_offered_deadline") {
+    if !common::in_private_network("a_killed_node_is_reported_by_the_offered_deadline") {
         return;
     }
     let Some(python) = common::venv_python() else {
@@ -625,7 +556,7 @@ fn a_killed_node_is_reported_by_the_offered_deadline() {
         &[],
         &["--watch", "8", "--deadline", "0.5", "--lease", "3"],
     );
-    let _reap = Reap(vec![node.id(), peer.id()]);
+    let _reap = common::Reap(vec![node.id(), peer.id()]);
     std::thread::sleep(Duration::from_millis(1500));
     let killed_at = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -676,7 +607,7 @@ fn a_killed_node_is_reported_by_the_offered_deadline() {
 /// is bit for bit one that `replay` of the same bag gives.
 #[test]
 fn depth_images_feed_the_node() {
-    if !in_private_network("depth_images_feed_the_node") {
+    if !common::in_private_network("depth_images_feed_the_node") {
         return;
     }
     use ist_monitor::cloud::depth::DepthEncoding;
@@ -764,7 +695,7 @@ fn depth_images_feed_the_node() {
 /// is reported as ERROR and the node recovers; SIGTERM ends it cleanly.
 #[test]
 fn zenoh_transport_serves_the_node() {
-    if !in_private_network("zenoh_transport_serves_the_node") {
+    if !common::in_private_network("zenoh_transport_serves_the_node") {
         return;
     }
     use ist_monitor::cloud::depth::{
@@ -900,7 +831,7 @@ fn zenoh_transport_serves_the_node() {
     let mut node = ist_monitor();
     zenoh(&mut node);
     let node = node
-        .args(at_rest_args())
+        .args(common::at_rest_args())
         .args([
             "-p",
             "sources:=[camera, depth]",
@@ -915,7 +846,7 @@ fn zenoh_transport_serves_the_node() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let _reap = Reap(vec![router.id(), node.id(), peer.id()]);
+    let _reap = common::Reap(vec![router.id(), node.id(), peer.id()]);
     let out = peer.wait_with_output().unwrap();
     assert!(
         out.status.success(),

@@ -25,10 +25,12 @@ use crate::robot::{urdf::resolve_uri, AttachedObject, PackagePath};
 use crate::separation::{SsmParams, StoppingTable};
 
 mod params;
+mod runtime;
 mod shapes;
 mod values;
 
-pub use params::{default_of, markdown_table, ParamDecl, PARAMETERS};
+pub use params::{default_of, markdown_table, ParamDecl, ParamKind, PARAMETERS};
+pub use runtime::Parameter;
 use values::{flatten, scalar_yaml, Values};
 
 #[derive(Debug, thiserror::Error)]
@@ -148,6 +150,11 @@ pub struct Config {
     pub ssm: SsmParams,
     /// Output topic remappings of the live node (`--ros-args -r FROM:=TO`; not a parameter).
     pub remaps: Vec<(String, String)>,
+    /// The values as given (flattened names; a declared default is not in it), and the folder
+    /// relative paths were taken from: what a change at run time is validated with
+    /// (`runtime`).
+    values: BTreeMap<String, Yaml>,
+    base: Option<PathBuf>,
 }
 
 impl Default for Config {
@@ -514,6 +521,8 @@ impl Config {
             attached_objects,
             ssm: Self::ssm(&v)?,
             remaps: Vec::new(),
+            base: base.map(Path::to_owned),
+            values: v.values,
         })
     }
 

@@ -9,8 +9,12 @@ pub struct ParamDecl {
     pub default: &'static str,
     pub unit: &'static str,
     pub doc: &'static str,
+    /// Settable at run time (the node's `set_parameters` services); every other parameter is
+    /// read-only once the node runs.
+    pub settable: bool,
 }
 
+/// A parameter set at start only.
 const fn p(
     name: &'static str,
     default: &'static str,
@@ -22,6 +26,22 @@ const fn p(
         default,
         unit,
         doc,
+        settable: false,
+    }
+}
+
+/// A parameter that may also be set while the node runs (`node::parameters`: validated as at
+/// start, applied whole or not at all, and nothing that would weaken protection while the safety
+/// stop is raised).
+const fn rt(
+    name: &'static str,
+    default: &'static str,
+    unit: &'static str,
+    doc: &'static str,
+) -> ParamDecl {
+    ParamDecl {
+        settable: true,
+        ..p(name, default, unit, doc)
     }
 }
 
@@ -51,21 +71,21 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
     p("joint_state_tolerance", "0.1", "s", "a joint state may be this much older or newer than the cloud"),
     p("future_stamp_tolerance", "0.1", "s", "a cloud stamped more than this ahead of the clock is a fault (clock skew between machines)"),
-    p("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),
-    p("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
-    p("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
-    p("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
-    p("release_frames", "1", "frames", "a level is lowered only after this many consecutive results allow it (raising is immediate); the delay adds (release_frames − 1) frame periods to the time a stop is held, never to the reaction time"),
-    p("stray_filter.min_points", "1", "points", "a source's nearest point counts only when at least this many of its valid points (itself included) lie within stray_filter.cluster_radius of it; a nearer isolated point is rejected and the query repeated without it. 1: off. The distance is then that of the nearest cluster of min_points points, not of the nearest point"),
-    p("stray_filter.cluster_radius", "0.02", "m", "the radius of a cluster for stray_filter.min_points"),
-    p("stray_filter.max_rejected", "16", "points", "at most this many points are rejected per frame; the nearest point after that counts whatever its neighbours (the conservative side)"),
+    rt("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),
+    rt("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
+    rt("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),
+    rt("latency_budget", "0.05", "s", "processing slower than this is reported in the diagnostics"),
+    rt("release_frames", "1", "frames", "a level is lowered only after this many consecutive results allow it (raising is immediate); the delay adds (release_frames − 1) frame periods to the time a stop is held, never to the reaction time"),
+    rt("stray_filter.min_points", "1", "points", "a source's nearest point counts only when at least this many of its valid points (itself included) lie within stray_filter.cluster_radius of it; a nearer isolated point is rejected and the query repeated without it. 1: off. The distance is then that of the nearest cluster of min_points points, not of the nearest point"),
+    rt("stray_filter.cluster_radius", "0.02", "m", "the radius of a cluster for stray_filter.min_points"),
+    rt("stray_filter.max_rejected", "16", "points", "at most this many points are rejected per frame; the nearest point after that counts whatever its neighbours (the conservative side)"),
     p("heartbeat_period", "0.1", "s", "the node publishes the cell's fused state at least this often, also when no cloud arrives, so that a subscriber can tell a quiet monitor from a dead one (> 0)"),
     p("output_deadline", "0.5", "s", "the QoS deadline offered on every output published each heartbeat (all but ~/min_distance, which only carries a known distance; ~/speed_scaling with the separation monitor on): a DDS subscriber that requests this deadline or a longer one is matched, and its middleware tells it when no message came within it (a node killed without its last word, or hung). 0: none (infinite). At least heartbeat_period. Over zenoh only announced: rmw_zenoh enforces no deadline"),
     p("sources", "[camera]", "", "names of the point cloud sources"),
     p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
     p("<source>.topic", "/camera/depth/points", "topic", "the source's PointCloud2 or depth Image topic"),
     p("<source>.camera_info_topic", "~", "topic", "depth_image: the CameraInfo topic (default: camera_info beside the image topic, as image_transport pairs them)"),
-    p("<source>.enabled", "true", "", "whether the source is used"),
+    rt("<source>.enabled", "true", "", "whether the source is used"),
     p("<source>.source_timeout", "0.5", "s", "no cloud for this long, or a cloud stamped longer ago than this, is a fault (as Nav2's collision monitor)"),
     p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
     p("<source>.max_range", "~", "m", "points farther from the sensor than this are dropped (default: none)"),
@@ -75,15 +95,15 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),
     p("<transform>.translation", "[0.0, 0.0, 0.0]", "m", "parent_from_child translation x y z"),
     p("<transform>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "parent_from_child rotation as a quaternion x y z w"),
-    p("exclusion_volumes", "[]", "", "names of exclusion volumes: known objects of the cell (a table, a fixture, a conveyor) whose points are dropped before the query, counted per volume in the diagnostics (points_excluded.<volume>) and drawn in RViz. A person inside one is not seen"),
-    p("<volume>.frame", "~", "frame", "the TF frame (or robot link) the volume is fixed in; required. It is looked up at each cloud's stamp as the sensor's frame is: a missing transform is a fault"),
-    p("<volume>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation"),
-    p("<volume>.size", "~", "m", "box: edge lengths [x, y, z]"),
-    p("<volume>.radius", "~", "m", "sphere or cylinder radius"),
-    p("<volume>.length", "~", "m", "cylinder length along its z axis"),
-    p("<volume>.translation", "[0.0, 0.0, 0.0]", "m", "frame_from_volume translation x y z"),
-    p("<volume>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "frame_from_volume rotation as a quaternion x y z w"),
-    p("<volume>.sources", "[]", "", "the sources whose points it drops (empty: every source)"),
+    rt("exclusion_volumes", "[]", "", "names of exclusion volumes: known objects of the cell (a table, a fixture, a conveyor) whose points are dropped before the query, counted per volume in the diagnostics (points_excluded.<volume>) and drawn in RViz. A person inside one is not seen"),
+    rt("<volume>.frame", "~", "frame", "the TF frame (or robot link) the volume is fixed in; required. It is looked up at each cloud's stamp as the sensor's frame is: a missing transform is a fault"),
+    rt("<volume>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation"),
+    rt("<volume>.size", "~", "m", "box: edge lengths [x, y, z]"),
+    rt("<volume>.radius", "~", "m", "sphere or cylinder radius"),
+    rt("<volume>.length", "~", "m", "cylinder length along its z axis"),
+    rt("<volume>.translation", "[0.0, 0.0, 0.0]", "m", "frame_from_volume translation x y z"),
+    rt("<volume>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "frame_from_volume rotation as a quaternion x y z w"),
+    rt("<volume>.sources", "[]", "", "the sources whose points it drops (empty: every source)"),
     p("attached_objects", "[]", "", "names of attached objects: shapes fixed to a robot link that the URDF lacks (a held part, a tool). Each joins the robot as a link of its own, named after it: packed and certified like any link, its points self-filtered, its distance to the world measured and published under its name"),
     p("<object>.link", "~", "link", "the robot link it is fixed to; required"),
     p("<object>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation"),
@@ -110,15 +130,18 @@ pub const PARAMETERS: &[ParamDecl] = &[
 
 /// The parameter table in Markdown, as `config/README.md` shows it (`ist_monitor params`).
 pub fn markdown_table() -> String {
-    let mut out = String::from("| parameter | default | unit | meaning |\n|---|---|---|---|\n");
+    let mut out = String::from(
+        "| parameter | default | unit | at run time | meaning |\n|---|---|---|---|---|\n",
+    );
     for d in PARAMETERS {
         let default = if d.default == "~" {
             "(none)"
         } else {
             d.default
         };
+        let settable = if d.settable { "settable" } else { "" };
         out.push_str(&format!(
-            "| `{}` | `{default}` | {} | {} |\n",
+            "| `{}` | `{default}` | {} | {settable} | {} |\n",
             d.name, d.unit, d.doc
         ));
     }
@@ -131,4 +154,46 @@ pub fn default_of(name: &str) -> Option<&'static str> {
         .iter()
         .find(|d| d.name == name)
         .map(|d| d.default)
+}
+
+/// The type of a parameter's value, as ROS 2 types parameters (`rcl_interfaces/ParameterType`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamKind {
+    Bool,
+    Integer,
+    Double,
+    String,
+    Doubles,
+    Strings,
+}
+
+impl ParamDecl {
+    /// Whether the unit names a quantity (metres, seconds, points), not a name or a path.
+    pub fn is_quantity(&self) -> bool {
+        !matches!(
+            self.unit,
+            "" | "path" | "topic" | "frame" | "link" | "NAME=DIR"
+        )
+    }
+
+    /// The declared type, read from the default: `2.0` a double, `1` an integer, `[0.0, 1.0]` a
+    /// list of doubles. An empty list holds strings unless the unit names a quantity.
+    /// `None` for a parameter without a default (`~`): its type is that of the value given.
+    pub fn kind(&self) -> Option<ParamKind> {
+        use yaml_rust2::Yaml;
+        let quantity = self.is_quantity();
+        match super::values::scalar_yaml(self.default) {
+            Yaml::Null => None,
+            Yaml::Boolean(_) => Some(ParamKind::Bool),
+            Yaml::Integer(_) => Some(ParamKind::Integer),
+            Yaml::Real(_) => Some(ParamKind::Double),
+            Yaml::Array(a) => Some(match a.first() {
+                Some(Yaml::String(_)) => ParamKind::Strings,
+                Some(_) => ParamKind::Doubles,
+                None if quantity => ParamKind::Doubles,
+                None => ParamKind::Strings,
+            }),
+            _ => Some(ParamKind::String),
+        }
+    }
 }

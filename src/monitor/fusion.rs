@@ -4,7 +4,8 @@
 //! The monitor keeps each source's latest result (its stamp, its distance or its fault, its
 //! diagnostic status). Every frame of any source publishes the fused picture:
 //!
-//! - A source counts only if it is enabled. A disabled source never counts.
+//! - A source counts only if it is enabled. A disabled source never counts. With none enabled
+//!   nothing watches the cell: that is a fault (ERROR, no distance), not a clean state.
 //! - An enabled source **in fault** holds the fused level at ERROR with no distance until it
 //!   recovers (its next good frame) or is disabled. In fault means: its latest frame was a fault
 //!   (any kind: decode, stamp, transform, joints, no valid points, its `source_timeout` in the
@@ -81,6 +82,40 @@ impl Fusion {
             fused: LevelTracker::new(config),
             latest: vec![None; config.sources.len()],
         }
+    }
+
+    /// Takes the thresholds and enabled flags of `new` (a run-time change of `old`): each level
+    /// is kept as held and left only by the new thresholds; a source enabled now starts as
+    /// never heard from (a fault until its first frame), one disabled forgets its result.
+    pub fn reconfigure(&mut self, old: &Config, new: &Config) {
+        for t in self.trackers.iter_mut().chain([&mut self.fused]) {
+            t.set_thresholds(new);
+        }
+        for (k, (o, n)) in old.sources.iter().zip(&new.sources).enumerate() {
+            if o.enabled != n.enabled {
+                self.latest[k] = None;
+                self.trackers[k] = LevelTracker::new(new);
+            }
+        }
+    }
+
+    /// Whether the fused level is ERROR now (the safety stop is raised).
+    pub fn stop_raised(&self) -> bool {
+        self.fused.level() == Level::Error
+    }
+
+    /// Whether each source is in fault at `now_ns` (see the module doc); a disabled source is
+    /// not.
+    pub fn in_fault(&self, config: &Config, now_ns: i64) -> Vec<bool> {
+        (0..config.sources.len())
+            .map(|k| {
+                config.sources[k].enabled
+                    && matches!(
+                        Self::part(&self.latest, config, k, now_ns),
+                        Part::Fault { .. }
+                    )
+            })
+            .collect()
     }
 
     /// Takes a frame of source `source` and returns the fused outputs. `now_ns` is the clock
@@ -238,6 +273,11 @@ impl Fusion {
                     }
                 }
             }
+        }
+        if enabled.is_empty() {
+            // Nothing watches the cell (every source disabled, at start or at run time): as a
+            // fault, never a clean state.
+            faults.push("no source is enabled: nothing watches the cell".into());
         }
         let max_distance = f64::from(config.query.max_distance_m);
         // What the picture rests on: every measured source, or nothing while one is in fault.

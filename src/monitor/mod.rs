@@ -258,6 +258,27 @@ impl Monitor {
         self.engine.links().len()
     }
 
+    /// Takes `config`, a run-time change of the running one that `Config::with_changes` made
+    /// (only settable parameters differ: thresholds, the stray filter, sources' enabled flags,
+    /// exclusion volumes). Levels held stay held; a source enabled now is in fault until its
+    /// first frame, and its speed factor starts at 0.
+    pub fn reconfigure(&mut self, config: Config) {
+        self.fusion.reconfigure(&self.config, &config);
+        let flags = |c: &Config| c.sources.iter().map(|s| s.enabled).collect::<Vec<_>>();
+        self.scaler
+            .set_enabled(&flags(&self.config), &flags(&config));
+        self.config = config;
+    }
+
+    /// Whether the cell's safety stop is raised now, and whether each source is in fault at
+    /// `now_ns` (what a run-time change is checked against: `Config::weakening`).
+    pub fn safety(&self, now_ns: i64) -> (bool, Vec<bool>) {
+        (
+            self.fusion.stop_raised(),
+            self.fusion.in_fault(&self.config, now_ns),
+        )
+    }
+
     /// Forgets every transform, joint state and level received, as at start-up (a replay of
     /// another bag starts from here).
     pub fn reset(&mut self) -> Result<(), MonitorError> {

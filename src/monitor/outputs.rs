@@ -84,6 +84,14 @@ impl LevelTracker {
         }
     }
 
+    /// Takes `config`'s thresholds, keeping the level held and the count towards lowering it.
+    pub fn set_thresholds(&mut self, config: &Config) {
+        self.warn_m = config.warn_distance_m;
+        self.stop_m = config.stop_distance_m;
+        self.hysteresis_m = config.hysteresis_m;
+        self.release_frames = config.release_frames.max(1);
+    }
+
     /// The level when nothing about the distance can be said but no input failed either: at
     /// least `floor`, and never below the level held (the stop stays as it was).
     pub fn hold_at_least(&mut self, floor: Level) -> Level {
@@ -662,12 +670,15 @@ mod tests {
 
     #[test]
     fn levels_have_hysteresis() {
-        let config = Config {
-            warn_distance_m: 0.3,
-            stop_distance_m: 0.1,
-            hysteresis_m: 0.02,
-            ..Config::default()
-        };
+        let config = Config::default();
+        assert_eq!(
+            (
+                config.warn_distance_m,
+                config.stop_distance_m,
+                config.hysteresis_m
+            ),
+            (0.3, 0.1, 0.02)
+        );
         let mut t = LevelTracker::new(&config);
         let seq = [
             (0.5, Level::Ok),
@@ -689,10 +700,7 @@ mod tests {
 
     #[test]
     fn a_level_is_lowered_only_after_release_frames_in_a_row() {
-        let config = Config {
-            release_frames: 3,
-            ..Config::default()
-        };
+        let config = Config::from_overrides(&[("release_frames".into(), "3".into())]).unwrap();
         let mut t = LevelTracker::new(&config);
         // Raising is immediate.
         assert_eq!(t.update(Some(0.05)), Level::Error);

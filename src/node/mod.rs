@@ -20,10 +20,13 @@
 //!
 //! Here: the node's start, serving loop and stop. `ros_args`: the command line after
 //! `--ros-args`. `inputs`: the sources' slots and the forwarded TF, joint states and camera
-//! info. `publishers`: the output table's publishers and the last word. `transport` and
+//! info. `publishers`: the output table's publishers and the last word. `parameters`: the
+//! parameter services; a change they take reaches the processing thread through a channel and
+//! is applied before its next frame (a source enabled then is subscribed to then). `transport` and
 //! `rmw_zenoh`: DDS or zenoh underneath.
 
 mod inputs;
+pub mod parameters;
 pub mod play;
 mod publishers;
 pub mod record;
@@ -32,6 +35,7 @@ mod ros_args;
 pub mod transport;
 
 use inputs::{forward, source_task, Shared, Slot, SourceMessage};
+use parameters::{Parameters, Safety};
 pub use publishers::PANIC_AFTER_ENV;
 use publishers::{last_word, panic_text, Publishers};
 pub use ros_args::{expand_topic, parse_ros_args, remap_topic, RosArgs};
@@ -46,7 +50,7 @@ use ros2_client::dds::{Context, Node, Subscription};
 use ros2_client::{MessageTypeName, Name, NodeName};
 
 use crate::config::Config;
-use crate::config::{RobotSource, SourceKind};
+use crate::config::{RobotSource, SourceConfig, SourceKind};
 use crate::monitor::{Monitor, Outputs};
 use crate::msg::{
     CameraInfo, Image, JointState, PointCloud2, RosMessage, StringMessage, TfMessage, Time,
@@ -384,6 +388,18 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         .history(History::KeepLast { depth: 10 })
         .liveliness_lease(Some(OUTPUT_LIVELINESS_LEASE));
     let outputs = Publishers::new(&mut node, &config, out_qos)?;
+    // The parameters are on the graph from the start; a change taken during the build waits in
+    // the channel for the processing thread.
+    let safety = Arc::new(Safety::raised());
+    let (apply_tx, apply_rx) = std::sync::mpsc::channel::<Config>();
+    let events = node.parameter_events()?;
+    let params = Arc::new(Parameters::new(
+        config.clone(),
+        safety.clone(),
+        apply_tx,
+        events,
+    ));
+    let param_tasks = parameters::serve(&mut node, &executor, &params)?;
     let ex = executor.clone();
     // The executor outlives the node: dropping the node tells its spinner to stop.
     let stop_ex = Arc::new(AtomicBool::new(false));
@@ -398,9 +414,10 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             }))
         })?;
     let shutdown = move |tasks: Vec<smol::Task<()>>, outputs: Publishers, node: RosNode| {
-        for task in tasks {
+        for task in tasks.into_iter().chain(param_tasks) {
             smol::block_on(task.cancel());
         }
+        drop(params);
         drop(outputs);
         let ctx = node.close();
         std::thread::sleep(Duration::from_millis(50));
@@ -442,6 +459,10 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             &executor,
             &outputs,
             &mut tasks,
+            Runtime {
+                apply: apply_rx,
+                safety,
+            },
         )
     }));
     let reason = match &served {
@@ -470,10 +491,11 @@ fn serve(
     executor: &Arc<smol::Executor<'static>>,
     outputs: &Publishers,
     tasks: &mut Vec<smol::Task<()>>,
+    runtime: Runtime,
 ) -> Result<()> {
-    let sources = config.sources.clone();
     let shared = Arc::new(Shared {
-        slots: sources
+        slots: config
+            .sources
             .iter()
             .map(|_| Mutex::new(Slot::default()))
             .collect(),
@@ -487,47 +509,19 @@ fn serve(
     let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
     let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
     let (info_tx, info_rx) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
-    for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
-        let qos = if s.reliable {
-            RELIABLE_QOS.history(History::KeepLast { depth: 1 })
-        } else {
-            SENSOR_QOS
+    // Each source's subscriptions, made while it is enabled (also when it is enabled at run
+    // time), dropped when it is disabled.
+    let subscribe =
+        |node: &mut RosNode, k: usize, s: &SourceConfig| -> Result<Vec<smol::Task<()>>> {
+            subscribe_source(node, executor, k, s, &shared, &info_tx)
         };
-        match s.kind {
-            SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
-                node,
-                &s.topic,
-                qos,
-                executor,
-                k,
-                &shared,
-                SourceMessage::Cloud,
-            )?),
-            SourceKind::DepthImage => {
-                tasks.push(source_task::<Image<'static>>(
-                    node,
-                    &s.topic,
-                    qos.clone(),
-                    executor,
-                    k,
-                    &shared,
-                    SourceMessage::Depth,
-                )?);
-                // The camera model, with the image's QoS as image_transport's CameraSubscriber
-                // gives both; a latched (transient local) publisher is matched too.
-                let topic = s.camera_info_topic.clone().unwrap_or_default();
-                tasks.push(forward(
-                    node,
-                    &topic,
-                    qos,
-                    executor,
-                    "camera info",
-                    info_tx.clone(),
-                    move |m: CameraInfo| (k, m),
-                    &shared,
-                )?);
-            }
-        }
+    let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
+    for (k, s) in config.sources.iter().enumerate() {
+        source_tasks.push(if s.enabled {
+            subscribe(node, k, s)?
+        } else {
+            Vec::new()
+        });
     }
     for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
         let qos = if is_static {
@@ -560,9 +554,12 @@ fn serve(
         &shared,
     )?);
     log_up(config, monitor, node);
-    let mut heard = vec![false; sources.len()];
-    let mut silent_logged = vec![false; sources.len()];
+    let n = config.sources.len();
+    let mut heard = vec![false; n];
+    let mut silent_logged = vec![false; n];
     let started = Instant::now();
+    // Since when each source is enabled: its silence counts from then.
+    let mut enabled_at = vec![started; n];
     let heartbeat = Duration::from_secs_f64(config.heartbeat_period_s);
     let mut last_published = started;
     let mut published_frames = 0u64;
@@ -575,7 +572,7 @@ fn serve(
             shared.input_errors.load(Ordering::Relaxed),
         )
     };
-    let mut last_fault_report = vec![None::<Instant>; sources.len()];
+    let mut last_fault_report = vec![None::<Instant>; n];
     while !stop.load(Ordering::Relaxed) {
         {
             let mut woken = lock(&shared.wake_lock);
@@ -607,6 +604,25 @@ fn serve(
                 shared.input_errors.fetch_add(1, Ordering::Relaxed);
             }
         }
+        // Parameters set at run time (`parameters`), applied before the next frame.
+        while let Ok(new) = runtime.apply.try_recv() {
+            let was: Vec<bool> = monitor.config.sources.iter().map(|s| s.enabled).collect();
+            monitor.reconfigure(new);
+            for (k, s) in monitor.config.sources.iter().enumerate() {
+                if s.enabled && !was[k] {
+                    log::info!("source {}: enabled on {}", s.name, s.topic);
+                    source_tasks[k] = subscribe(node, k, s)?;
+                    (heard[k], silent_logged[k]) = (false, false);
+                    (enabled_at[k], last_fault_report[k]) = (Instant::now(), None);
+                    *lock(&shared.slots[k]) = Slot::default();
+                } else if !s.enabled && was[k] {
+                    log::info!("source {}: disabled", s.name);
+                    source_tasks[k].clear();
+                    *lock(&shared.slots[k]) = Slot::default();
+                }
+            }
+        }
+        let sources = monitor.config.sources.clone();
         let now = Instant::now();
         for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
             let (cloud, last) = {
@@ -650,7 +666,7 @@ fn serve(
                 last_fault_report[k] = None;
                 continue;
             }
-            let silent = now.duration_since(last.unwrap_or(started));
+            let silent = now.duration_since(last.unwrap_or(enabled_at[k]));
             let timeout = Duration::from_secs_f64(s.source_timeout_s);
             let due = last_fault_report[k].is_none_or(|t| now.duration_since(t) >= timeout / 2);
             if silent > timeout && due {
@@ -681,8 +697,70 @@ fn serve(
             outputs.publish(monitor.heartbeat(Time::now_nanos()), d, e);
             last_published = Instant::now();
         }
+        let (raised, in_fault) = monitor.safety(Time::now_nanos());
+        runtime.safety.set(raised, in_fault);
     }
     Ok(())
+}
+
+/// What the processing thread shares with the parameter services: the changes they took, and
+/// the safety they check the next one against.
+struct Runtime {
+    apply: std::sync::mpsc::Receiver<Config>,
+    safety: Arc<Safety>,
+}
+
+/// Subscribes to source `k`'s messages (and a depth source's camera info).
+fn subscribe_source(
+    node: &mut RosNode,
+    executor: &Arc<smol::Executor<'static>>,
+    k: usize,
+    s: &SourceConfig,
+    shared: &Arc<Shared>,
+    info_tx: &std::sync::mpsc::Sender<(usize, CameraInfo)>,
+) -> Result<Vec<smol::Task<()>>> {
+    let mut tasks = Vec::new();
+    let qos = if s.reliable {
+        RELIABLE_QOS.history(History::KeepLast { depth: 1 })
+    } else {
+        SENSOR_QOS
+    };
+    match s.kind {
+        SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
+            node,
+            &s.topic,
+            qos,
+            executor,
+            k,
+            shared,
+            SourceMessage::Cloud,
+        )?),
+        SourceKind::DepthImage => {
+            tasks.push(source_task::<Image<'static>>(
+                node,
+                &s.topic,
+                qos.clone(),
+                executor,
+                k,
+                shared,
+                SourceMessage::Depth,
+            )?);
+            // The camera model, with the image's QoS as image_transport's CameraSubscriber
+            // gives both; a latched (transient local) publisher is matched too.
+            let topic = s.camera_info_topic.clone().unwrap_or_default();
+            tasks.push(forward(
+                node,
+                &topic,
+                qos,
+                executor,
+                "camera info",
+                info_tx.clone(),
+                move |m: CameraInfo| (k, m),
+                shared,
+            )?);
+        }
+    }
+    Ok(tasks)
 }
 
 #[cfg(test)]

@@ -5,12 +5,12 @@
 //! `record` are written once.
 
 use futures::StreamExt;
-use ros2_client::dds::{Publisher, Subscription};
-use ros2_client::{MessageInfo, NodeName, NodeOptions};
+use ros2_client::dds::{Publisher, Server, ServiceMapping, Subscription};
+use ros2_client::{MessageInfo, MessageTypeName, NodeName, NodeOptions, ServiceTypeName};
 use serde::Serialize;
 
 use super::rmw_zenoh::{ZenohNode, ZenohPub};
-use super::{entity, type_name, NodeError, QosProfile};
+use super::{entity, type_name, History, NodeError, QosProfile, WhenFull};
 use crate::msg::{Owned, OwnedMessage, RosMessage};
 
 /// Which middleware a node runs on.
@@ -95,7 +95,12 @@ impl RosNode {
     ) -> Result<Self, NodeError> {
         let node_name = NodeName::new(namespace, name)
             .map_err(|e| entity("node name", &format!("{namespace} {name}"), e))?;
-        let options = || NodeOptions::new().enable_rosout(false);
+        // The parameter services are the node's own (`parameters`), from its declarations.
+        let options = || {
+            NodeOptions::new()
+                .enable_rosout(false)
+                .start_parameter_services(false)
+        };
         let domain = super::domain_id()?;
         match transport {
             Transport::Dds => {
@@ -220,6 +225,76 @@ impl RosNode {
                 node.subscribe(topic, &qos, depth, executor, on)
             }
         }
+    }
+}
+
+impl RosNode {
+    /// Answers the node's service `~/<service>` of type `rcl_interfaces/srv/<ty>` with
+    /// `answer`, in a task on `executor`; `None` on zenoh, where the node offers no services.
+    pub fn service<Req, Resp>(
+        &mut self,
+        service: &str,
+        ty: &str,
+        executor: &smol::Executor<'static>,
+        answer: impl Fn(Req) -> Resp + Send + 'static,
+    ) -> Result<Option<smol::Task<()>>, NodeError>
+    where
+        Req: ros2_client::Message + Clone + Send + Sync + 'static,
+        Resp: ros2_client::Message + Send + Sync + 'static,
+    {
+        let Inner::Dds { node, name, .. } = &mut self.inner else {
+            return Ok(None);
+        };
+        let full = format!("{}/{service}", name.fully_qualified_name());
+        // rclcpp's services: reliable, volatile, the last 10.
+        let qos = QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::DEFAULT)
+            .history(History::KeepLast { depth: 10 });
+        let server: Server<Req, Resp> = node
+            .create_server(
+                ServiceMapping::Enhanced,
+                &super::topic_name(&full)?,
+                &ServiceTypeName::new("rcl_interfaces", ty),
+                qos.clone(),
+                qos,
+            )
+            .map_err(|e| entity("service", &full, e))?;
+        Ok(Some(executor.spawn(async move {
+            let mut requests = server.receive_request_stream();
+            while let Some(request) = requests.next().await {
+                match request {
+                    Ok((id, req)) => {
+                        if let Err(e) = server.async_send_response(id, answer(req)).await {
+                            log::warn!("service {full}: answering: {e:?}");
+                        }
+                    }
+                    Err(e) => log::warn!("service {full}: reading a request: {e:?}"),
+                }
+            }
+        })))
+    }
+
+    /// The publisher of `/parameter_events` (reliable, volatile, the last 1000, as rclcpp's);
+    /// `None` on zenoh.
+    pub fn parameter_events(
+        &mut self,
+    ) -> Result<Option<Publisher<ros2_client::parameters::raw::ParameterEvent>>, NodeError> {
+        let Inner::Dds { node, .. } = &mut self.inner else {
+            return Ok(None);
+        };
+        let qos = QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::DEFAULT)
+            .history(History::KeepLast { depth: 1000 });
+        let topic = node
+            .create_topic(
+                &super::topic_name("/parameter_events")?,
+                MessageTypeName::new("rcl_interfaces", "ParameterEvent"),
+                &qos,
+            )
+            .map_err(|e| entity("topic", "/parameter_events", e))?;
+        node.create_publisher(&topic, Some(qos))
+            .map(Some)
+            .map_err(|e| entity("publisher", "/parameter_events", e))
     }
 }
 

@@ -74,19 +74,27 @@ pub fn one_link_urdf(geometry: &str) -> String {
 /// The Python of the project's venv (`.ci/run` makes it, with `rosbags`), for the interop tests.
 /// In CI it must exist; elsewhere a test may skip with a printed reason.
 pub fn venv_python() -> Option<PathBuf> {
+    venv_python_with("rosbags")
+}
+
+/// The venv's Python where it can import `module`. In CI it must; elsewhere a test may skip
+/// with a printed reason.
+fn venv_python_with(module: &str) -> Option<PathBuf> {
     let python = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
     let ok = python.exists()
         && Command::new(&python)
-            .args(["-c", "import rosbags"])
+            .args(["-c", &format!("import {module}")])
             .status()
             .is_ok_and(|s| s.success());
     if ok {
         return Some(python);
     }
     if std::env::var_os("CI").is_some() {
-        panic!("CI is set but .venv/bin/python with rosbags is missing: .ci/run installs it");
+        panic!("CI is set but .venv/bin/python with {module} is missing: .ci/run installs it");
     }
-    skip(".venv/bin/python with rosbags is absent and CI is not set");
+    skip(&format!(
+        ".venv/bin/python with {module} is absent and CI is not set"
+    ));
     None
 }
 
@@ -262,4 +270,79 @@ pub fn status_value<'a>(f: &'a ist_monitor::monitor::Frame, key: &str) -> Option
     (f.outputs.diagnostics.status[0].values.iter())
         .find(|kv| kv.key == key)
         .map(|kv| kv.value.as_str())
+}
+
+/// True inside the private network; outside, runs `test` of this binary there and returns false.
+pub fn in_private_network(test: &str) -> bool {
+    if std::env::var_os("IST_NETNS_INSIDE").is_some() {
+        return true;
+    }
+    let Some(shared) = shared() else {
+        return false;
+    };
+    let out = Command::new(shared.join("tools/netns-run"))
+        .arg(std::env::current_exe().unwrap())
+        .args(["--exact", test, "--nocapture", "--test-threads=1"])
+        .output()
+        .unwrap();
+    // The inner run's output, shown as it is (a skip inside too) but for its own summary
+    // line, which would count the test twice in `.ci/run`'s summary.
+    {
+        use std::io::Write;
+        let mut err = std::io::stderr();
+        let _ = err.write_all(&out.stderr);
+        for line in String::from_utf8_lossy(&out.stdout).lines() {
+            if !line.starts_with("test result:") {
+                let _ = writeln!(err, "{line}");
+            }
+        }
+    }
+    let status = out.status;
+    // 77: netns-run cannot make a namespace (not root, and no unprivileged user namespaces).
+    if status.code() == Some(77) && std::env::var_os("CI").is_none() {
+        skip("no private network namespace for this user (netns-run said why)");
+        return false;
+    }
+    assert!(status.success(), "{test} inside the private network failed");
+    false
+}
+
+/// Kills the processes it names when dropped during a panic: a failed assertion must not leave
+/// a node or a router holding the test's pipes (the outer test would wait for them forever).
+pub struct Reap(pub Vec<u32>);
+
+impl Drop for Reap {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            return;
+        }
+        for pid in &self.0 {
+            let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
+        }
+    }
+}
+
+/// `--ros-args` that start the node on the CPU with the demo arm's joints held at 0 (these tests
+/// publish no `/joint_states`); more arguments follow.
+pub fn at_rest_args() -> Vec<String> {
+    let joints =
+        "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
+    [
+        "node",
+        "--ros-args",
+        "-p",
+        "backend:=cpu",
+        "-p",
+        &format!("fixed_joint_state.names:={joints}"),
+        "-p",
+        "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// The venv's Python with the real ROS 2 client (`rclpy` on `rmw_fastrtps_cpp`, ROS 2 Jazzy
+/// from the package index; `.ci/run` installs it).
+pub fn rclpy_python() -> Option<PathBuf> {
+    venv_python_with("rclpy")
 }

@@ -1,0 +1,197 @@
+"""Interop with the real ROS 2 client: rclpy on rmw_fastrtps_cpp (Fast DDS, ROS 2 Jazzy's default
+middleware, installed from the package index) talks to a running ist_monitor as `ros2 param` and
+any ROS 2 node would.
+
+    rclpy_interop.py params NODE
+        NODE is the monitor's fully qualified name (/ist_monitor). Through its rcl_interfaces
+        services: lists, describes and gets its parameters; sets a read-only one and a
+        weakening one while the safety stop is raised (no cloud yet: both must be refused);
+        then publishes a sensor_msgs/PointCloud2 on /camera/depth/points at 10 Hz (frame
+        camera_link, a 20 x 20 plane 0.6 m ahead of the camera) and, once the fused status on
+        /diagnostics is OK, adds the exclusion volume `patch` (a box around half the plane)
+        with set_parameters_atomically, reads `points_excluded.patch` from /diagnostics,
+        raises stop_distance and removes the volume; disables the camera (nothing watches: the
+        fused status must turn ERROR) and enables it again (OK again once its clouds are
+        heard). Records every /parameter_events message of NODE. Prints one JSON object with
+        every answer.
+"""
+import json
+import math
+import struct
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.qos import qos_profile_sensor_data
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
+from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
+                                ListParameters, SetParameters, SetParametersAtomically)
+from sensor_msgs.msg import PointCloud2, PointField
+
+
+def value(v):
+    """A Python value as a ParameterValue, typed as `ros2 param set` types it."""
+    if isinstance(v, bool):
+        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=v)
+    if isinstance(v, int):
+        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=v)
+    if isinstance(v, float):
+        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=v)
+    if isinstance(v, str):
+        return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=v)
+    if all(isinstance(x, str) for x in v):
+        return ParameterValue(type=ParameterType.PARAMETER_STRING_ARRAY, string_array_value=v)
+    return ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY,
+                          double_array_value=[float(x) for x in v])
+
+
+def plain(v):
+    """A ParameterValue as a Python value (None: not set)."""
+    t = v.type
+    return {
+        ParameterType.PARAMETER_NOT_SET: lambda: None,
+        ParameterType.PARAMETER_BOOL: lambda: v.bool_value,
+        ParameterType.PARAMETER_INTEGER: lambda: v.integer_value,
+        ParameterType.PARAMETER_DOUBLE: lambda: v.double_value,
+        ParameterType.PARAMETER_STRING: lambda: v.string_value,
+        ParameterType.PARAMETER_DOUBLE_ARRAY: lambda: list(v.double_array_value),
+        ParameterType.PARAMETER_INTEGER_ARRAY: lambda: list(v.integer_array_value),
+        ParameterType.PARAMETER_STRING_ARRAY: lambda: list(v.string_array_value),
+        ParameterType.PARAMETER_BOOL_ARRAY: lambda: list(v.bool_array_value),
+    }[t]()
+
+
+def finite(x):
+    """A float as JSON has it (an infinity as the string "inf")."""
+    return x if math.isfinite(x) else str(x)
+
+
+def cloud(stamp):
+    points = [(0.6, -0.2 + 0.02 * i, -0.2 + 0.02 * j) for i in range(20) for j in range(20)]
+    m = PointCloud2()
+    m.header.stamp = stamp
+    m.header.frame_id = "camera_link"
+    m.height, m.width = 1, len(points)
+    m.fields = [PointField(name=n, offset=o, datatype=PointField.FLOAT32, count=1)
+                for n, o in (("x", 0), ("y", 4), ("z", 8))]
+    m.is_bigendian, m.point_step, m.row_step, m.is_dense = False, 12, 12 * len(points), True
+    m.data = b"".join(struct.pack("<fff", *p) for p in points)
+    return m
+
+
+def params(node_name):
+    rclpy.init()
+    node = rclpy.create_node("rclpy_interop")
+    executor = MultiThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    out = {"events": []}
+    lock = threading.Lock()
+    fused = {"level": None, "excluded": None}
+
+    def on_event(e):
+        if e.node == node_name:
+            with lock:
+                out["events"].append({
+                    "new": [p.name for p in e.new_parameters],
+                    "changed": {p.name: plain(p.value) for p in e.changed_parameters},
+                    "deleted": [p.name for p in e.deleted_parameters],
+                })
+
+    def on_diagnostics(m):
+        for s in m.status:
+            if s.name.endswith(": all sources"):
+                with lock:
+                    fused["level"] = s.level[0] if isinstance(s.level, bytes) else s.level
+            for kv in s.values:
+                if kv.key == "points_excluded.patch":
+                    with lock:
+                        fused["excluded"] = int(kv.value)
+
+    node.create_subscription(ParameterEvent, "/parameter_events", on_event, 1000)
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+
+    def call(srv, service, **fields):
+        client = node.create_client(srv, f"{node_name}/{service}")
+        if not client.wait_for_service(timeout_sec=30):
+            raise SystemExit(f"{node_name}/{service}: no service after 30 s")
+        request = srv.Request()
+        for k, v in fields.items():
+            setattr(request, k, v)
+        response = client.call(request, timeout_sec=10)
+        if response is None:
+            raise SystemExit(f"{node_name}/{service}: no answer in 10 s")
+        return response
+
+    def set_(service, **values):
+        ps = [Parameter(name=k.replace("__", "."), value=value(v)) for k, v in values.items()]
+        if service == "set_parameters_atomically":
+            r = call(SetParametersAtomically, service, parameters=ps).result
+            return {"successful": r.successful, "reason": r.reason}
+        return [{"successful": r.successful, "reason": r.reason}
+                for r in call(SetParameters, service, parameters=ps).results]
+
+    def get(*names):
+        return [plain(v) for v in call(GetParameters, "get_parameters", names=list(names)).values]
+
+    def wait_for(what, timeout):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            with lock:
+                if what():
+                    return True
+            time.sleep(0.05)
+        return False
+
+    out["list"] = list(call(ListParameters, "list_parameters").result.names)
+    out["types"] = list(call(GetParameterTypes, "get_parameter_types",
+                             names=["stop_distance", "release_frames", "mode", "sources"]).types)
+    out["describe"] = [
+        {"name": d.name, "type": d.type, "description": d.description,
+         "constraints": d.additional_constraints, "read_only": d.read_only,
+         "range": [[finite(r.from_value), finite(r.to_value)] for r in d.floating_point_range]}
+        for d in call(DescribeParameters, "describe_parameters",
+                      names=["stop_distance", "mode"]).descriptors]
+    out["get"] = get("stop_distance", "release_frames", "sources", "camera.topic")
+    # No cloud yet: the camera is in fault, the stop raised.
+    out["set_read_only"] = set_("set_parameters", mode="exact")
+    out["set_weakening_while_stopped"] = set_("set_parameters", stop_distance=0.05)
+
+    publisher = node.create_publisher(PointCloud2, "/camera/depth/points", qos_profile_sensor_data)
+    node.create_timer(0.1, lambda: publisher.publish(cloud(node.get_clock().now().to_msg())))
+    out["released"] = wait_for(lambda: fused["level"] == 0, 20)
+    out["add_volume"] = set_("set_parameters_atomically", exclusion_volumes=["patch"],
+                             patch__frame="camera_link", patch__size=[0.1, 0.2, 0.5],
+                             patch__translation=[0.6, -0.11, 0.0])
+    wait_for(lambda: fused["excluded"] is not None, 10)
+    out["points_excluded"] = fused["excluded"]
+    out["get_volume"] = get("exclusion_volumes", "patch.size", "patch.shape")
+    out["raise_stop"] = set_("set_parameters", stop_distance=0.25)
+    out["remove_volume"] = set_("set_parameters", exclusion_volumes=[])
+    out["after"] = get("stop_distance", "exclusion_volumes", "patch.size")
+    # The only source disabled (the stop is released: taken): nothing watches, a fault. Enabled
+    # again (always taken): the node subscribes anew and the cloud releases the stop.
+    out["disable"] = set_("set_parameters", camera__enabled=False)
+    with lock:
+        fused["level"] = None
+    out["nothing_watches"] = wait_for(lambda: fused["level"] == 2, 5)
+    out["enable"] = set_("set_parameters", camera__enabled=True)
+    with lock:
+        fused["level"] = None
+    out["released_again"] = wait_for(lambda: fused["level"] == 0, 10)
+    time.sleep(0.5)
+    with lock:
+        print(json.dumps(out))
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3 or sys.argv[1] != "params":
+        raise SystemExit(__doc__)
+    params(sys.argv[2])

@@ -1,0 +1,121 @@
+//! The node against the real ROS 2 client: rclpy on rmw_fastrtps_cpp (Fast DDS, ROS 2 Jazzy's
+//! default middleware, from the package index; `tests/python/rclpy_interop.py`), inside a
+//! private network namespace with only loopback, as `ros2 param` and a ROS 2 node reach it.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use common::ist_monitor;
+
+/// `ros2 param list/describe/get/set` through rclpy: every declared parameter is on the graph
+/// with its type, meaning, unit and range; a read-only one and one that would weaken
+/// protection while the stop is raised are refused with the reason; an exclusion volume added
+/// at run time (atomically, with its parameters) drops exactly the cloud's points inside it,
+/// counted in the diagnostics; a source disabled and enabled again is left and then heard
+/// anew; each change is announced on `/parameter_events`.
+#[test]
+fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
+    if !common::in_private_network("rclpy_lists_describes_and_sets_the_nodes_parameters") {
+        return;
+    }
+    let Some(python) = common::rclpy_python() else {
+        return;
+    };
+    let node = ist_monitor()
+        .args(common::at_rest_args())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _reap = common::Reap(vec![node.id()]);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/rclpy_interop.py");
+    let out = common::json_output(
+        Command::new(python)
+            .arg(script)
+            .args(["params", "/ist_monitor"]),
+    );
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let log = node.wait_with_output().unwrap();
+    assert!(log.status.success());
+
+    // Every parameter of the declaration table, expanded for the one source.
+    let listed: Vec<&str> = out["list"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    let expected = ist_monitor::config::Config::default().parameters();
+    assert_eq!(listed.len(), expected.len());
+    for p in &expected {
+        assert!(listed.contains(&p.name.as_str()), "{} not listed", p.name);
+    }
+    // Types as ROS 2 numbers them: double, integer, string, string array.
+    assert_eq!(out["types"], serde_json::json!([3, 2, 4, 9]));
+    let stop = &out["describe"][0];
+    assert_eq!(
+        stop["description"],
+        ist_monitor::config::PARAMETERS
+            .iter()
+            .find(|d| d.name == "stop_distance")
+            .unwrap()
+            .doc
+    );
+    assert!(stop["constraints"].as_str().unwrap().contains("unit: m"));
+    assert_eq!(stop["read_only"], false);
+    assert_eq!(stop["range"][0], serde_json::json!([0.0, "inf"]));
+    assert_eq!(out["describe"][1]["read_only"], true);
+    assert_eq!(
+        out["get"],
+        serde_json::json!([0.1, 1, ["camera"], "/camera/depth/points"])
+    );
+
+    let refused = |key: &str, says: &str| {
+        let r = &out[key][0];
+        assert_eq!(r["successful"], false, "{key}: {r}");
+        assert!(r["reason"].as_str().unwrap().contains(says), "{key}: {r}");
+    };
+    refused("set_read_only", "read-only");
+    refused("set_weakening_while_stopped", "safety stop is raised");
+
+    // With the cloud flowing and the stop released, the volume is taken whole and drops the
+    // 10 of 20 columns of the plane that lie inside it.
+    assert_eq!(out["released"], true, "{out}");
+    assert_eq!(out["add_volume"]["successful"], true, "{out}");
+    assert_eq!(out["points_excluded"], 200);
+    assert_eq!(
+        out["get_volume"],
+        serde_json::json!([["patch"], [0.1, 0.2, 0.5], "box"])
+    );
+    assert_eq!(out["raise_stop"][0]["successful"], true);
+    assert_eq!(out["remove_volume"][0]["successful"], true);
+    assert_eq!(out["after"], serde_json::json!([0.25, [], null]));
+
+    // The only source disabled: nothing watches the cell, ERROR; enabled again, the node
+    // subscribes anew and its clouds release the stop.
+    assert_eq!(out["disable"][0]["successful"], true, "{out}");
+    assert_eq!(out["nothing_watches"], true, "{out}");
+    assert_eq!(out["enable"][0]["successful"], true, "{out}");
+    assert_eq!(out["released_again"], true, "{out}");
+
+    // The five changes taken, announced in order; nothing refused was.
+    let events = out["events"].as_array().unwrap();
+    assert_eq!(events.len(), 5, "{events:?}");
+    assert!(events[0]["new"]
+        .as_array()
+        .unwrap()
+        .contains(&serde_json::json!("patch.frame")));
+    assert_eq!(
+        events[1]["changed"],
+        serde_json::json!({"stop_distance": 0.25})
+    );
+    assert!(events[2]["deleted"]
+        .as_array()
+        .unwrap()
+        .contains(&serde_json::json!("patch.size")));
+}
