@@ -162,7 +162,7 @@ pub fn ball_volume(r: f64) -> f64 {
 
 /// A solid primitive as URDF describes one: centred on its frame's origin, a cylinder's axis
 /// along z. Exclusion volumes (`cloud::exclusion`) and attached objects (`robot::attach`) are
-/// these.
+/// these, or meshes ([`Shape`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Primitive {
     /// Edge lengths along x, y and z.
@@ -221,6 +221,46 @@ impl std::fmt::Display for Primitive {
             Primitive::Cylinder { radius, length } => {
                 write!(f, "cylinder r = {radius} m, length {length} m")
             }
+        }
+    }
+}
+
+/// The shape of a known object of the cell (an exclusion volume, an attached object): a
+/// primitive, or a mesh file (STL, OBJ, DAE, PLY) in its own frame, scaled per axis as URDF
+/// scales one.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    Primitive(Primitive),
+    Mesh { file: std::path::PathBuf, scale: P3 },
+}
+
+impl From<Primitive> for Shape {
+    fn from(p: Primitive) -> Self {
+        Shape::Primitive(p)
+    }
+}
+
+impl Shape {
+    /// The URDF geometry of the shape.
+    pub fn to_urdf(&self) -> urdf_rs::Geometry {
+        match self {
+            Shape::Primitive(p) => p.to_urdf(),
+            Shape::Mesh { file, scale } => urdf_rs::Geometry::Mesh {
+                filename: file.display().to_string(),
+                scale: Some(urdf_rs::Vec3(*scale)),
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for Shape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Shape::Primitive(p) => p.fmt(f),
+            Shape::Mesh { file, scale } if *scale == [1.0; 3] => {
+                write!(f, "mesh {}", file.display())
+            }
+            Shape::Mesh { file, scale } => write!(f, "mesh {} scaled {scale:?}", file.display()),
         }
     }
 }

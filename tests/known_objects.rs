@@ -152,6 +152,62 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
     assert!(person_stops >= 1, "the person still stops the arm");
 }
 
+/// The same table given as a mesh file (an STL of its box, as a CAD tool would export it),
+/// dilated by 9 mm: every table point goes (the padding is above the grid's voxel diagonal) and
+/// nothing else does (nothing else lies within 1 cm of the table), so the result equals the one
+/// of the cloud with the table's points removed by hand, on every frame.
+#[test]
+fn an_exclusion_mesh_of_the_table_removes_exactly_its_points() {
+    let model = RobotModel::load(Path::new(common::DEMO_URDF), &[], &Default::default()).unwrap();
+    let params = ScenarioParams {
+        scene: SceneKind::Table,
+        ..ScenarioParams::default()
+    };
+    let mut renderer = Renderer::new(&model, &params, &Mount::fixed()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("table.stl");
+    let half = TABLE_SIZE.map(|e| 0.5 * e as f32);
+    common::write_stl(&stl, &common::box_triangles(half.map(|h| -h), half));
+    let mut excluding = monitor(&[
+        ("exclusion_volumes", "[table]".into()),
+        ("table.frame", "world".into()),
+        ("table.shape", "mesh".into()),
+        ("table.mesh", stl.display().to_string()),
+        ("table.padding", "0.009".into()),
+        ("table.translation", format!("{TABLE_CENTER:?}")),
+    ]);
+    let mut by_hand = monitor(&[]);
+    for k in 0..15 {
+        let f = renderer.frame(k as f64 / 14.0, false).unwrap();
+        let table_points = f.hits.iter().filter(|h| **h == TABLE).count();
+        let mut removed = f.points.clone();
+        for (p, h) in removed.iter_mut().zip(&f.hits) {
+            if *h == TABLE {
+                *p = [f32::NAN; 3];
+            }
+        }
+        let a = feed(&mut excluding, k, &f.joints, &f.points, params.width);
+        let b = feed(&mut by_hand, k, &f.joints, &removed, params.width);
+        let (ra, rb) = (a.result.as_ref().unwrap(), b.result.as_ref().unwrap());
+        assert_eq!(
+            ra.excluded,
+            vec![("table".to_string(), table_points as u64)],
+            "frame {k}"
+        );
+        assert_eq!(ra.nearest, rb.nearest, "frame {k}");
+        assert_eq!(a.outputs.level, b.outputs.level, "frame {k}");
+        // Drawn in RViz from its file.
+        let shape = (a.outputs.closest_points.markers.iter())
+            .find(|m| m.ns == "exclusion_volumes")
+            .expect("the volume's marker");
+        assert!(
+            shape.mesh_resource.ends_with("table.stl"),
+            "{}",
+            shape.mesh_resource
+        );
+    }
+}
+
 /// A 30 cm bar held in the gripper, sticking out sideways toward the person: rendered as part
 /// of the robot, and configured as an attached object. Its points are self-filtered (the
 /// distance is to the rest of the scene, never 0), the certified interval holds the exact
@@ -160,12 +216,34 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
 /// its approach to the person is missed (the arm's own distance is reported, which is larger).
 #[test]
 fn an_attached_part_is_measured_as_a_link_of_the_robot() {
+    attached_bar_is_measured(&[("part.size", "[0.04, 0.3, 0.04]".into())]);
+}
+
+/// The same bar given as a mesh file (an STL of its box): taken in as a link's mesh is, and
+/// measured the same way.
+#[test]
+fn an_attached_mesh_is_measured_as_a_link_of_the_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let stl = dir.path().join("bar.stl");
+    common::write_stl(
+        &stl,
+        &common::box_triangles([-0.02, -0.15, -0.02], [0.02, 0.15, 0.02]),
+    );
+    attached_bar_is_measured(&[
+        ("part.shape", "mesh".into()),
+        ("part.mesh", stl.display().to_string()),
+    ]);
+}
+
+/// The bar rendered with the robot and attached as `part` with the shape `shape` gives.
+fn attached_bar_is_measured(shape: &[(&str, String)]) {
     let part = AttachedObject {
         name: "part".into(),
         link: "gripper_link".into(),
         shape: Primitive::Box {
             size: [0.04, 0.3, 0.04],
-        },
+        }
+        .into(),
         link_from_object: Isometry3::translation(0.0, -0.15, 0.16),
     };
     let mut model =
@@ -174,12 +252,13 @@ fn an_attached_part_is_measured_as_a_link_of_the_robot() {
     let part_link = model.kinematics.link_index("part").unwrap();
     let params = ScenarioParams::default();
     let mut renderer = Renderer::new(&model, &params, &Mount::fixed()).unwrap();
-    let mut holding = monitor(&[
+    let mut attach = vec![
         ("attached_objects", "[part]".into()),
         ("part.link", "gripper_link".into()),
-        ("part.size", "[0.04, 0.3, 0.04]".into()),
         ("part.translation", "[0.0, -0.15, 0.16]".into()),
-    ]);
+    ];
+    attach.extend(shape.iter().cloned());
+    let mut holding = monitor(&attach);
     let mut unaware = monitor(&[]);
     let (mut bar_nearest, mut unaware_stops, mut unaware_misses, mut part_points) = (0, 0, 0, 0);
     for k in 0..15 {

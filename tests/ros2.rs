@@ -14,7 +14,8 @@ use common::ist_monitor;
 /// protection while the stop is raised are refused with the reason; an exclusion volume added
 /// at run time (atomically, with its parameters) drops exactly the cloud's points inside it,
 /// counted in the diagnostics; a source disabled and enabled again is left and then heard
-/// anew; each change is announced on `/parameter_events`.
+/// anew; an object attached at run time joins the robot (the rest of the cloud is measured to
+/// it) and leaves it when released; each change is announced on `/parameter_events`.
 #[test]
 fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
     if !common::in_private_network("rclpy_lists_describes_and_sets_the_nodes_parameters") {
@@ -103,9 +104,24 @@ fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
     assert_eq!(out["enable"][0]["successful"], true, "{out}");
     assert_eq!(out["released_again"], true, "{out}");
 
-    // The five changes taken, announced in order; nothing refused was.
+    // A shield attached around half the plane at run time: the monitor is rebuilt, the shield's
+    // points are the robot's, and the rest of the plane is measured to it, within the stop
+    // distance; released, the plane is far again.
+    assert_eq!(out["attach"]["successful"], true, "{out}");
+    assert_eq!(out["shield_nearest"], true, "{out}");
+    assert_eq!(out["shield_status"]["level"], 2, "{out}");
+    let d = out["shield_status"]["distance_m"].as_f64().unwrap();
+    assert!((0.0..0.05).contains(&d), "{out}");
+    assert_eq!(out["detach"][0]["successful"], true, "{out}");
+    assert_eq!(out["released_after_detach"], true, "{out}");
+    eprintln!(
+        "attached at run time: link shield measured {:.3} s after the set",
+        out["attach_s"]
+    );
+
+    // The seven changes taken, announced in order; nothing refused was.
     let events = out["events"].as_array().unwrap();
-    assert_eq!(events.len(), 5, "{events:?}");
+    assert_eq!(events.len(), 7, "{events:?}");
     assert!(events[0]["new"]
         .as_array()
         .unwrap()

@@ -274,8 +274,6 @@ impl Config {
                 return Err(ConfigError::Unknown(name.clone()));
             }
         }
-        let exclusion_volumes = shapes::exclusion_volumes(&v, &volumes, &sources)?;
-        let attached_objects = shapes::attached_objects(&v, &objects)?;
         let path = |s: String| {
             let p = PathBuf::from(&s);
             match base {
@@ -351,7 +349,7 @@ impl Config {
             ));
         }
         build.packing.target_gap_m = target_gap as f32;
-        let package_paths = v
+        let package_paths: Vec<PackagePath> = v
             .strings("package_paths")?
             .iter()
             .map(|s| {
@@ -363,6 +361,17 @@ impl Config {
                     .map_err(|e| Values::bad("package_paths", e))
             })
             .collect::<Result<_, _>>()?;
+        // A mesh file of a volume or an object: relative to the parameters file, or through
+        // the package paths.
+        let resolve = |s: &str| -> Result<PathBuf, String> {
+            if s.starts_with("package://") {
+                resolve_uri(s, Path::new("."), &package_paths).map_err(|e| format!("{s}: {e}"))
+            } else {
+                Ok(path(s.to_owned()))
+            }
+        };
+        let exclusion_volumes = shapes::exclusion_volumes(&v, &volumes, &sources, &resolve)?;
+        let attached_objects = shapes::attached_objects(&v, &objects, &resolve)?;
         let sources = sources
             .iter()
             .map(|s| {
@@ -725,6 +734,10 @@ mod tests {
             ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1, 1]\n    t.rotation: [0, 0, 0, 0]\n", "t.rotation"),
             ("    exclusion_volumes: [t]\n    t.frame: w\n    t.size: [1, 1, 1]\n    t.link: x\n", "t.link"),
             ("    exclusion_volumes: [camera]\n", "exclusion_volumes"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.shape: mesh\n", "t.mesh"),
+            ("    exclusion_volumes: [t]\n    t.frame: w\n    t.shape: mesh\n    t.mesh: /no/such.stl\n", "t.mesh"),
+            ("    attached_objects: [p]\n    p.link: l\n    p.shape: mesh\n    p.mesh: /no/such.stl\n", "p.mesh"),
+            ("    attached_objects: [p]\n    p.link: l\n    p.shape: mesh\n    p.mesh: /\n    p.scale: [1, 0, 1]\n", "p.scale"),
             ("    attached_objects: [p]\n    p.size: [1, 1, 1]\n", "p.link"),
             ("    attached_objects: [p]\n    p.link: l\n    p.shape: sphere\n    p.radius: 0\n", "p.radius"),
         ] {

@@ -14,11 +14,12 @@
 //!   or the error.
 //! - **While the safety stop is raised**, a change that could release it is refused
 //!   ([`Config::weakening`]): a lower `stop_distance`, `hysteresis` or `release_frames`, a
-//!   stray filter that rejects more, an exclusion volume added or changed, a source disabled.
+//!   stray filter that rejects more, an exclusion volume or an attached object added or
+//!   changed (both leave points out), a source disabled.
 //!   One exception: a source that is itself in fault may be disabled, since its fault is what
 //!   holds the stop and disabling it is the operator's way to take a broken sensor out (the
 //!   other sources still watch; with none left the stop holds). Raising a threshold, enabling
-//!   a source and removing a volume are always taken.
+//!   a source and removing a volume or an object are always taken.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -177,6 +178,14 @@ impl Config {
                 ));
             }
         }
+        for o in &new.attached_objects {
+            // An object's points are the robot's: attaching one self-filters more.
+            match self.attached_objects.iter().find(|a| a.name == o.name) {
+                None => out.push(format!("attached object {} added", o.name)),
+                Some(a) if a != o => out.push(format!("attached object {} changed", o.name)),
+                Some(_) => {}
+            }
+        }
         for v in &new.exclusion_volumes {
             match self.exclusion_volumes.iter().find(|o| o.name == v.name) {
                 None => out.push(format!("exclusion volume {} added", v.name)),
@@ -301,5 +310,15 @@ mod tests {
         assert!(with.weakening(&removed, &[false, false]).is_empty());
         let grown = change(&with, &[("t.radius", "0.4")]).unwrap();
         assert_eq!(with.weakening(&grown, &[false, false]).len(), 1);
+        // An attached object self-filters its points: added, it weakens; removed, it does not.
+        let object = [
+            ("attached_objects", "[part]"),
+            ("part.link", "tool0"),
+            ("part.size", "[0.1, 0.1, 0.1]"),
+        ];
+        assert_eq!(weak(&object, &[false, false]).len(), 1);
+        let held = change(&c, &object).unwrap();
+        let released = change(&held, &[("attached_objects", "[]")]).unwrap();
+        assert!(held.weakening(&released, &[false, false]).is_empty());
     }
 }

@@ -1,15 +1,22 @@
 //! The placed shapes of a config: `exclusion_volumes` (points dropped before the query,
 //! `cloud::exclusion`) and `attached_objects` (shapes joined to a link, `robot::attach`). Both
 //! are a primitive (`shape`: box with `size`, sphere with `radius`, cylinder with `radius` and
-//! `length`, as URDF gives them) at `translation`/`rotation` in a frame: a TF frame for a volume
-//! (`frame`), a link for an object (`link`).
+//! `length`, as URDF gives them) or a mesh file (`mesh`, `scale`; a volume's dilated by
+//! `padding`) at `translation`/`rotation` in a frame: a TF frame for a volume (`frame`), a link
+//! for an object (`link`). A volume's mesh is loaded here, so that a file that cannot be one is
+//! refused with the parameter named, at start and at run time alike; its grid is shared while
+//! the same file, scale and padding are in use.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 
 use nalgebra::Isometry3;
 
 use super::values::Values;
 use super::ConfigError;
-use crate::cloud::exclusion::ExclusionVolume;
-use crate::geometry::Primitive;
+use crate::cloud::exclusion::{ExclusionVolume, MeshGrid, VolumeShape};
+use crate::geometry::{Primitive, Shape};
 use crate::msg::{Quaternion, Transform, Vector3};
 use crate::robot::attach::AttachedObject;
 
@@ -44,12 +51,16 @@ pub(super) fn transform(v: &Values, entry: &str, template: &str) -> Result<Trans
     })
 }
 
-/// The primitive and pose of list entry `entry` (declared as `template`).
+/// Resolves a mesh file's name to a path.
+pub(super) type Resolve<'a> = dyn Fn(&str) -> Result<PathBuf, String> + 'a;
+
+/// The shape and pose of list entry `entry` (declared as `template`).
 fn placed(
     v: &Values,
     entry: &str,
     template: &str,
-) -> Result<(Primitive, Isometry3<f64>), ConfigError> {
+    resolve: &Resolve,
+) -> Result<(Shape, Isometry3<f64>), ConfigError> {
     let n = |rest: &str| names(entry, template, rest);
     let positive = |rest: &str| -> Result<f64, ConfigError> {
         let (name, t) = n(rest);
@@ -66,6 +77,24 @@ fn placed(
     };
     let (shape_name, shape_t) = n("shape");
     let shape = match v.string(&shape_name, &shape_t)?.as_str() {
+        "mesh" => {
+            let (name, t) = n("mesh");
+            let file = resolve(&v.string(&name, &t)?).map_err(|e| Values::bad(&name, e))?;
+            if let Err(e) = std::fs::metadata(&file) {
+                return Err(Values::bad(&name, format!("{}: {e}", file.display())));
+            }
+            let (sc, sct) = n("scale");
+            let scale = match v.numbers(&sc, &sct)?[..] {
+                [x, y, z] if [x, y, z].iter().all(|s| *s > 0.0) => [x, y, z],
+                _ => return Err(Values::bad(&sc, "expected [x, y, z], each > 0")),
+            };
+            return Ok((
+                Shape::Mesh { file, scale },
+                transform(v, entry, template)?
+                    .to_isometry()
+                    .expect("a checked, finite transform"),
+            ));
+        }
         "box" => {
             let (name, t) = n("size");
             let size = v.numbers(&name, &t)?;
@@ -89,14 +118,37 @@ fn placed(
         other => {
             return Err(Values::bad(
                 &shape_name,
-                format!("'{other}' (expected box, sphere or cylinder)"),
+                format!("'{other}' (expected box, sphere, cylinder or mesh)"),
             ))
         }
     };
     let pose = transform(v, entry, template)?
         .to_isometry()
         .expect("a checked, finite transform");
-    Ok((shape, pose))
+    Ok((shape.into(), pose))
+}
+
+/// The grid of a mesh volume, shared while one of the same file (unchanged on disk), scale and
+/// padding is in use: a run-time change that keeps a volume does not build it again.
+fn mesh_grid(file: &Path, scale: [f64; 3], padding_m: f64) -> Result<Arc<MeshGrid>, String> {
+    type Key = (PathBuf, [u64; 3], u64, Option<std::time::SystemTime>);
+    static GRIDS: OnceLock<Mutex<HashMap<Key, Weak<MeshGrid>>>> = OnceLock::new();
+    let modified = std::fs::metadata(file).and_then(|m| m.modified()).ok();
+    let key = (
+        file.to_owned(),
+        scale.map(f64::to_bits),
+        padding_m.to_bits(),
+        modified,
+    );
+    let grids = GRIDS.get_or_init(Default::default);
+    if let Some(g) = crate::node::lock(grids).get(&key).and_then(Weak::upgrade) {
+        return Ok(g);
+    }
+    let g = Arc::new(MeshGrid::build(file, scale, padding_m)?);
+    let mut grids = crate::node::lock(grids);
+    grids.retain(|_, w| w.strong_count() > 0);
+    grids.insert(key, Arc::downgrade(&g));
+    Ok(g)
 }
 
 /// The exclusion volumes named in `exclusion_volumes`; `sources` are the config's source names.
@@ -104,11 +156,23 @@ pub(super) fn exclusion_volumes(
     v: &Values,
     names_listed: &[String],
     sources: &[String],
+    resolve: &Resolve,
 ) -> Result<Vec<ExclusionVolume>, ConfigError> {
     names_listed
         .iter()
         .map(|name| {
-            let (shape, frame_from_volume) = placed(v, name, "<volume>")?;
+            let (shape, frame_from_volume) = placed(v, name, "<volume>", resolve)?;
+            let shape = match shape {
+                Shape::Primitive(p) => VolumeShape::Primitive(p),
+                Shape::Mesh { file, scale } => {
+                    let (pad, padt) = names(name, "<volume>", "padding");
+                    let padding = v.distance(&pad, &padt)?;
+                    let (mesh, _) = names(name, "<volume>", "mesh");
+                    VolumeShape::Mesh(
+                        mesh_grid(&file, scale, padding).map_err(|e| Values::bad(&mesh, e))?,
+                    )
+                }
+            };
             let (frame, ft) = names(name, "<volume>", "frame");
             let frame = v.string(&frame, &ft)?;
             let (s, st) = names(name, "<volume>", "sources");
@@ -134,11 +198,12 @@ pub(super) fn exclusion_volumes(
 pub(super) fn attached_objects(
     v: &Values,
     names_listed: &[String],
+    resolve: &Resolve,
 ) -> Result<Vec<AttachedObject>, ConfigError> {
     names_listed
         .iter()
         .map(|name| {
-            let (shape, link_from_object) = placed(v, name, "<object>")?;
+            let (shape, link_from_object) = placed(v, name, "<object>", resolve)?;
             let (link, lt) = names(name, "<object>", "link");
             Ok(AttachedObject {
                 name: name.clone(),

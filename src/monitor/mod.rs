@@ -85,6 +85,23 @@ pub struct Monitor {
     cameras: Vec<Option<Result<PinholeCamera, String>>>,
     /// The points of the last depth image (kept so that its allocation is reused).
     depth_points: Vec<[f32; 3]>,
+    /// The robot before the config's attached objects joined it (what a change of them is
+    /// built from); `None` when the model came with them attached.
+    base_model: Option<RobotModel>,
+}
+
+/// A monitor to be built with other attached objects ([`Monitor::rebuild`]).
+pub struct Rebuild {
+    model: RobotModel,
+}
+
+impl Rebuild {
+    /// The monitor of `config` (a run-time change of attached objects: the trees of the robot's
+    /// links come from the cache, an object's are built unless cached). It has received no
+    /// input yet: [`Monitor::take_inputs`] hands it those of the monitor it replaces.
+    pub fn build(self, config: Config) -> Result<Monitor, MonitorError> {
+        Monitor::with_model(config, self.model, &|_| {})
+    }
 }
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
@@ -158,6 +175,7 @@ impl Monitor {
         mut model: RobotModel,
         built: &(dyn Fn(&str) + Sync),
     ) -> Result<Self, MonitorError> {
+        let base = model.clone();
         for object in &config.attached_objects {
             model
                 .attach(object)
@@ -173,7 +191,29 @@ impl Monitor {
                 .into_iter()
                 .map(|(t, _)| t)
                 .collect();
-        Self::with_trees(config, model, &trees)
+        let mut monitor = Self::with_trees(config, model, &trees)?;
+        monitor.base_model = Some(base);
+        Ok(monitor)
+    }
+
+    /// What a monitor with other attached objects is built from (`Rebuild::build`, on a thread
+    /// of its own): the robot without its objects. `None` for a monitor made from a model with
+    /// its objects already attached ([`Monitor::with_trees`]).
+    pub fn rebuild(&self) -> Option<Rebuild> {
+        Some(Rebuild {
+            model: self.base_model.clone()?,
+        })
+    }
+
+    /// Takes over the inputs `old` received (transforms, joint states, camera models), up to
+    /// the moment it is replaced: a `/tf_static` that arrived while this monitor was built is
+    /// kept. Its levels start anew: every source is in fault until its next frame.
+    pub fn take_inputs(&mut self, old: &mut Monitor) {
+        std::mem::swap(&mut self.tf, &mut old.tf);
+        std::mem::swap(&mut self.joints, &mut old.joints);
+        if old.cameras.len() == self.cameras.len() {
+            std::mem::swap(&mut self.cameras, &mut old.cameras);
+        }
     }
 
     /// As [`Monitor::new`], with the model and trees given (the model with the config's
@@ -212,6 +252,7 @@ impl Monitor {
             scaler,
             cameras,
             depth_points: Vec::new(),
+            base_model: None,
         })
     }
 
@@ -268,6 +309,15 @@ impl Monitor {
         self.scaler
             .set_enabled(&flags(&self.config), &flags(&config));
         self.config = config;
+    }
+
+    /// The robot's own links (its attached objects left out).
+    pub fn robot_links(&self) -> Vec<String> {
+        let objects = &self.config.attached_objects;
+        (self.model.kinematics.link_names().iter())
+            .filter(|l| !objects.iter().any(|o| &o.name == *l))
+            .cloned()
+            .collect()
     }
 
     /// Whether the cell's safety stop is raised now, and whether each source is in fault at

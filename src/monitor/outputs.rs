@@ -559,13 +559,20 @@ pub fn closest_markers(
 /// The exclusion volumes (grey) and attached objects (blue) as RViz shapes, each in its own
 /// frame (a volume's TF frame, an object's link) at `stamp`.
 pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
-    use crate::geometry::Primitive;
-    let marker = |ns: &str, id: usize, frame: &str, shape: &Primitive, pose: &Isometry3<f64>| {
-        let (r#type, scale) = match *shape {
-            Primitive::Box { size } => (Marker::CUBE, size),
-            Primitive::Sphere { radius } => (Marker::SPHERE, [2.0 * radius; 3]),
-            Primitive::Cylinder { radius, length } => {
-                (Marker::CYLINDER, [2.0 * radius, 2.0 * radius, length])
+    use crate::geometry::{Primitive, Shape};
+    let marker = |ns: &str, id: usize, frame: &str, shape: &Shape, pose: &Isometry3<f64>| {
+        let mut mesh_resource = String::new();
+        let (r#type, scale) = match shape {
+            Shape::Primitive(Primitive::Box { size }) => (Marker::CUBE, *size),
+            Shape::Primitive(Primitive::Sphere { radius }) => (Marker::SPHERE, [2.0 * radius; 3]),
+            Shape::Primitive(Primitive::Cylinder { radius, length }) => {
+                (Marker::CYLINDER, [2.0 * radius, 2.0 * radius, *length])
+            }
+            // RViz loads the file itself (on the machine it runs on).
+            Shape::Mesh { file, scale } => {
+                let file = std::fs::canonicalize(file).unwrap_or_else(|_| file.clone());
+                mesh_resource = format!("file://{}", file.display());
+                (Marker::MESH_RESOURCE, *scale)
             }
         };
         let t = pose.translation.vector;
@@ -589,6 +596,7 @@ pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
             },
             lifetime: Duration { sec: 1, nanosec: 0 },
             frame_locked: true,
+            mesh_resource,
             ..Marker::default()
         }
     };
@@ -608,7 +616,7 @@ pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
                 "exclusion_volumes",
                 k,
                 &v.frame,
-                &v.shape,
+                &v.shape.shape(),
                 &v.frame_from_volume,
             )
         });

@@ -70,6 +70,7 @@ impl Marker<'_> {
     pub const LINE_LIST: i32 = 5;
     pub const SPHERE_LIST: i32 = 7;
     pub const TEXT_VIEW_FACING: i32 = 9;
+    pub const MESH_RESOURCE: i32 = 10;
     pub const ADD: i32 = 0;
     pub const DELETE: i32 = 2;
     pub const DELETEALL: i32 = 3;

@@ -32,9 +32,9 @@ mod publishers;
 pub mod record;
 pub mod rmw_zenoh;
 mod ros_args;
+mod serve;
 pub mod transport;
 
-use inputs::{forward, source_task, Shared, Slot, SourceMessage};
 use parameters::{Parameters, Safety};
 pub use publishers::PANIC_AFTER_ENV;
 use publishers::{last_word, panic_text, Publishers};
@@ -43,18 +43,15 @@ pub use ros_args::{expand_topic, parse_ros_args, remap_topic, RosArgs};
 pub use transport::{Pub, RosNode, Transport};
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex};
-use std::time::{Duration, Instant};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use ros2_client::dds::{Context, Node, Subscription};
 use ros2_client::{MessageTypeName, Name, NodeName};
 
-use crate::config::Config;
-use crate::config::{RobotSource, SourceConfig, SourceKind};
+use crate::config::{Config, RobotSource};
 use crate::monitor::{Monitor, Outputs};
-use crate::msg::{
-    CameraInfo, Image, JointState, PointCloud2, RosMessage, StringMessage, TfMessage, Time,
-};
+use crate::msg::{RosMessage, StringMessage, Time};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -393,9 +390,11 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     let safety = Arc::new(Safety::raised());
     let (apply_tx, apply_rx) = std::sync::mpsc::channel::<Config>();
     let events = node.parameter_events()?;
+    let robot_links: parameters::RobotLinks = Arc::new(Mutex::new(None));
     let params = Arc::new(Parameters::new(
         config.clone(),
         safety.clone(),
+        robot_links.clone(),
         apply_tx,
         events,
     ));
@@ -444,13 +443,14 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         }
     };
     monitor.probe_gpu();
+    *lock(&robot_links) = Some(monitor.robot_links());
     // The subscription tasks, cancelled before the node is dropped: a DDS reader dropped after
     // its participant has stopped makes RustDDS log an error on every normal shutdown.
     let mut tasks: Vec<smol::Task<()>> = Vec::new();
     // Whatever ends the serving — a signal, an error, a panic — the last word goes out before
     // the participant closes; a panic then goes on unwinding (exit status 101).
     let served = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        serve(
+        serve::serve(
             &config,
             &stop,
             transport,
@@ -459,7 +459,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             &executor,
             &outputs,
             &mut tasks,
-            Runtime {
+            serve::Runtime {
                 apply: apply_rx,
                 safety,
             },
@@ -478,295 +478,10 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     }
 }
 
-/// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
-/// through the monitor, the fused outputs published, silent sources reported, and the fused
-/// state published at least every `heartbeat_period`.
-#[allow(clippy::too_many_arguments)]
-fn serve(
-    config: &Config,
-    stop: &AtomicBool,
-    transport: Transport,
-    monitor: &mut Monitor,
-    node: &mut RosNode,
-    executor: &Arc<smol::Executor<'static>>,
-    outputs: &Publishers,
-    tasks: &mut Vec<smol::Task<()>>,
-    runtime: Runtime,
-) -> Result<()> {
-    let shared = Arc::new(Shared {
-        slots: config
-            .sources
-            .iter()
-            .map(|_| Mutex::new(Slot::default()))
-            .collect(),
-        wake: Condvar::new(),
-        wake_lock: Mutex::new(false),
-        dropped: AtomicU64::new(0),
-        input_errors: AtomicU64::new(0),
-    });
-    // Inputs: clouds into slots; TF and joint states into a queue the processing thread drains
-    // (they are small; the monitor is owned by that thread).
-    let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
-    let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
-    let (info_tx, info_rx) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
-    // Each source's subscriptions, made while it is enabled (also when it is enabled at run
-    // time), dropped when it is disabled.
-    let subscribe =
-        |node: &mut RosNode, k: usize, s: &SourceConfig| -> Result<Vec<smol::Task<()>>> {
-            subscribe_source(node, executor, k, s, &shared, &info_tx)
-        };
-    let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
-    for (k, s) in config.sources.iter().enumerate() {
-        source_tasks.push(if s.enabled {
-            subscribe(node, k, s)?
-        } else {
-            Vec::new()
-        });
-    }
-    for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
-        let qos = if is_static {
-            TF_STATIC_QOS
-        } else {
-            RELIABLE_QOS.history(History::KeepLast { depth: 100 })
-        };
-        tasks.push(forward(
-            node,
-            name,
-            qos,
-            executor,
-            name,
-            tf_tx.clone(),
-            move |m: TfMessage| (m, is_static),
-            &shared,
-        )?);
-    }
-    let joint_qos = QosProfile::subscription_default()
-        .reliability_best_effort()
-        .history(History::KeepLast { depth: 100 });
-    tasks.push(forward(
-        node,
-        &config.joint_states_topic,
-        joint_qos,
-        executor,
-        "joint states",
-        js_tx,
-        |m: JointState| m,
-        &shared,
-    )?);
-    log_up(config, monitor, node);
-    let n = config.sources.len();
-    let mut heard = vec![false; n];
-    let mut silent_logged = vec![false; n];
-    let started = Instant::now();
-    // Since when each source is enabled: its silence counts from then.
-    let mut enabled_at = vec![started; n];
-    let heartbeat = Duration::from_secs_f64(config.heartbeat_period_s);
-    let mut last_published = started;
-    let mut published_frames = 0u64;
-    let panic_after: Option<u64> = std::env::var(PANIC_AFTER_ENV)
-        .ok()
-        .and_then(|v| v.parse().ok());
-    let counts = || {
-        (
-            shared.dropped.load(Ordering::Relaxed),
-            shared.input_errors.load(Ordering::Relaxed),
-        )
-    };
-    let mut last_fault_report = vec![None::<Instant>; n];
-    while !stop.load(Ordering::Relaxed) {
-        {
-            let mut woken = lock(&shared.wake_lock);
-            if !*woken {
-                woken = shared
-                    .wake
-                    .wait_timeout(woken, Duration::from_millis(20))
-                    .unwrap_or_else(|poisoned| poisoned.into_inner())
-                    .0;
-            }
-            *woken = false;
-        }
-        while let Ok((m, is_static)) = tf_rx.try_recv() {
-            let topic = if is_static { "/tf_static" } else { "/tf" };
-            if let Err(e) = monitor.on_tf_message(topic, &m, is_static) {
-                log::warn!("{e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-        while let Ok((k, m)) = info_rx.try_recv() {
-            if let Err(e) = monitor.on_camera_info_message(k, &m) {
-                log::warn!("{e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-        while let Ok(m) = js_rx.try_recv() {
-            if let Err(e) = monitor.on_joint_state_message(&config.joint_states_topic, &m) {
-                log::warn!("{e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-        // Parameters set at run time (`parameters`), applied before the next frame.
-        while let Ok(new) = runtime.apply.try_recv() {
-            let was: Vec<bool> = monitor.config.sources.iter().map(|s| s.enabled).collect();
-            monitor.reconfigure(new);
-            for (k, s) in monitor.config.sources.iter().enumerate() {
-                if s.enabled && !was[k] {
-                    log::info!("source {}: enabled on {}", s.name, s.topic);
-                    source_tasks[k] = subscribe(node, k, s)?;
-                    (heard[k], silent_logged[k]) = (false, false);
-                    (enabled_at[k], last_fault_report[k]) = (Instant::now(), None);
-                    *lock(&shared.slots[k]) = Slot::default();
-                } else if !s.enabled && was[k] {
-                    log::info!("source {}: disabled", s.name);
-                    source_tasks[k].clear();
-                    *lock(&shared.slots[k]) = Slot::default();
-                }
-            }
-        }
-        let sources = monitor.config.sources.clone();
-        let now = Instant::now();
-        for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
-            let (cloud, last) = {
-                let mut slot = lock(&shared.slots[k]);
-                (slot.cloud.take(), slot.last_received)
-            };
-            if let Some((cloud, received, clock_ns)) = cloud {
-                if !heard[k] || silent_logged[k] {
-                    let (width, height, frame_id, bytes) = cloud.describe();
-                    let what = match s.kind {
-                        SourceKind::PointCloud => "cloud",
-                        SourceKind::DepthImage => "depth image",
-                    };
-                    log::info!(
-                        "source {}: {} {what} on {} ({width}×{height}, {}, frame '{frame_id}')",
-                        s.name,
-                        if heard[k] { "again a" } else { "first" },
-                        s.topic,
-                        mib(bytes),
-                    );
-                    if !heard[k] && transport == Transport::Dds {
-                        warn_burst(&s.name, what, bytes);
-                    }
-                    (heard[k], silent_logged[k]) = (true, false);
-                }
-                let frame = match &cloud {
-                    SourceMessage::Cloud(c) => monitor.on_cloud_message(k, c, received, clock_ns),
-                    SourceMessage::Depth(i) => {
-                        monitor.on_depth_image_message(k, i, received, clock_ns)
-                    }
-                };
-                {
-                    let (d, e) = counts();
-                    outputs.publish(frame.outputs, d, e);
-                }
-                last_published = Instant::now();
-                published_frames += 1;
-                if panic_after.is_some_and(|n| published_frames >= n) {
-                    panic!("injected after {published_frames} frames ({PANIC_AFTER_ENV})");
-                }
-                last_fault_report[k] = None;
-                continue;
-            }
-            let silent = now.duration_since(last.unwrap_or(enabled_at[k]));
-            let timeout = Duration::from_secs_f64(s.source_timeout_s);
-            let due = last_fault_report[k].is_none_or(|t| now.duration_since(t) >= timeout / 2);
-            if silent > timeout && due {
-                if !silent_logged[k] {
-                    log::warn!(
-                        "source {}: no cloud on {} for {:.1} s (source_timeout {} s): ERROR \
-                         until one arrives",
-                        s.name,
-                        s.topic,
-                        silent.as_secs_f64(),
-                        s.source_timeout_s
-                    );
-                    silent_logged[k] = true;
-                }
-                let frame = monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none());
-                {
-                    let (d, e) = counts();
-                    outputs.publish(frame.outputs, d, e);
-                }
-                last_published = Instant::now();
-                last_fault_report[k] = Some(now);
-            }
-        }
-        // The heartbeat: the fused state, aged by the clock, when no frame went out for a
-        // heartbeat period (a subscriber can tell a quiet monitor from a dead one).
-        if last_published.elapsed() >= heartbeat {
-            let (d, e) = counts();
-            outputs.publish(monitor.heartbeat(Time::now_nanos()), d, e);
-            last_published = Instant::now();
-        }
-        let (raised, in_fault) = monitor.safety(Time::now_nanos());
-        runtime.safety.set(raised, in_fault);
-    }
-    Ok(())
-}
-
-/// What the processing thread shares with the parameter services: the changes they took, and
-/// the safety they check the next one against.
-struct Runtime {
-    apply: std::sync::mpsc::Receiver<Config>,
-    safety: Arc<Safety>,
-}
-
-/// Subscribes to source `k`'s messages (and a depth source's camera info).
-fn subscribe_source(
-    node: &mut RosNode,
-    executor: &Arc<smol::Executor<'static>>,
-    k: usize,
-    s: &SourceConfig,
-    shared: &Arc<Shared>,
-    info_tx: &std::sync::mpsc::Sender<(usize, CameraInfo)>,
-) -> Result<Vec<smol::Task<()>>> {
-    let mut tasks = Vec::new();
-    let qos = if s.reliable {
-        RELIABLE_QOS.history(History::KeepLast { depth: 1 })
-    } else {
-        SENSOR_QOS
-    };
-    match s.kind {
-        SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
-            node,
-            &s.topic,
-            qos,
-            executor,
-            k,
-            shared,
-            SourceMessage::Cloud,
-        )?),
-        SourceKind::DepthImage => {
-            tasks.push(source_task::<Image<'static>>(
-                node,
-                &s.topic,
-                qos.clone(),
-                executor,
-                k,
-                shared,
-                SourceMessage::Depth,
-            )?);
-            // The camera model, with the image's QoS as image_transport's CameraSubscriber
-            // gives both; a latched (transient local) publisher is matched too.
-            let topic = s.camera_info_topic.clone().unwrap_or_default();
-            tasks.push(forward(
-                node,
-                &topic,
-                qos,
-                executor,
-                "camera info",
-                info_tx.clone(),
-                move |m: CameraInfo| (k, m),
-                shared,
-            )?);
-        }
-    }
-    Ok(tasks)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::DiagnosticArray;
+    use crate::msg::{DiagnosticArray, PointCloud2};
 
     #[test]
     fn source_topics_keep_two_samples() {

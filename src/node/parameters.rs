@@ -9,8 +9,9 @@
 //! the additional constraint, `[0, ∞]` as the range of a quantity, and read-only unless it is
 //! declared settable at run time.
 //!
-//! A set is a change of the running config (`Config::with_changes`): checked as at start,
-//! refused with the reason (the parameter named) or taken whole. `set_parameters` takes its
+//! A set is a change of the running config (`Config::with_changes`): checked as at start (an
+//! attached object also against the robot's links), refused with the reason (the parameter
+//! named) or taken whole. `set_parameters` takes its
 //! parameters one after the other, each its own change with its own result, as rclcpp does;
 //! `set_parameters_atomically` takes them as one change (the way to add an exclusion volume
 //! with its parameters). While the safety stop is raised a change that could release it is
@@ -57,10 +58,15 @@ impl Safety {
     }
 }
 
+/// The robot's links without attached objects, once it is loaded (set by the processing
+/// thread): what an object may be fixed to, and what it may not be named.
+pub type RobotLinks = Arc<Mutex<Option<Vec<String>>>>;
+
 /// The node's parameters: the running config, what checks a change and where it goes.
 pub struct Parameters {
     config: Mutex<Config>,
     safety: Arc<Safety>,
+    robot_links: RobotLinks,
     apply: Mutex<Sender<Config>>,
     /// `/parameter_events` (DDS only).
     events: Option<ros2_client::Publisher<raw::ParameterEvent>>,
@@ -70,15 +76,48 @@ impl Parameters {
     pub fn new(
         config: Config,
         safety: Arc<Safety>,
+        robot_links: RobotLinks,
         apply: Sender<Config>,
         events: Option<ros2_client::Publisher<raw::ParameterEvent>>,
     ) -> Self {
         Self {
             config: Mutex::new(config),
             safety,
+            robot_links,
             apply: Mutex::new(apply),
             events,
         }
+    }
+
+    /// Checks the attached objects of `new` that differ from `old` against the robot's links
+    /// (what the build would refuse after the answer).
+    fn check_objects(&self, old: &Config, new: &Config) -> Result<(), String> {
+        let links = lock(&self.robot_links);
+        for o in &new.attached_objects {
+            if old.attached_objects.contains(o) {
+                continue;
+            }
+            let Some(links) = links.as_ref() else {
+                return Err(format!(
+                    "attached object {}: the robot is not loaded yet",
+                    o.name
+                ));
+            };
+            let others = new.attached_objects.iter().filter(|a| a.name != o.name);
+            if !links.contains(&o.link) && !others.clone().any(|a| a.name == o.link) {
+                return Err(format!(
+                    "parameter {}.link: '{}' is not a link of the robot",
+                    o.name, o.link
+                ));
+            }
+            if links.contains(&o.name) {
+                return Err(format!(
+                    "attached_objects: '{}' is already a link of the robot",
+                    o.name
+                ));
+            }
+        }
+        Ok(())
     }
 
     fn find<'a>(params: &'a [Parameter], name: &str) -> Option<&'a Parameter> {
@@ -170,6 +209,7 @@ impl Parameters {
             })
             .collect::<Result<Vec<_>, String>>()?;
         let new = config.with_changes(&yaml).map_err(|e| e.to_string())?;
+        self.check_objects(&config, &new)?;
         if self.safety.stop.load(Ordering::Relaxed) {
             let in_fault = lock(&self.safety.in_fault).clone();
             let weakening = config.weakening(&new, &in_fault);
@@ -451,7 +491,13 @@ mod tests {
         let safety = Arc::new(Safety::raised());
         safety.set(false, vec![false]);
         (
-            Parameters::new(Config::from_overrides(&o).unwrap(), safety, tx, None),
+            Parameters::new(
+                Config::from_overrides(&o).unwrap(),
+                safety,
+                Arc::new(Mutex::new(Some(vec!["base_link".into(), "tool0".into()]))),
+                tx,
+                None,
+            ),
             rx,
         )
     }
@@ -558,6 +604,30 @@ mod tests {
         p.safety.set(true, vec![true]);
         p.set(&one("camera.enabled", ParameterValue::Boolean(false)))
             .unwrap();
+        // An attached object is fixed to a link of the robot and not named after one.
+        p.safety.set(false, vec![false]);
+        let object = |name: &str, link: &str| {
+            let mut o = one(
+                "attached_objects",
+                ParameterValue::StringArray(vec![name.into()]),
+            );
+            o.extend(one(
+                &format!("{name}.link"),
+                ParameterValue::String(link.into()),
+            ));
+            o.extend(one(
+                &format!("{name}.size"),
+                ParameterValue::DoubleArray(vec![0.1; 3]),
+            ));
+            o
+        };
+        let e = p.set(&object("part", "flange")).unwrap_err();
+        assert!(e.contains("part.link") && e.contains("flange"), "{e}");
+        let e = p.set(&object("tool0", "base_link")).unwrap_err();
+        assert!(e.contains("already a link"), "{e}");
+        p.set(&object("part", "tool0")).unwrap();
+        let last = rx.try_iter().last().unwrap();
+        assert_eq!(last.attached_objects[0].link, "tool0");
     }
 
     #[test]

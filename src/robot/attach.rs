@@ -1,15 +1,15 @@
 //! Attached objects: a shape fixed to a link that the URDF does not have — the part in the
 //! gripper, a tool, a cable guide. An object joins the robot as a link of its own, named after
-//! it, under its `link` by a fixed joint at `link_from_object`, with the primitive as its one
-//! collision element. From there it is a link like any other: it is packed and certified, its
+//! it, under its `link` by a fixed joint at `link_from_object`, with its shape (a primitive, or
+//! a mesh file taken in as a URDF link's) as its collision geometry. From there it is a link like any other: it is packed and certified, its
 //! points are self-filtered (a held part is not an obstacle), and its distance to the world is
 //! measured and published under its name (a held part that reaches a person stops the cell).
 
 use nalgebra::Isometry3;
 
-use super::urdf::{load_primitive, RobotModel};
+use super::urdf::{load_shape, RobotModel};
 use super::{LinkGeometry, RobotError};
-use crate::geometry::Primitive;
+use crate::geometry::Shape;
 
 /// A shape fixed to a link of the robot.
 #[derive(Debug, Clone, PartialEq)]
@@ -18,7 +18,7 @@ pub struct AttachedObject {
     pub name: String,
     /// The robot link it is fixed to.
     pub link: String,
-    pub shape: Primitive,
+    pub shape: Shape,
     pub link_from_object: Isometry3<f64>,
 }
 
@@ -41,7 +41,9 @@ impl RobotModel {
                 self.name, object.name
             )));
         }
-        let element = load_primitive(&object.name, &object.shape.to_urdf())?;
+        // A mesh goes through the intake as a URDF link's does (its report logged, kept for
+        // the independent check).
+        let (elements, intake) = load_shape(&object.name, &object.shape.to_urdf())?;
         self.kinematics.add_fixed_link(
             &format!("{}_attachment", object.name),
             &object.name,
@@ -50,8 +52,8 @@ impl RobotModel {
         );
         self.links.push(LinkGeometry {
             name: object.name.clone(),
-            elements: vec![element],
-            intake: Vec::new(),
+            elements,
+            intake: intake.into_iter().collect(),
             hull_of_volume_m3: None,
         });
         log::info!(

@@ -429,19 +429,19 @@ fn load_element(
     }
 }
 
-/// A primitive (box, sphere, cylinder) as link `link`'s one collision element, centred on the
-/// link's frame (`robot::attach`).
-pub(super) fn load_primitive(
+/// A primitive (box, sphere, cylinder), centred on the link's frame, or a mesh file (an
+/// absolute path, or relative to the current folder) as link `link`'s collision geometry
+/// (`robot::attach`): the closed meshes, and a mesh file's intake.
+pub(crate) fn load_shape(
     link: &str,
     geometry: &urdf_rs::Geometry,
-) -> Result<CollisionElement, RobotError> {
+) -> Result<(Vec<CollisionElement>, Option<MeshIntake>), RobotError> {
     let collision = urdf_rs::Collision {
         name: None,
         origin: urdf_rs::Pose::default(),
         geometry: geometry.clone(),
     };
-    let (mut elements, _) = load_element(link, 0, &collision, Path::new("."), &[])?;
-    Ok(elements.remove(0))
+    load_element(link, 0, &collision, Path::new("."), &[])
 }
 
 /// The convex hull of every vertex of a link's elements (parry3d's quickhull), as one element.

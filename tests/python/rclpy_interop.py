@@ -12,7 +12,9 @@ any ROS 2 node would.
         with set_parameters_atomically, reads `points_excluded.patch` from /diagnostics,
         raises stop_distance and removes the volume; disables the camera (nothing watches: the
         fused status must turn ERROR) and enables it again (OK again once its clouds are
-        heard). Records every /parameter_events message of NODE. Prints one JSON object with
+        heard); attaches a box `shield` to camera_link around half the plane (the fused status
+        must name link shield, the rest of the plane a few cm from it) and releases it. Records
+        every /parameter_events message of NODE. Prints one JSON object with
         every answer.
 """
 import json
@@ -91,7 +93,7 @@ def params(node_name):
     threading.Thread(target=executor.spin, daemon=True).start()
     out = {"events": []}
     lock = threading.Lock()
-    fused = {"level": None, "excluded": None}
+    fused = {"level": None, "excluded": None, "link": None, "distance_m": None}
 
     def on_event(e):
         if e.node == node_name:
@@ -105,8 +107,11 @@ def params(node_name):
     def on_diagnostics(m):
         for s in m.status:
             if s.name.endswith(": all sources"):
+                values = {kv.key: kv.value for kv in s.values}
                 with lock:
                     fused["level"] = s.level[0] if isinstance(s.level, bytes) else s.level
+                    fused["link"] = values.get("link")
+                    fused["distance_m"] = float(values["distance_m"]) if "distance_m" in values else None
             for kv in s.values:
                 if kv.key == "points_excluded.patch":
                     with lock:
@@ -183,6 +188,22 @@ def params(node_name):
     with lock:
         fused["level"] = None
     out["released_again"] = wait_for(lambda: fused["level"] == 0, 10)
+    # A shield attached to camera_link around the same half of the plane: its points are the
+    # robot's now, and the rest of the plane, a few cm from it, is measured to it (ERROR, link
+    # shield). Released: the plane is far again.
+    started = time.time()
+    out["attach"] = set_("set_parameters_atomically", attached_objects=["shield"],
+                         shield__link="camera_link", shield__size=[0.1, 0.2, 0.5],
+                         shield__translation=[0.6, -0.11, 0.0])
+    out["shield_nearest"] = wait_for(lambda: fused["link"] == "shield", 60)
+    out["attach_s"] = time.time() - started
+    with lock:
+        out["shield_status"] = {"level": fused["level"], "distance_m": fused["distance_m"]}
+    out["detach"] = set_("set_parameters", attached_objects=[])
+    with lock:
+        fused["level"] = None
+    out["released_after_detach"] = wait_for(
+        lambda: fused["level"] == 0 and fused["link"] != "shield", 60)
     time.sleep(0.5)
     with lock:
         print(json.dumps(out))

@@ -1,7 +1,8 @@
 //! Exclusion volumes: known parts of the cell (a table, a fixture, a conveyor) whose points are
 //! dropped before the query, so that they neither stop the cell nor hide anything else.
 //!
-//! A volume is a primitive (`geometry::Primitive`: box, sphere, cylinder) fixed in a TF frame
+//! A volume is a primitive (`geometry::Primitive`: box, sphere, cylinder) or a mesh file's
+//! solid dilated by a padding (`mesh`: a grid of signed distances) fixed in a TF frame
 //! — the world, a fixture's frame, or a link of the robot — and applies to every source or to
 //! those it names. Per cloud, the monitor places each volume in the cloud's sensor frame
 //! (`sensor_from_volume`, looked up at the cloud's stamp as the sensor itself is) and
@@ -18,21 +19,53 @@
 //! What this costs in safety is what it says: a person inside an exclusion volume is not seen.
 //! Volumes are shown in RViz (`outputs`) and their counts are in the diagnostics.
 
+use std::sync::Arc;
+
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
 use crate::geometry::Primitive;
+
+pub mod mesh;
+pub use mesh::MeshGrid;
 
 /// Points per block of the overlap test.
 pub const BLOCK: usize = 32;
 /// Points per parallel task.
 const TASK: usize = 8192;
 
+/// What an exclusion volume is: a primitive, or a mesh's dilated solid.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VolumeShape {
+    Primitive(Primitive),
+    Mesh(Arc<MeshGrid>),
+}
+
+impl VolumeShape {
+    /// The shape as configured (a mesh by its file and scale).
+    pub fn shape(&self) -> crate::geometry::Shape {
+        match self {
+            VolumeShape::Primitive(p) => (*p).into(),
+            VolumeShape::Mesh(g) => crate::geometry::Shape::Mesh {
+                file: g.file.clone(),
+                scale: g.scale,
+            },
+        }
+    }
+}
+
+impl PartialEq for MeshGrid {
+    /// The same file, scale and padding: the same volume.
+    fn eq(&self, other: &Self) -> bool {
+        (&self.file, self.scale, self.padding_m) == (&other.file, other.scale, other.padding_m)
+    }
+}
+
 /// An exclusion volume as configured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExclusionVolume {
     pub name: String,
-    pub shape: Primitive,
+    pub shape: VolumeShape,
     /// The TF frame (or robot link) it is fixed in.
     pub frame: String,
     pub frame_from_volume: Isometry3<f64>,
@@ -48,38 +81,51 @@ impl ExclusionVolume {
 }
 
 /// A volume placed in a cloud's sensor frame, in f32 for the point loop.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Placed {
-    /// `volume_from_sensor`: rows of the rotation, and the translation.
+    /// `volume_from_sensor`, then less the centre of the volume's box: rows of the rotation,
+    /// and the translation (a point comes out relative to the box's centre).
     rotation: [[f32; 3]; 3],
     translation: [f32; 3],
-    /// Half extents of the volume's bounding box in its frame.
+    /// Half extents of the volume's bounding box in its frame, and its centre there (zero for
+    /// a primitive).
     half: [f32; 3],
+    center: [f32; 3],
     /// The bounding box of that box in the sensor frame.
     lo: [f32; 3],
     hi: [f32; 3],
     shape: Shape,
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 enum Shape {
     Box,
     Sphere { r2: f32 },
     Cylinder { r2: f32 },
+    Mesh(Arc<MeshGrid>),
 }
 
 impl Placed {
     /// `shape` placed by `sensor_from_volume`.
-    pub fn new(shape: &Primitive, sensor_from_volume: &Isometry3<f64>) -> Self {
+    pub fn new(shape: &VolumeShape, sensor_from_volume: &Isometry3<f64>) -> Self {
         let volume_from_sensor = sensor_from_volume.inverse();
         let r = volume_from_sensor.rotation.to_rotation_matrix();
         let m = r.matrix();
-        let t = volume_from_sensor.translation.vector;
-        let half = shape.half_extents();
+        let (half, center) = match shape {
+            VolumeShape::Primitive(p) => (p.half_extents(), [0.0; 3]),
+            VolumeShape::Mesh(g) => {
+                let (lo, hi) = g.bounds();
+                (
+                    std::array::from_fn(|k| 0.5 * (hi[k] - lo[k])),
+                    std::array::from_fn(|k| 0.5 * (hi[k] + lo[k])),
+                )
+            }
+        };
+        let t = volume_from_sensor.translation.vector - nalgebra::Vector3::from(center);
         // The volume's box seen from the sensor: centre and half extents |R| h, a little wider
         // for rounding.
         let s = sensor_from_volume.rotation.to_rotation_matrix();
-        let c = sensor_from_volume.translation.vector;
+        let c = sensor_from_volume * nalgebra::Point3::from(center);
         let reach: [f64; 3] = std::array::from_fn(|i| {
             (0..3).map(|j| s[(i, j)].abs() * half[j]).sum::<f64>() * (1.0 + 1e-6) + 1e-6
         });
@@ -89,14 +135,16 @@ impl Placed {
             rotation: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)] as f32)),
             translation: [t.x as f32, t.y as f32, t.z as f32],
             half: half.map(|h| h as f32),
-            shape: match *shape {
-                Primitive::Box { .. } => Shape::Box,
-                Primitive::Sphere { radius } => Shape::Sphere {
+            center: center.map(|x| x as f32),
+            shape: match shape {
+                VolumeShape::Primitive(Primitive::Box { .. }) => Shape::Box,
+                VolumeShape::Primitive(Primitive::Sphere { radius }) => Shape::Sphere {
                     r2: (radius * radius) as f32,
                 },
-                Primitive::Cylinder { radius, .. } => Shape::Cylinder {
+                VolumeShape::Primitive(Primitive::Cylinder { radius, .. }) => Shape::Cylinder {
                     r2: (radius * radius) as f32,
                 },
+                VolumeShape::Mesh(g) => Shape::Mesh(g.clone()),
             },
         }
     }
@@ -118,6 +166,7 @@ impl Placed {
             Shape::Box => in_box(0) && in_box(1) && in_box(2),
             Shape::Sphere { r2 } => q[0] * q[0] + q[1] * q[1] + q[2] * q[2] <= r2,
             Shape::Cylinder { r2 } => q[0] * q[0] + q[1] * q[1] <= r2 && in_box(2),
+            Shape::Mesh(ref g) => g.contains(std::array::from_fn(|k| q[k] + self.center[k])),
         }
     }
 
@@ -254,7 +303,10 @@ mod tests {
                 .map(|(p, h)| if *h && p[0] > 1.0 { [f32::NAN; 3] } else { *p })
                 .collect();
             let before = cloud.clone();
-            let placed: Vec<Placed> = shapes.iter().map(|(s, p)| Placed::new(s, p)).collect();
+            let placed: Vec<Placed> = shapes
+                .iter()
+                .map(|(s, p)| Placed::new(&VolumeShape::Primitive(*s), p))
+                .collect();
             let counts = exclude(&mut cloud, &placed);
             let mut expected = vec![0u64; shapes.len()];
             for (p, after) in before.iter().zip(&cloud) {
