@@ -871,11 +871,14 @@ fn huge_cloud() {
 }
 
 /// The GPU backend against the CPU on random scenes (lavapipe in CI): every mode, per-link on
-/// and off, with the self-filter and region of interest on. Distances agree to 1e-5 m: the two
-/// walk the same posed arrays in the same order, and only the rounding of `length` differs
-/// (a few ulps); the stage counts that do not depend on the bounds' history agree exactly.
+/// and off, with the self-filter and region of interest on, the cloud as runs and as an
+/// organized image (tiles), with the minima in 64-bit atomics (where the adapter has them) and
+/// in the portable 32-bit path. Distances agree to 1e-5 m: the two walk the same posed arrays
+/// and only the rounding of the square root differs (a few ulps); the stage counts that do not
+/// depend on the bounds' history agree exactly, and both cut the cloud into the same blocks.
 #[test]
 fn gpu_agrees_with_cpu() {
+    use ist_monitor::query::gpu::GpuOptions;
     use ist_monitor::query::Backend;
     let mut rng = Rng(7);
     for case in 0..6 {
@@ -886,8 +889,14 @@ fn gpu_agrees_with_cpu() {
         }
         let root_from_sensor = rng.pose(1.0);
         let points = cloud(&mut rng, 3000, &root_from_sensor);
-        for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
-            for per_link in [false, true] {
+        for int64_atomics in [true, false] {
+            let gpu = engine.gpu_with(GpuOptions { int64_atomics }).unwrap();
+            let minima = gpu.minima;
+            for (mode, per_link, width) in [Mode::Fast, Mode::Certified, Mode::Exact]
+                .into_iter()
+                .flat_map(|m| [(m, false), (m, true)])
+                .flat_map(|(m, p)| [(m, p, None), (m, p, Some(50))])
+            {
                 let options = |backend| QueryOptions {
                     mode,
                     per_link,
@@ -897,21 +906,16 @@ fn gpu_agrees_with_cpu() {
                     ..QueryOptions::default()
                 };
                 let poses = &scene.link_poses;
-                let cpu = run(
-                    &mut engine,
-                    &points,
-                    &root_from_sensor,
-                    poses,
-                    &options(Backend::Cpu),
-                );
-                let gpu = run(
-                    &mut engine,
-                    &points,
-                    &root_from_sensor,
-                    poses,
-                    &options(Backend::Gpu),
-                );
-                let what = format!("case {case} {mode:?} per_link {per_link}");
+                let mut query = |backend| {
+                    let r = engine
+                        .query_image(&points, width, &root_from_sensor, poses, &options(backend))
+                        .expect("query");
+                    (r, engine.last_work())
+                };
+                let (cpu, cpu_work) = query(Backend::Cpu);
+                let (gpu, gpu_work) = query(Backend::Gpu);
+                let what =
+                    format!("case {case} {mode:?} per_link {per_link} width {width:?} {minima:?}");
                 assert_eq!((cpu.backend, gpu.backend), (Backend::Cpu, Backend::Gpu));
                 assert_eq!(cpu.outcome, gpu.outcome, "{what}");
                 let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
@@ -946,6 +950,8 @@ fn gpu_agrees_with_cpu() {
                     gc.pruned + gc.evaluated + gc.invalid + gc.outside_roi + gc.self_filtered,
                     gc.total
                 );
+                assert_eq!(cpu_work.blocks, gpu_work.blocks, "{what}");
+                assert!(gpu_work.descents > 0 && cpu_work.descents > 0, "{what}");
             }
         }
     }

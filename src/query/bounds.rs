@@ -13,7 +13,7 @@ use std::sync::Mutex;
 use nalgebra::Isometry3;
 use wide::f32x8;
 
-use super::layout::{Candidate, PosedLink, RobotBox};
+use super::layout::{Candidate, PosedLink, RobotBox, WORK_COUNTERS};
 use super::{pose, Mode, QueryLink, QueryOptions};
 
 /// An empty per-link minimum.
@@ -128,6 +128,8 @@ pub(crate) struct Bounds {
     pub candidates: Mutex<Vec<Candidate>>,
     /// Per link: the points the self-filter took as this link.
     pub self_filtered: Vec<AtomicU64>,
+    /// The traversal's work, per `layout::Work`.
+    pub work: [AtomicU64; WORK_COUNTERS],
 }
 
 impl Bounds {
@@ -150,6 +152,7 @@ impl Bounds {
             global_lower: AtomicU32::new(f32::INFINITY.to_bits()),
             candidates: Mutex::new(Vec::new()),
             self_filtered: links.iter().map(|_| AtomicU64::new(0)).collect(),
+            work: Default::default(),
         }
     }
 
@@ -166,7 +169,7 @@ impl Bounds {
         for b in &self.best {
             b.store(EMPTY, Relaxed);
         }
-        for s in &self.self_filtered {
+        for s in self.self_filtered.iter().chain(&self.work) {
             s.store(0, Relaxed);
         }
         self.global.store(f32::INFINITY.to_bits(), Relaxed);

@@ -22,6 +22,7 @@ use std::mem::MaybeUninit;
 use wide::{f32x4, f32x8, CmpGe, CmpLe};
 
 use super::layout::{FRONTIER, STACK};
+use super::work;
 use super::{QueryLink, SphereSoa};
 use crate::ist::IstNode;
 
@@ -140,10 +141,12 @@ pub fn nearest_from(
         }
     }
     if sp == 0 {
+        work::descended(1, 0);
         return None;
     }
     // The nearest start on top.
     stack.swap(nearest.1, sp - 1);
+    let mut expanded = 0;
     while sp > 0 {
         sp -= 1;
         // SAFETY: stack[..sp + 1] was written (sp only grows by the entries just written).
@@ -151,6 +154,7 @@ pub fn nearest_from(
         if lb > best {
             continue;
         }
+        expanded += 1;
         let node = &nodes[index as usize];
         let first = node.first_child as usize;
         let count = node.child_count as usize;
@@ -180,6 +184,7 @@ pub fn nearest_from(
             }
         }
     }
+    work::descended(1, expanded);
     (arg != u32::MAX).then_some((best.max(0.0), arg))
 }
 
@@ -197,13 +202,15 @@ fn packet_lower_bounds(soa: &SphereSoa, p: &[f32x8; 3], i: usize) -> f32x8 {
 /// per point, the distance to its nearest inner sphere of the subtrees rooted at `starts`
 /// whose signed distance is at most `bound`, clamped at 0; +∞ where none is. A node is pruned
 /// when its lower bound exceeds the best distance of every lane; the nearest child (by the
-/// lanes' sum) is popped next.
+/// lanes' sum) is popped next. `lanes`: the points of the packet (the others repeat one of
+/// them), for the work count.
 #[inline]
 pub(super) fn nearest_packet(
     link: &QueryLink,
     p: &[f32x8; 3],
     starts: &[u32],
     bound: f32,
+    lanes: u32,
 ) -> [f32; 8] {
     debug_assert!(starts.len() <= FRONTIER);
     let nodes = &link.nodes;
@@ -220,6 +227,7 @@ pub(super) fn nearest_packet(
             .iter()
             .map(|&s| (packet_lower_bounds(soa, p, s as usize), s)),
     );
+    let mut expanded = 0;
     while sp > 0 {
         sp -= 1;
         // SAFETY: stack[..sp + 1] was written (sp only grows by the entries just written).
@@ -227,6 +235,7 @@ pub(super) fn nearest_packet(
         if !lb.cmp_le(best).any() {
             continue;
         }
+        expanded += 1;
         let node = &nodes[index as usize];
         let first = node.first_child as usize;
         let count = node.child_count as usize;
@@ -246,6 +255,7 @@ pub(super) fn nearest_packet(
             );
         }
     }
+    work::descended(u64::from(lanes), expanded * u64::from(lanes));
     let (best, found) = (best.to_array(), found.move_mask());
     std::array::from_fn(|j| {
         if found & (1 << j) != 0 {
@@ -298,16 +308,19 @@ pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f
             sp += 1;
         }
     }
+    let mut expanded = 0;
     while sp > 0 {
         sp -= 1;
         // SAFETY: stack[..sp + 1] was written (sp only grows by the entries just written).
         let index = unsafe { stack[sp].assume_init() };
+        expanded += 1;
         let node = &nodes[index as usize];
         let first = node.first_child as usize;
         let count = node.child_count as usize;
         if node.children_are_spheres != 0 {
             let within = within_reach(&link.sphere_soa, p, first, count, bound);
             if within != 0 {
+                work::descended(1, expanded);
                 return Some((first + within.trailing_zeros() as usize) as u32);
             }
         } else {
@@ -328,6 +341,7 @@ pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f
             }
         }
     }
+    work::descended(1, expanded);
     None
 }
 
@@ -405,7 +419,7 @@ mod tests {
                 _ => nearest(q[round % 8], f32::INFINITY).unwrap() + 0.01 * (rand() - 0.5),
             };
             let packet = [0, 1, 2].map(|k| f32x8::from(q.map(|p| p[k])));
-            let got = nearest_packet(&link, &packet, starts, bound);
+            let got = nearest_packet(&link, &packet, starts, bound, 8);
             for j in 0..8 {
                 let want = nearest(q[j], bound).unwrap_or(f32::INFINITY);
                 assert_eq!(

@@ -11,9 +11,12 @@
 //! | [`QueryParams`] | `Params` | one dispatch's options (a uniform) |
 //! | [`Counters`] | `State` | the shared bounds and the stage counts of the GPU |
 //! | [`Candidate`] | `Candidate` | an exact-mode (point, link) pair |
+//! | [`BoxedBlock`] | `Boxed` | a block the GPU's cull pass kept, with its box |
+//! | [`KeptBlock`] | `Kept` | a block the GPU's block pass kept, with its points to measure |
 //!
 //! The WGSL side never writes a constant of its own: [`wgsl_constants`] generates the constants
-//! and codes below and [`shader_source`] puts them in front of the shader file. A CPU-only test
+//! and codes below and [`shader_source`] puts them in front of the shader files (the traversal
+//! and the way the minima are kept, [`Minima`]). A CPU-only test
 //! (`tests/shaders.rs`) checks every mirrored struct member's name and offset with naga against
 //! [`MIRRORS`].
 
@@ -23,22 +26,29 @@ use std::mem::{offset_of, size_of};
 use crate::ist::IstNode;
 use crate::packing::InnerSphere;
 
-/// Points per block of the CPU's block pass.
+/// Points per block of either backend's block pass (one GPU workgroup).
 pub const BLOCK: usize = 32;
+/// Points per sub-block (a row of a tile of an organized cloud: tiles are `SUB` × `BLOCK / SUB`
+/// pixels).
+pub const SUB: usize = 8;
 /// Stride of the sample that seeds the links' bounds (prime, so that it does not alias with
 /// the rows of an organized cloud); both backends seed from the same points.
 pub const SEED_STRIDE: u32 = 61;
+/// The CPU seeds' coarse scan takes every `SEED_COARSE`-th sample, so that the full scan
+/// starts from short lists (the GPU scans the whole sample at once).
+pub const SEED_COARSE: u32 = 16;
 /// Most frontier nodes per block and link (CPU).
 pub const FRONTIER: usize = 32;
 /// The CPU's depth-first stack; it starts with up to `FRONTIER` entries (a block's frontier).
 pub const STACK: usize = 192;
-/// The GPU's depth-first stack (per invocation, in private memory); it starts with the root.
-pub const GPU_STACK: usize = 64;
+/// The GPU's depth-first stack (per invocation, in private memory); it starts with the root or
+/// with up to `FRONTIER` entries (an item's frontier).
+pub const GPU_STACK: usize = 96;
 
 /// The deepest tree (root = 1) a depth-first stack of `capacity` entries takes when it starts
 /// with `starts` entries: each level pops one entry and pushes at most `BRANCHING`, so
 /// `starts + depth·(BRANCHING − 1) ≤ capacity` holds every descent (one level of margin). The
-/// one rule both backends check: `STACK` with `FRONTIER` starts, `GPU_STACK` with the root.
+/// one rule both backends check: `STACK` and `GPU_STACK` with `FRONTIER` starts.
 pub const fn max_tree_depth(capacity: usize, starts: usize) -> usize {
     (capacity - starts) / (crate::ist::build::BRANCHING - 1)
 }
@@ -51,18 +61,6 @@ pub const GPU_CANDIDATES: u32 = 1 << 16;
 pub const MODE_FAST: u32 = 0;
 pub const MODE_CERTIFIED: u32 = 1;
 pub const MODE_EXACT: u32 = 2;
-
-/// Which GPU pass a dispatch runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u32)]
-pub enum PassKind {
-    /// Every `SEED_STRIDE`-th point, nothing counted: tightens the bounds.
-    Seed = 0,
-    /// Every point, with the stage counts.
-    Main = 1,
-    /// With the minima final: each link's smallest point index that attains it.
-    ArgMin = 2,
-}
 
 /// Where a point ended, as the index of its count in [`Counters::counts`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -166,7 +164,7 @@ impl RobotBox {
     }
 }
 
-/// One GPU dispatch's options. WGSL `Params` (a uniform).
+/// One GPU query's options, read by every pass. WGSL `Params` (a uniform).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug)]
 pub struct QueryParams {
@@ -176,22 +174,28 @@ pub struct QueryParams {
     /// `MODE_*`.
     pub mode: u32,
     pub per_link: u32,
-    /// Points processed: index = offset + k · stride for k < n_work.
+    /// The seed pass: sample point k is k · stride for k < n_sample, then the `n_winners`
+    /// points of the winners' buffer.
     pub stride: u32,
-    pub offset: u32,
-    pub n_work: u32,
-    /// [`PassKind`].
-    pub pass_kind: u32,
+    pub n_sample: u32,
+    pub n_winners: u32,
+    pub pad0: u32,
     /// Room for exact-mode candidates.
     pub capacity: u32,
     /// `QueryOptions::per_link_range_m`.
     pub per_link_range: f32,
+    /// An organized cloud's width and height (blocks are tiles); width 0: runs.
+    pub width: u32,
+    pub height: u32,
+    pub n_blocks: u32,
+    /// Room for work items (kept block, link).
+    pub item_capacity: u32,
     pub pad1: u32,
     pub pad2: u32,
 }
-const _: () = assert!(size_of::<QueryParams>() == 128);
+const _: () = assert!(size_of::<QueryParams>() == 144);
 
-/// The GPU's shared bounds and counts. WGSL `State` (its first three members are atomics).
+/// The GPU's shared bounds and counts. WGSL `State` (every member but the padding is atomic).
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug)]
 pub struct Counters {
@@ -200,15 +204,83 @@ pub struct Counters {
     /// The smallest certified lower bound (f32 bits; certified mode).
     pub global_lower: u32,
     pub candidate_count: u32,
-    pub pad: u32,
+    /// Blocks the block pass kept ([`KeptBlock`]).
+    pub kept_count: u32,
+    /// Work items (kept block, link) appended; more than the room sends the query to the CPU.
+    pub item_count: u32,
+    /// Blocks the cull pass kept ([`BoxedBlock`]).
+    pub boxed_count: u32,
     /// Points per [`Stage`].
     pub counts: [u32; STAGES],
-    pub pad1: u32,
-    pub pad2: u32,
+    /// Per [`Work`].
+    pub work: [u32; WORK_COUNTERS],
     /// Self-filtered points per link (the first link within the padding).
     pub self_filtered: [u32; super::MAX_LINKS],
+    /// Per link, the seeds' scan: the nearest sample's squared distance to the link's root
+    /// centre (f32 bits) and that sample.
+    pub seed_key: [u32; super::MAX_LINKS],
+    pub seed_point: [u32; super::MAX_LINKS],
 }
-const _: () = assert!(size_of::<Counters>() == 48 + 4 * super::MAX_LINKS);
+const _: () = assert!(size_of::<Counters>() == 68 + 12 * super::MAX_LINKS);
+
+/// The work counters both backends keep (`query::WorkCounts`), as indices of
+/// [`Counters::work`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Work {
+    /// Blocks of `BLOCK` points.
+    Blocks = 0,
+    /// Blocks dropped whole by their box: no valid point, outside the region of interest, or
+    /// beyond every link's reach.
+    Culled = 1,
+    /// (Block, link) pairs whose points were measured against the link.
+    Items = 2,
+    /// Tree descents begun (a point against a link's tree; self-filter ones too).
+    Descents = 3,
+    /// Tree nodes expanded, per point.
+    Nodes = 4,
+}
+/// Work counters kept (one per [`Work`]).
+pub const WORK_COUNTERS: usize = 5;
+
+/// A block the GPU's cull pass kept: its box (sensor frame) and whether the box straddles the
+/// region of interest's edge (1) or lies inside it (0). WGSL `Boxed`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
+pub struct BoxedBlock {
+    pub lo: [f32; 3],
+    pub block: u32,
+    pub hi: [f32; 3],
+    pub partial: u32,
+}
+const _: () = assert!(size_of::<BoxedBlock>() == 32);
+
+/// A block the GPU's block pass kept: the sphere around its box (sensor frame, the item's
+/// frontier is cut at it), its points still to be measured (bit k: point k of the block), and
+/// those the measure pass found a distance for and found inside an inner sphere. WGSL `Kept`
+/// (the last two members atomic).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
+pub struct KeptBlock {
+    pub center: [f32; 3],
+    pub radius: f32,
+    pub block: u32,
+    pub todo: u32,
+    pub measured: u32,
+    pub inside: u32,
+}
+const _: () = assert!(size_of::<KeptBlock>() == 32);
+
+/// How the GPU keeps each link's minimum: both ways give the CPU's answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Minima {
+    /// Distance and point packed in one 64-bit atomic (`shaders/minima_u64.wgsl`), as on the
+    /// CPU: needs `SHADER_INT64` and `SHADER_INT64_ATOMIC_MIN_MAX`.
+    Packed64,
+    /// The distance in a 32-bit atomic, its point found by an arg-min pass once the minima are
+    /// final (`shaders/minima_u32.wgsl`).
+    Split32,
+}
 
 /// An exact-mode candidate: a (point, link) pair whose lower bound may beat the best upper
 /// bound. WGSL `Candidate`.
@@ -271,11 +343,15 @@ pub const MIRRORS: &[Mirror] = &[
             mode,
             per_link,
             stride,
-            offset,
-            n_work,
-            pass_kind,
+            n_sample,
+            n_winners,
+            pad0,
             capacity,
             per_link_range,
+            width,
+            height,
+            n_blocks,
+            item_capacity,
             pad1,
             pad2
         ]
@@ -287,14 +363,23 @@ pub const MIRRORS: &[Mirror] = &[
             global,
             global_lower,
             candidate_count,
-            pad,
+            kept_count,
+            item_count,
+            boxed_count,
             counts,
-            pad1,
-            pad2,
-            self_filtered
+            work,
+            self_filtered,
+            seed_key,
+            seed_point
         ]
     ),
     mirror!("Candidate", Candidate, [lower, link, point, pad]),
+    mirror!("Boxed", BoxedBlock, [lo, block, hi, partial]),
+    mirror!(
+        "Kept",
+        KeptBlock,
+        [center, radius, block, todo, measured, inside]
+    ),
 ];
 
 /// The WGSL declarations of the constants and codes above, generated so that the shader never
@@ -304,30 +389,47 @@ pub fn wgsl_constants() -> String {
     [
         "// Generated by src/query/layout.rs (wgsl_constants): the host's constants and codes.\n"
             .to_owned(),
+        u("BLOCK", BLOCK as u32),
+        u("SUB", SUB as u32),
+        u("TILE_ROWS", (BLOCK / SUB) as u32),
+        u("MASK_WORDS", (super::MAX_LINKS / 32) as u32),
+        u("FRONTIER", FRONTIER as u32),
         u("GPU_STACK", GPU_STACK as u32),
         u("WORKGROUP", WORKGROUP),
         u("STAGES", STAGES as u32),
+        u("WORK_COUNTERS", WORK_COUNTERS as u32),
         u("MAX_LINKS", super::MAX_LINKS as u32),
         u("MODE_FAST", MODE_FAST),
         u("MODE_CERTIFIED", MODE_CERTIFIED),
         u("MODE_EXACT", MODE_EXACT),
-        u("PASS_SEED", PassKind::Seed as u32),
-        u("PASS_MAIN", PassKind::Main as u32),
-        u("PASS_ARGMIN", PassKind::ArgMin as u32),
         u("STAGE_INVALID", Stage::Invalid as u32),
         u("STAGE_OUTSIDE_ROI", Stage::OutsideRoi as u32),
         u("STAGE_SELF_FILTERED", Stage::SelfFiltered as u32),
         u("STAGE_PRUNED", Stage::Pruned as u32),
         u("STAGE_EVALUATED", Stage::Evaluated as u32),
         u("STAGE_INSIDE", Stage::Inside as u32),
+        u("WORK_BLOCKS", Work::Blocks as u32),
+        u("WORK_CULLED", Work::Culled as u32),
+        u("WORK_ITEMS", Work::Items as u32),
+        u("WORK_DESCENTS", Work::Descents as u32),
+        u("WORK_NODES", Work::Nodes as u32),
     ]
     .concat()
 }
 
 /// The traversal shader file, embedded.
 pub const TRAVERSE_WGSL: &str = include_str!("../../shaders/traverse.wgsl");
+/// The minima in 64-bit atomics ([`Minima::Packed64`]).
+pub const MINIMA_U64_WGSL: &str = include_str!("../../shaders/minima_u64.wgsl");
+/// The minima in 32-bit atomics and the arg-min pass ([`Minima::Split32`]).
+pub const MINIMA_U32_WGSL: &str = include_str!("../../shaders/minima_u32.wgsl");
 
-/// The shader as compiled: the generated constants, then `shaders/traverse.wgsl`.
-pub fn shader_source() -> String {
-    format!("{}\n{TRAVERSE_WGSL}", wgsl_constants())
+/// The shader as compiled: the generated constants, the file of `minima`, then
+/// `shaders/traverse.wgsl`.
+pub fn shader_source(minima: Minima) -> String {
+    let minima = match minima {
+        Minima::Packed64 => MINIMA_U64_WGSL,
+        Minima::Split32 => MINIMA_U32_WGSL,
+    };
+    format!("{}\n{minima}\n{TRAVERSE_WGSL}", wgsl_constants())
 }

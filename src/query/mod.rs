@@ -76,6 +76,7 @@ pub mod peers;
 mod pose;
 mod result;
 mod self_grid;
+mod work;
 
 pub use descent::valid as is_valid_point;
 
@@ -441,6 +442,20 @@ impl Engine {
         })
     }
 
+    /// The work counts of the last query, on whichever backend it ran.
+    pub fn last_work(&self) -> WorkCounts {
+        let w = |k: layout::Work| {
+            self.bounds.work[k as usize].load(std::sync::atomic::Ordering::Relaxed)
+        };
+        WorkCounts {
+            blocks: w(layout::Work::Blocks),
+            blocks_culled: w(layout::Work::Culled),
+            items: w(layout::Work::Items),
+            descents: w(layout::Work::Descents),
+            nodes: w(layout::Work::Nodes),
+        }
+    }
+
     pub fn links(&self) -> &[QueryLink] {
         &self.links
     }
@@ -593,22 +608,33 @@ impl Engine {
     /// The GPU backend, created on first use; `None` (said once) when there is no usable GPU.
     pub fn gpu(&mut self) -> Option<&mut gpu::GpuEngine> {
         if matches!(self.gpu, GpuSlot::Untried) {
-            self.gpu = match gpu::GpuEngine::new(&self.links) {
-                Ok(g) => {
-                    log::info!(
-                        "GPU: {} ({:?}, {:?})",
-                        g.adapter.name,
-                        g.adapter.device_type,
-                        g.adapter.backend
-                    );
-                    GpuSlot::Ready(Box::new(g))
-                }
-                Err(e) => {
-                    log::warn!("no usable GPU ({e}): queries run on the CPU");
-                    GpuSlot::Unavailable
-                }
-            };
+            self.gpu_with(gpu::GpuOptions::default());
         }
+        match &mut self.gpu {
+            GpuSlot::Ready(g) => Some(g),
+            _ => None,
+        }
+    }
+
+    /// Makes the GPU backend anew with `options` (tests and benchmarks: the portable path on an
+    /// adapter that has 64-bit atomics); `None` (said) when there is no usable GPU.
+    pub fn gpu_with(&mut self, options: gpu::GpuOptions) -> Option<&mut gpu::GpuEngine> {
+        self.gpu = match gpu::GpuEngine::new(&self.links, options) {
+            Ok(g) => {
+                log::info!(
+                    "GPU: {} ({:?}, {:?}; minima {:?})",
+                    g.adapter.name,
+                    g.adapter.device_type,
+                    g.adapter.backend,
+                    g.minima
+                );
+                GpuSlot::Ready(Box::new(g))
+            }
+            Err(e) => {
+                log::warn!("no usable GPU ({e}): queries run on the CPU");
+                GpuSlot::Unavailable
+            }
+        };
         match &mut self.gpu {
             GpuSlot::Ready(g) => Some(g),
             _ => None,
@@ -635,6 +661,23 @@ pub enum Outcome {
     NoPoints,
     /// Valid points, but none within `max_distance_m` (after the self-filter).
     NothingWithinMaxDistance,
+}
+
+/// The work of the last query's traversal, counted alike on both backends so that the GPU's
+/// pruning can be compared with the CPU's on any machine ([`Engine::last_work`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct WorkCounts {
+    /// Blocks of `layout::BLOCK` points.
+    pub blocks: u64,
+    /// Blocks dropped whole by their box: no valid point, outside the region of interest, or
+    /// beyond every link's reach.
+    pub blocks_culled: u64,
+    /// (Block, link) pairs whose points were measured against the link.
+    pub items: u64,
+    /// Tree descents begun (a point against a link's tree, self-filter ones included).
+    pub descents: u64,
+    /// Tree nodes expanded, per point (a packet's node counts once for each point in it).
+    pub nodes: u64,
 }
 
 /// How many points each stage dropped. `total = invalid + outside_roi + self_filtered + pruned

@@ -10,9 +10,10 @@ use wide::{f32x4, f32x8, CmpEq, CmpLt, CmpNe};
 use crate::query::descent::{dist, valid};
 use crate::query::layout::{RobotBox, BLOCK};
 
-/// Points per sub-block: a block that survives its own tests is taken in runs of eight, each
-/// bounded by its own sphere (computed then, since most blocks never need them).
-pub(super) const SUB: usize = 8;
+/// Points per sub-block (`layout::SUB`, the GPU's tile rows too): a block that survives its own
+/// tests is taken in runs of eight, each bounded by its own sphere (computed then, since most
+/// blocks never need them).
+pub(super) use crate::query::layout::SUB;
 
 /// How the points are grouped into blocks of `BLOCK`: runs of consecutive points, or, for an
 /// organized cloud (a depth image, `width` > 0), tiles of `SUB` × `BLOCK / SUB` pixels, whose

@@ -1,37 +1,52 @@
-//! GPU backend of the query (wgpu, `shaders/traverse.wgsl`): the seed's parallel traversal, one
-//! invocation per cloud point, with the shared bounds in storage atomics.
+//! GPU backend of the query (wgpu; `shaders/traverse.wgsl` with `shaders/minima_u64.wgsl` or
+//! `shaders/minima_u32.wgsl`): the CPU's block pipeline as GPU passes over the same layout, the
+//! shared bounds in storage atomics.
 //!
-//! - **Once per robot**: the device is created and every link's `IstNode` and `InnerSphere`
-//!   arrays are uploaded as they are, concatenated in link order (the CPU walks the same
-//!   arrays; each posed link carries its offsets into them).
+//! - **Once per robot**: the device is created (with 64-bit atomics where the adapter has
+//!   them, [`Minima`]), the trees are checked (every child index inside its array: the shader is
+//!   compiled without runtime bounds checks) and every link's `IstNode` and `InnerSphere` arrays
+//!   are uploaded as they are, concatenated in link order (the CPU walks the same arrays; each
+//!   posed link carries its offsets into them). Buffers, bind groups and pipelines are made once
+//!   and grown with the cloud.
 //! - **Per query**: the links are posed by the code the CPU uses (`Bounds::prepare`: f64,
-//!   rounded once) and the posed links (`layout::PosedLink`, 80 B each) are written as they
-//!   are, with three `layout::QueryParams` uniforms and the points. Three dispatches follow in
-//!   one submission: seed (every `SEED_STRIDE`-th point), main (every point), arg-min (ties
-//!   resolved to the smallest index). A few words come back: `layout::Counters`, the minima and
-//!   the exact-mode candidates (`layout::Candidate`).
+//!   rounded once); the posed links, one `layout::QueryParams` uniform and the points are
+//!   written (the points straight into the staging memory, in parallel). One submission runs
+//!   the passes the shader's header describes — seed, blocks, plan, measure, tally (and arg-min
+//!   without 64-bit atomics) — with no readback between them; the measure and tally passes are
+//!   dispatched indirectly, sized by the block pass. A few words come back: `layout::Counters`,
+//!   the minima and the exact-mode candidates (`layout::Candidate`), read by spinning on the
+//!   map for a short while before the thread parks.
 //! - **Then** the shared `result::finish` refines the exact candidates and assembles the result,
 //!   so both backends report through one code path.
 //!
-//! The shader source is `layout::shader_source()`: the constants generated from the layout,
-//! then the file. What the shader does and does not do like the CPU is in its header.
+//! The link that won each minimum is kept for the next query's seed pass (the previous frame's
+//! winners: on a stream of clouds from one sensor, the same pixels are near the arm again).
 //!
-//! Agreement with the CPU: the same posed links, trees, thresholds and recording rules; only
-//! the rounding of `length` may differ (a few ulps, far below 1 µm at robot scale).
+//! Agreement with the CPU: the same posed links, trees, blocks, box tests, thresholds and
+//! recording rules; only the rounding of the square root may differ (a few ulps, far below 1 µm
+//! at robot scale).
 
-use std::borrow::Cow;
+mod passes;
+mod setup;
+mod transfer;
+
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Arc;
 
 use bytemuck::Zeroable;
-use wgpu::util::DeviceExt;
 
-use super::bounds::{pack_minimum, Bounds, EMPTY};
+use super::bounds::{pack_minimum, threshold, Bounds, EMPTY};
 use super::layout::{
-    self, Candidate, Counters, PassKind, QueryParams, RobotBox, Stage, GPU_CANDIDATES, GPU_STACK,
-    SEED_STRIDE, WORKGROUP,
+    BoxedBlock, Candidate, Counters, KeptBlock, Minima, QueryParams, RobotBox, Stage, Work, BLOCK,
+    GPU_CANDIDATES, GPU_STACK, SEED_STRIDE, SUB, WORKGROUP, WORK_COUNTERS,
 };
-use super::{descent, result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
-use crate::ist::IstNode;
-use crate::packing::InnerSphere;
+use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
+use passes::{encode, Size, Step, STAMP_BYTES};
+use transfer::MAPPED;
+
+/// Setting this variable (to anything but `0`) keeps the GPU from using 64-bit atomics even
+/// where the adapter has them: the portable path ([`Minima::Split32`]), as on adapters without.
+pub const NO_INT64_ENV: &str = "IST_MONITOR_GPU_NO_INT64";
 
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
@@ -41,171 +56,125 @@ pub enum GpuError {
     Device(String),
     #[error("link {link}: tree depth needs more than the shader's stack of {GPU_STACK}")]
     TooDeep { link: String },
-    #[error("{points} points exceed one dispatch ({max})")]
-    TooManyPoints { points: usize, max: usize },
+    #[error("link {link}: node {node} points past the link's arrays")]
+    BadTree { link: String, node: usize },
     #[error("{0} bytes exceed the device's storage buffer limit")]
     TooLarge(u64),
     #[error("reading back: {0}")]
     Readback(String),
 }
 
-/// The buffers that grow with the cloud.
-struct PointBuffers {
+/// How the GPU engine is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Use 64-bit atomics where the adapter has them ([`Minima::Packed64`]).
+    pub int64_atomics: bool,
+}
+
+impl Default for GpuOptions {
+    /// 64-bit atomics where the adapter has them, unless [`NO_INT64_ENV`] is set.
+    fn default() -> Self {
+        Self {
+            int64_atomics: std::env::var(NO_INT64_ENV).map_or(true, |v| v == "0"),
+        }
+    }
+}
+
+/// The buffers that grow with the cloud, and the bind group over them.
+struct Sized {
     points: wgpu::Buffer,
-    capacity_points: usize,
-    bind_groups: [wgpu::BindGroup; 3],
+    /// The points' staging memory, mapped for writing between queries, and its state
+    /// (`UNMAPPED`, `MAPPING`, `MAPPED`).
+    staging: wgpu::Buffer,
+    staging_state: Arc<AtomicU8>,
+    /// The boxed and kept blocks and the work items, which only the shader reads and writes.
+    _scratch: [wgpu::Buffer; 3],
+    points_capacity: usize,
+    blocks_capacity: usize,
+    items_capacity: usize,
+    group: wgpu::BindGroup,
+}
+
+/// The compute pipelines, one per entry point.
+struct Pipelines {
+    seed_scan: wgpu::ComputePipeline,
+    /// Only without 64-bit atomics.
+    seed_pick: Option<wgpu::ComputePipeline>,
+    seed: wgpu::ComputePipeline,
+    cull: wgpu::ComputePipeline,
+    blocks: wgpu::ComputePipeline,
+    plan: wgpu::ComputePipeline,
+    measure: wgpu::ComputePipeline,
+    tally: wgpu::ComputePipeline,
+    /// Only without 64-bit atomics.
+    argmin: Option<wgpu::ComputePipeline>,
 }
 
 /// A device with a robot's trees uploaded.
 pub struct GpuEngine {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
+    pipelines: Pipelines,
     /// The adapter, as wgpu describes it.
     pub adapter: wgpu::AdapterInfo,
+    /// How the minima are kept on this adapter.
+    pub minima: Minima,
+    layout: wgpu::BindGroupLayout,
     nodes: wgpu::Buffer,
     spheres: wgpu::Buffer,
     links: wgpu::Buffer,
-    params: [wgpu::Buffer; 3],
+    params: wgpu::Buffer,
     state: wgpu::Buffer,
-    minima: wgpu::Buffer,
+    minima_buffer: wgpu::Buffer,
     candidates: wgpu::Buffer,
+    winners: wgpu::Buffer,
+    dispatch: wgpu::Buffer,
+    dispatch_group: wgpu::BindGroup,
     readback: wgpu::Buffer,
-    point_buffers: Option<PointBuffers>,
+    sized: Option<Sized>,
     max_binding: u64,
-    /// Timestamps around the three dispatches, where the adapter has them.
+    /// Timestamps around the query's passes, where the adapter has them.
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
-    /// GPU time of the last query's three dispatches, s (with timestamp queries).
+    /// GPU time of the last query's passes, s (with timestamp queries).
     pub last_kernel_s: Option<f64>,
+    /// Each dispatch in a pass of its own with its own timestamps ([`GpuEngine::set_profile`]).
+    profile: bool,
+    /// With `profile`: the last query's dispatches and their GPU time, s.
+    pub last_passes: Vec<(&'static str, f64)>,
+    /// The last query's host side, s: writing the inputs (the points among them), from the
+    /// submission to the mapped readback, and reading it back into the result.
+    pub last_host_s: [f64; 3],
+    /// Each link's arg-min point of the last query (`u32::MAX`: none): the next one's seeds.
+    last_winners: Vec<u32>,
 }
 
-fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: bytes,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-    })
+/// The blocks of a cloud of `n` points, as `cpu::blocks::Tiling` cuts them: (width, height,
+/// blocks); width 0 for runs of consecutive points.
+fn tiling(n: usize, width: Option<usize>) -> (u32, u32, usize) {
+    match width.filter(|&w| w > 0 && w < n && n.is_multiple_of(w)) {
+        Some(w) => {
+            let h = n / w;
+            (
+                w as u32,
+                h as u32,
+                w.div_ceil(SUB) * h.div_ceil(BLOCK / SUB),
+            )
+        }
+        None => (0, 0, n.div_ceil(BLOCK)),
+    }
+}
+
+/// Workgroups of a dispatch over `n` units of work, each workgroup looping over the rest
+/// (the passes stride by the number of workgroups).
+fn groups(n: usize) -> u32 {
+    n.min(65_535) as u32
 }
 
 impl GpuEngine {
-    /// Creates the device (the adapter `WGPU_ADAPTER_NAME` names, else the default one) and
-    /// uploads the trees of `links`.
-    pub fn new(links: &[QueryLink]) -> Result<Self, GpuError> {
-        for link in links {
-            if descent::tree_depth(&link.nodes) > layout::max_tree_depth(GPU_STACK, 1) {
-                return Err(GpuError::TooDeep {
-                    link: link.name.clone(),
-                });
-            }
-        }
-        // Vulkan, Metal or DX12 unless WGPU_BACKEND says otherwise: compute needs no GL, and
-        // probing it prints EGL noise on headless machines.
-        let mut descriptor = wgpu::InstanceDescriptor::from_env_or_default();
-        if std::env::var_os("WGPU_BACKEND").is_none() {
-            descriptor.backends = wgpu::Backends::PRIMARY;
-        }
-        let instance = wgpu::Instance::new(&descriptor);
-        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-            &instance, None,
-        ))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let limits = adapter.limits();
-        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("ist_monitor"),
-            required_features: features,
-            required_limits: limits.clone(),
-            memory_hints: wgpu::MemoryHints::Performance,
-            trace: wgpu::Trace::Off,
-        }))
-        .map_err(|e| GpuError::Device(e.to_string()))?;
-        device.on_uncaptured_error(Box::new(|e| log::error!("GPU: {e}")));
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("traverse.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::shader_source())),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("traverse"),
-            layout: None,
-            module: &module,
-            entry_point: Some("traverse"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        // In link order: the offsets `Bounds::new` gives the posed links.
-        let nodes: Vec<IstNode> = links.iter().flat_map(|l| l.nodes.iter().copied()).collect();
-        let spheres: Vec<InnerSphere> = links
-            .iter()
-            .flat_map(|l| l.spheres.iter().copied())
-            .collect();
-        let max_binding = u64::from(limits.max_storage_buffer_binding_size);
-        let bytes = std::mem::size_of_val(nodes.as_slice())
-            .max(std::mem::size_of_val(spheres.as_slice())) as u64;
-        if bytes > max_binding {
-            return Err(GpuError::TooLarge(bytes));
-        }
-        let uniform = |label| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: std::mem::size_of::<QueryParams>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        let n = links.len();
-        let readback_size = (std::mem::size_of::<Counters>()
-            + 8 * n
-            + 16
-            + std::mem::size_of::<Candidate>() * GPU_CANDIDATES as usize)
-            as u64;
-        let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
-            (
-                device.create_query_set(&wgpu::QuerySetDescriptor {
-                    label: Some("kernel time"),
-                    ty: wgpu::QueryType::Timestamp,
-                    count: 2,
-                }),
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("timestamps"),
-                    size: 16,
-                    usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
-                }),
-            )
-        });
-        Ok(Self {
-            timestamps,
-            last_kernel_s: None,
-            nodes: storage(&device, "nodes", bytemuck::cast_slice(&nodes)),
-            spheres: storage(&device, "spheres", bytemuck::cast_slice(&spheres)),
-            links: storage(
-                &device,
-                "links",
-                &vec![0u8; std::mem::size_of::<layout::PosedLink>() * n],
-            ),
-            params: [uniform("seed"), uniform("main"), uniform("argmin")],
-            state: storage(&device, "state", &[0u8; std::mem::size_of::<Counters>()]),
-            minima: storage(&device, "minima", &vec![0u8; 8 * n]),
-            candidates: storage(
-                &device,
-                "candidates",
-                &vec![0u8; std::mem::size_of::<Candidate>() * GPU_CANDIDATES as usize],
-            ),
-            readback: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("readback"),
-                size: readback_size,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            adapter: adapter.get_info(),
-            device,
-            queue,
-            pipeline,
-            point_buffers: None,
-            max_binding,
-        })
+    /// Times each dispatch on its own (`last_passes`; each then in a compute pass of its own,
+    /// which costs a little): the profile `bench gpu --passes` prints.
+    pub fn set_profile(&mut self, on: bool) {
+        self.profile = on;
     }
 
     /// Whether the adapter is a software rasterizer (lavapipe, WARP, SwiftShader): correct, but
@@ -214,67 +183,88 @@ impl GpuEngine {
         self.adapter.device_type == wgpu::DeviceType::Cpu
     }
 
-    fn ensure_points(&mut self, n: usize) -> Result<(), GpuError> {
-        if self
-            .point_buffers
-            .as_ref()
-            .is_some_and(|s| s.capacity_points >= n)
-        {
+    /// Grows the cloud's buffers to hold `points` points in `blocks` blocks with `items` work
+    /// items, and makes the bind group over them.
+    fn ensure(&mut self, points: usize, blocks: usize, items: usize) -> Result<(), GpuError> {
+        if self.sized.as_ref().is_some_and(|s| {
+            s.points_capacity >= points && s.blocks_capacity >= blocks && s.items_capacity >= items
+        }) {
             return Ok(());
         }
-        let capacity = n.next_power_of_two().max(1024);
-        let bytes = (capacity * 12) as u64;
-        if bytes > self.max_binding {
-            return Err(GpuError::TooLarge(bytes));
-        }
-        let points = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("points"),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let group = |params: &wgpu::Buffer| {
-            let buffers = [
-                &self.nodes,
-                &self.spheres,
-                &self.links,
-                &points,
-                params,
-                &self.state,
-                &self.minima,
-                &self.candidates,
-            ];
-            let entries: Vec<wgpu::BindGroupEntry> = buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("traverse"),
-                layout: &layout,
-                entries: &entries,
-            })
+        let grow = |n: usize| n.next_power_of_two().max(1024);
+        // Items past the room send that query to the CPU (its result says so), where a buffer
+        // the device cannot bind would fail every query.
+        let most_items = (self.max_binding / 4) as usize;
+        let (points, blocks, items) = (grow(points), grow(blocks), grow(items).min(most_items));
+        let buffer = |label, bytes: u64| -> Result<wgpu::Buffer, GpuError> {
+            if bytes > self.max_binding {
+                return Err(GpuError::TooLarge(bytes));
+            }
+            Ok(self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }))
         };
-        let bind_groups = [
-            group(&self.params[0]),
-            group(&self.params[1]),
-            group(&self.params[2]),
+        let point_buffer = buffer("points", 12 * points as u64)?;
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("points staging"),
+            size: 12 * points as u64,
+            usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: true,
+        });
+        let kept = buffer(
+            "kept blocks",
+            (std::mem::size_of::<KeptBlock>() * blocks) as u64,
+        )?;
+        let item_buffer = buffer("items", 4 * items as u64)?;
+        let boxed = buffer(
+            "boxed blocks",
+            (std::mem::size_of::<BoxedBlock>() * blocks) as u64,
+        )?;
+        let buffers = [
+            &self.nodes,
+            &self.spheres,
+            &self.links,
+            &point_buffer,
+            &self.params,
+            &self.state,
+            &self.minima_buffer,
+            &self.candidates,
+            &kept,
+            &item_buffer,
+            &self.winners,
+            &boxed,
         ];
-        self.point_buffers = Some(PointBuffers {
-            points,
-            capacity_points: capacity,
-            bind_groups,
+        let entries: Vec<wgpu::BindGroupEntry> = (0u32..)
+            .zip(buffers)
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("traverse"),
+            layout: &self.layout,
+            entries: &entries,
+        });
+        self.sized = Some(Sized {
+            points: point_buffer,
+            staging,
+            staging_state: Arc::new(AtomicU8::new(MAPPED)),
+            _scratch: [kept, item_buffer, boxed],
+            points_capacity: points,
+            blocks_capacity: blocks,
+            items_capacity: items,
+            group,
         });
         Ok(())
     }
 
     /// The query on the GPU; `bounds` must hold the posed links (`Bounds::prepare`).
-    /// Returns `Ok(None)` when the exact candidates overflowed, or an arg-min was not found again
-    /// (the caller runs the CPU).
+    /// Returns `Ok(None)` when the exact candidates or the work items overflowed, or an arg-min
+    /// was not found again (the caller runs the CPU).
     pub(super) fn query(
         &mut self,
         links: &[QueryLink],
@@ -283,126 +273,181 @@ impl GpuEngine {
         input: Input,
     ) -> Result<Option<QueryResult>, GpuError> {
         let Input {
-            points, options, ..
+            points,
+            width,
+            options,
+            ..
         } = input;
         let n = points.len();
-        let max = 65_535 * WORKGROUP as usize;
-        if n > max {
-            return Err(GpuError::TooManyPoints { points: n, max });
-        }
-        self.ensure_points(n)?;
         let l = links.len();
-        let base = QueryParams {
+        let started = std::time::Instant::now();
+        let (width, height, n_blocks) = tiling(n, width);
+        self.ensure(n, n_blocks, n_blocks * l)?;
+        let Some(sized) = self.sized.as_ref() else {
+            return Err(GpuError::Device("no point buffers".into()));
+        };
+        let winners: Vec<u32> = self
+            .last_winners
+            .iter()
+            .copied()
+            .filter(|&i| (i as usize) < n)
+            .collect();
+        let n_sample = (n as u32).div_ceil(SEED_STRIDE);
+        let params = QueryParams {
             robot_box: *robot_box,
             n_points: n as u32,
             n_links: l as u32,
             mode: options.mode.code(),
             per_link: options.per_link as u32,
-            stride: 1,
-            offset: 0,
-            n_work: n as u32,
-            pass_kind: PassKind::Main as u32,
+            stride: SEED_STRIDE,
+            n_sample,
+            n_winners: winners.len() as u32,
             capacity: GPU_CANDIDATES,
             per_link_range: options.per_link_range_m,
+            width,
+            height,
+            n_blocks: n_blocks as u32,
+            item_capacity: sized.items_capacity.min(u32::MAX as usize) as u32,
             ..QueryParams::zeroed()
         };
-        let seed = QueryParams {
-            stride: SEED_STRIDE,
-            n_work: (n as u32).div_ceil(SEED_STRIDE),
-            pass_kind: PassKind::Seed as u32,
-            ..base
-        };
-        let argmin = QueryParams {
-            pass_kind: PassKind::ArgMin as u32,
-            ..base
-        };
         let q = &self.queue;
+        q.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         q.write_buffer(&self.links, 0, bytemuck::cast_slice(&bounds.posed));
-        for (buffer, params) in self.params.iter().zip([seed, base, argmin]) {
-            q.write_buffer(buffer, 0, bytemuck::bytes_of(&params));
-        }
         let state = Counters {
             global: f32::INFINITY.to_bits(),
             global_lower: f32::INFINITY.to_bits(),
+            seed_key: [u32::MAX; super::MAX_LINKS],
+            seed_point: [u32::MAX; super::MAX_LINKS],
             ..Counters::zeroed()
         };
         q.write_buffer(&self.state, 0, bytemuck::bytes_of(&state));
-        let mut minima = vec![f32::INFINITY.to_bits(); l];
-        minima.extend(std::iter::repeat_n(u32::MAX, l));
-        q.write_buffer(&self.minima, 0, bytemuck::cast_slice(&minima));
-        let Some(sized) = self.point_buffers.as_ref() else {
-            return Err(GpuError::Device("no point buffers".into()));
-        };
-        if n > 0 {
-            q.write_buffer(&sized.points, 0, bytemuck::cast_slice(points));
+        match self.minima {
+            // The minima, then the seeds' scan.
+            Minima::Packed64 => q.write_buffer(
+                &self.minima_buffer,
+                0,
+                bytemuck::cast_slice(&vec![EMPTY; 2 * l]),
+            ),
+            Minima::Split32 => {
+                let mut minima = vec![f32::INFINITY.to_bits(); l];
+                minima.extend(std::iter::repeat_n(u32::MAX, l));
+                q.write_buffer(&self.minima_buffer, 0, bytemuck::cast_slice(&minima));
+            }
         }
+        if !winners.is_empty() {
+            q.write_buffer(&self.winners, 0, bytemuck::cast_slice(&winners));
+        }
+        let point_bytes = self.upload_points(points)?;
         // Validation errors of this query come back as an error (the caller then runs the
         // CPU), not as wgpu's default panic.
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let p = &self.pipelines;
+        let mut steps = Vec::new();
+        if n > 0 {
+            let samples = n_sample.div_ceil(WORKGROUP);
+            steps.push(Step::direct("seed_scan", &p.seed_scan, samples));
+            if let Some(pick) = &p.seed_pick {
+                steps.push(Step::direct("seed_pick", pick, samples));
+            }
+            let pairs = (l as u32 + params.n_winners) * l as u32;
+            steps.push(Step::direct("seed", &p.seed, pairs.div_ceil(WORKGROUP)));
+            let cull = n_blocks.div_ceil(WORKGROUP as usize);
+            steps.push(Step::direct("cull", &p.cull, groups(cull)));
+            // The kept blocks are a few percent: as many workgroups as could be resident at
+            // once on a large GPU, each taking block after block.
+            steps.push(Step::direct(
+                "blocks",
+                &p.blocks,
+                groups(n_blocks.min(4096)),
+            ));
+        }
+        steps.push(Step {
+            name: "plan",
+            pipeline: &p.plan,
+            size: Size::Groups(1),
+            writes_dispatch: true,
+        });
+        steps.push(Step::indirect("measure", &p.measure, 0));
+        steps.push(Step::indirect("tally", &p.tally, 12));
+        if let Some(argmin) = &p.argmin {
+            steps.push(Step::indirect("argmin", argmin, 0));
+        }
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        for (k, params) in [seed, base, argmin].iter().enumerate() {
-            let timestamp_writes = self.timestamps.as_ref().filter(|_| k != 1).map(|(set, _)| {
-                wgpu::ComputePassTimestampWrites {
-                    query_set: set,
-                    beginning_of_pass_write_index: (k == 0).then_some(0),
-                    end_of_pass_write_index: (k == 2).then_some(1),
-                }
-            });
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("traverse"),
-                timestamp_writes,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &sized.bind_groups[k], &[]);
-            pass.dispatch_workgroups(params.n_work.div_ceil(WORKGROUP).max(1), 1, 1);
+        if point_bytes > 0 {
+            encoder.copy_buffer_to_buffer(&sized.staging, 0, &sized.points, 0, point_bytes);
         }
+        let last_stamp = encode(
+            &mut encoder,
+            &steps,
+            &sized.group,
+            &self.dispatch_group,
+            &self.dispatch,
+            self.timestamps.as_ref().map(|(set, _)| set),
+            self.profile,
+        );
         let state_size = std::mem::size_of::<Counters>() as u64;
         let minima_size = 8 * l as u64;
         encoder.copy_buffer_to_buffer(&self.state, 0, &self.readback, 0, state_size);
-        encoder.copy_buffer_to_buffer(&self.minima, 0, &self.readback, state_size, minima_size);
+        encoder.copy_buffer_to_buffer(
+            &self.minima_buffer,
+            0,
+            &self.readback,
+            state_size,
+            minima_size,
+        );
         let stamps_at = state_size + minima_size;
         if let Some((set, resolve)) = &self.timestamps {
-            encoder.resolve_query_set(set, 0..2, resolve, 0);
-            encoder.copy_buffer_to_buffer(resolve, 0, &self.readback, stamps_at, 16);
+            encoder.resolve_query_set(set, 0..last_stamp + 1, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, &self.readback, stamps_at, STAMP_BYTES);
         }
         if options.mode == Mode::Exact {
             encoder.copy_buffer_to_buffer(
                 &self.candidates,
                 0,
                 &self.readback,
-                stamps_at + 16,
+                stamps_at + STAMP_BYTES,
                 (std::mem::size_of::<Candidate>() * GPU_CANDIDATES as usize) as u64,
             );
         }
-        q.submit([encoder.finish()]);
+        // The small writes (queue.write_buffer) go first in this submission, then the points'
+        // copy, then the passes.
+        let written = std::time::Instant::now();
+        let submission = q.submit([encoder.finish()]);
         for scope in [self.device.pop_error_scope(), self.device.pop_error_scope()] {
             if let Some(e) = pollster::block_on(scope) {
                 return Err(GpuError::Device(e.to_string()));
             }
         }
+        self.read_back(submission)?;
+        self.remap_staging();
+        let mapped = std::time::Instant::now();
         let slice = self.readback.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        self.device
-            .poll(wgpu::PollType::Wait)
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
         let (state, minima, candidates) = {
             let bytes = slice.get_mapped_range();
             let state: Counters = bytemuck::pod_read_unaligned(&bytes[..state_size as usize]);
-            let minima: Vec<u32> = bytemuck::pod_collect_to_vec(
+            let minima: Vec<u64> = bytemuck::pod_collect_to_vec(
                 &bytes[state_size as usize..(state_size + minima_size) as usize],
             );
-            let stamps: [u64; 2] =
-                bytemuck::pod_read_unaligned(&bytes[stamps_at as usize..stamps_at as usize + 16]);
-            self.last_kernel_s = self.timestamps.as_ref().map(|_| {
-                stamps[1].saturating_sub(stamps[0]) as f64
-                    * f64::from(self.queue.get_timestamp_period())
-                    * 1e-9
-            });
+            let stamps: Vec<u64> = bytemuck::pod_collect_to_vec(
+                &bytes[stamps_at as usize..(stamps_at + STAMP_BYTES) as usize],
+            );
+            let period_s = f64::from(self.queue.get_timestamp_period()) * 1e-9;
+            let span = |a: usize, b: usize| stamps[b].saturating_sub(stamps[a]) as f64 * period_s;
+            self.last_kernel_s = self
+                .timestamps
+                .as_ref()
+                .map(|_| span(0, last_stamp as usize));
+            self.last_passes.clear();
+            if self.profile && self.timestamps.is_some() {
+                for (k, step) in steps.iter().enumerate() {
+                    self.last_passes.push((step.name, span(2 * k, 2 * k + 1)));
+                }
+            }
             let count = (state.candidate_count.min(GPU_CANDIDATES)) as usize;
-            let start = (stamps_at + 16) as usize;
+            let start = (stamps_at + STAMP_BYTES) as usize;
             let candidates: Vec<Candidate> = if options.mode == Mode::Exact {
                 let end = start + std::mem::size_of::<Candidate>() * count;
                 bytemuck::pod_collect_to_vec(&bytes[start..end])
@@ -412,33 +457,74 @@ impl GpuEngine {
             (state, minima, candidates)
         };
         self.readback.unmap();
+        let work = |w: Work| u64::from(state.work[w as usize]);
+        for (k, a) in bounds.work.iter().enumerate() {
+            a.store(u64::from(state.work[k]), Ordering::Relaxed);
+        }
+        debug_assert_eq!(bounds.work.len(), WORK_COUNTERS);
         if state.candidate_count > GPU_CANDIDATES {
             return Ok(None);
         }
-        // A minimum whose point the arg-min pass did not find again bit for bit (a compiler
-        // that rounds the two descents differently) is not trusted: the CPU answers.
-        if (0..l).any(|k| minima[k] != f32::INFINITY.to_bits() && minima[l + k] == u32::MAX) {
+        if state.item_count > params.item_capacity {
+            log::debug!(
+                "GPU: {} work items, room for {}",
+                state.item_count,
+                params.item_capacity
+            );
             return Ok(None);
         }
+        // Each link's minimum, packed as the CPU packs it.
+        let packed: Vec<u64> = match self.minima {
+            Minima::Packed64 => minima,
+            Minima::Split32 => {
+                let words: Vec<u32> = bytemuck::cast_slice(&minima).to_vec();
+                let (global, global_lower) = (
+                    f32::from_bits(state.global),
+                    f32::from_bits(state.global_lower),
+                );
+                let mut packed = Vec::with_capacity(l);
+                for k in 0..l {
+                    let (d, p) = (words[k], words[l + k]);
+                    if d == f32::INFINITY.to_bits() {
+                        packed.push(EMPTY);
+                    } else if p != u32::MAX {
+                        packed.push(pack_minimum(f32::from_bits(d), p));
+                    } else {
+                        // No point attains the minimum bit for bit: a seed's upper bound that
+                        // no exact descent went below, which is only so for a link farther
+                        // than its final threshold (reported as farther than it, as the CPU
+                        // reports a link it never measured). Within its threshold, the two
+                        // descents rounded differently: the CPU answers.
+                        let t = threshold(
+                            options.mode,
+                            options.per_link,
+                            options.per_link_range_m,
+                            global,
+                            global_lower,
+                            f32::from_bits(d),
+                            bounds.posed[k].gap,
+                        );
+                        if f32::from_bits(d) <= t {
+                            return Ok(None);
+                        }
+                        packed.push(EMPTY);
+                    }
+                }
+                packed
+            }
+        };
         // Into the CPU's layout, and on through the CPU's refinement and assembly.
-        for (k, best) in bounds.best.iter().enumerate() {
-            let (d, p) = (minima[k], minima[l + k]);
-            let v = if d == f32::INFINITY.to_bits() || p == u32::MAX {
-                EMPTY
-            } else {
-                pack_minimum(f32::from_bits(d), p)
-            };
-            best.store(v, std::sync::atomic::Ordering::Relaxed);
+        for ((best, &v), winner) in bounds.best.iter().zip(&packed).zip(&mut self.last_winners) {
+            best.store(v, Ordering::Relaxed);
+            *winner = if v == EMPTY { u32::MAX } else { v as u32 };
         }
-        bounds
-            .global
-            .store(state.global, std::sync::atomic::Ordering::Relaxed);
+        bounds.global.store(state.global, Ordering::Relaxed);
         bounds
             .global_lower
-            .store(state.global_lower, std::sync::atomic::Ordering::Relaxed);
+            .store(state.global_lower, Ordering::Relaxed);
         bounds.candidates_mut().extend_from_slice(&candidates);
         for (n, &s) in bounds.self_filtered.iter().zip(&state.self_filtered) {
-            n.store(u64::from(s), std::sync::atomic::Ordering::Relaxed);
+            n.store(u64::from(s), Ordering::Relaxed);
         }
         let c = |stage: Stage| u64::from(state.counts[stage as usize]);
         let counts = StageCounts {
@@ -451,12 +537,20 @@ impl GpuEngine {
             inside: c(Stage::Inside),
             exact_refined: 0,
         };
-        Ok(Some(result::finish(
-            links,
-            bounds,
-            input,
-            counts,
-            Backend::Gpu,
-        )))
+        log::trace!(
+            "GPU: {} blocks, {} culled, {} items, {} descents, {} nodes",
+            work(Work::Blocks),
+            work(Work::Culled),
+            work(Work::Items),
+            work(Work::Descents),
+            work(Work::Nodes)
+        );
+        let result = result::finish(links, bounds, input, counts, Backend::Gpu);
+        self.last_host_s = [
+            (written - started).as_secs_f64(),
+            (mapped - written).as_secs_f64(),
+            mapped.elapsed().as_secs_f64(),
+        ];
+        Ok(Some(result))
     }
 }

@@ -1,6 +1,8 @@
 //! `ist_monitor bench gpu`: the GPU backend against the CPU on the Panda and the Kinect cloud,
 //! for clouds of 307k to 5M points (larger clouds tile the real one with 1 mm offsets): end to
-//! end and kernel time, and the crossover that `gpu_min_points` should be set to.
+//! end and kernel time beside the upload floor (the cloud's bytes over the host-to-device
+//! bandwidth measured in the same run), each backend's work counters (blocks culled, items,
+//! descents, nodes), and the crossover that `gpu_min_points` should be set to.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -9,7 +11,8 @@ use anyhow::{bail, Result};
 use serde::Serialize;
 
 use ist_monitor::ist::BuildOptions;
-use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions};
+use ist_monitor::query::gpu::GpuOptions;
+use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions, WorkCounts};
 use ist_monitor::stats::Spread;
 
 use super::scenes::{load_scenario, ScenarioName};
@@ -39,6 +42,14 @@ pub struct BenchGpuArgs {
     /// Write the rows as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// The GPU's portable path: no 64-bit atomics even where the adapter has them (the minima
+    /// in 32-bit atomics and an arg-min pass).
+    #[arg(long)]
+    portable: bool,
+    /// Also time each GPU dispatch on its own (each then in a compute pass of its own, which
+    /// adds a little to the end-to-end time) and the host's steps, and print the medians.
+    #[arg(long)]
+    passes: bool,
 }
 
 #[derive(Serialize)]
@@ -47,8 +58,25 @@ struct GpuRow {
     cpu_ms: Spread,
     gpu_end_to_end_ms: Spread,
     gpu_kernel_ms: Option<Spread>,
+    /// The cloud's bytes over the measured host-to-device bandwidth.
+    upload_floor_ms: f64,
     cpu_over_gpu: f64,
     max_difference_m: f64,
+    cpu_work: WorkCounts,
+    gpu_work: WorkCounts,
+}
+
+/// One backend's timed queries of one cloud.
+struct Timed {
+    /// End to end, ms.
+    wall: Vec<f64>,
+    /// The GPU's passes (timestamps), ms.
+    kernel: Vec<f64>,
+    /// The first query's distance, m.
+    distance: f64,
+    work: WorkCounts,
+    /// With `--passes`: the host's steps and each dispatch, ms.
+    steps: Vec<(&'static str, Spread)>,
 }
 
 /// `bench gpu`: the Panda and the Kinect cloud at the `ready` pose on the CPU and the GPU, in
@@ -64,15 +92,25 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         args.cache_dir.as_deref(),
     )?;
     let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
-    let Some(gpu) = engine.gpu() else {
+    let options = GpuOptions {
+        int64_atomics: !args.portable,
+    };
+    let Some(gpu) = engine.gpu_with(options) else {
         bail!("no usable GPU adapter");
     };
+    gpu.set_profile(args.passes);
     println!(
-        "GPU: {} ({:?}, {:?}); CPU: {} threads",
+        "GPU: {} ({:?}, {:?}; minima {:?}); CPU: {} threads",
         gpu.adapter.name,
         gpu.adapter.device_type,
         gpu.adapter.backend,
+        gpu.minima,
         rayon::current_num_threads()
+    );
+    let bandwidth = gpu.upload_bandwidth(64 << 20)?;
+    println!(
+        "host to device: {:.1} GB/s (64 MiB written through the queue, median of 9)",
+        bandwidth / 1e9
     );
     let case = &scenario.cases[0];
     let base = &case.points;
@@ -87,64 +125,126 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     };
     let poses = &case.link_poses;
     let sensor = case.root_from_sensor;
-    let mut time = |points: &[[f32; 3]], backend: Backend| -> Result<(Vec<f64>, Vec<f64>, f64)> {
+    // The Kinect cloud is organized (640 wide): a size that is whole rows is queried as one, in
+    // tiles on both backends.
+    let width = case.width.filter(|&w| w > 0);
+    let mut time = |points: &[[f32; 3]], backend: Backend| -> Result<Timed> {
         let options = QueryOptions {
             mode: args.mode,
             backend,
             ..QueryOptions::default()
         };
+        let width = width.filter(|w| points.len().is_multiple_of(*w));
         // One untimed query: shader compilation, buffer growth, caches.
-        let first = engine.query(points, &sensor, poses, &options)?;
+        let first = engine.query_image(points, width, &sensor, poses, &options)?;
+        if first.backend != backend {
+            bail!(
+                "{} points: the {backend:?} query ran on {:?} (RUST_LOG=debug says why)",
+                points.len(),
+                first.backend
+            );
+        }
+        let work = engine.last_work();
         let (mut wall, mut kernel) = (Vec::new(), Vec::new());
+        let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
         for _ in 0..args.runs {
             let start = Instant::now();
-            let r = engine.query(points, &sensor, poses, &options)?;
+            let r = engine.query_image(points, width, &sensor, poses, &options)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             if backend == Backend::Gpu {
-                if let Some(s) = engine.gpu().and_then(|g| g.last_kernel_s) {
-                    kernel.push(s * 1e3);
+                if let Some(g) = engine.gpu() {
+                    kernel.extend(g.last_kernel_s.map(|s| s * 1e3));
+                    let host = g.last_host_s;
+                    for (name, s) in ["host: write", "host: submit to mapped", "host: result"]
+                        .into_iter()
+                        .zip(host)
+                        .chain(g.last_passes.iter().copied())
+                    {
+                        match passes.iter_mut().find(|(n, _)| *n == name) {
+                            Some((_, v)) => v.push(s * 1e3),
+                            None => passes.push((name, vec![s * 1e3])),
+                        }
+                    }
                 }
             }
             std::hint::black_box(r);
         }
         let d = first.nearest.map_or(f64::INFINITY, |n| n.distance_m);
-        Ok((wall, kernel, d))
+        let passes = passes
+            .into_iter()
+            .map(|(n, v)| (n, Spread::of(v)))
+            .collect();
+        Ok(Timed {
+            wall,
+            kernel,
+            distance: d,
+            work,
+            steps: passes,
+        })
     };
     let mut rows = Vec::new();
     println!(
-        "{:>10} {:>24} {:>24} {:>24} {:>8} {:>10}",
-        "points", "CPU ms [p10, p90]", "GPU end-to-end ms", "GPU kernel ms", "CPU/GPU", "|Δd| m"
+        "{:>10} {:>24} {:>24} {:>24} {:>9} {:>8} {:>10}",
+        "points",
+        "CPU ms [p10, p90]",
+        "GPU end-to-end ms",
+        "GPU kernel ms",
+        "upload ms",
+        "CPU/GPU",
+        "|Δd| m"
     );
     let show = |t: Spread| format!("{:.3} [{:.3}, {:.3}]", t.median, t.p10, t.p90);
+    let work = |w: &WorkCounts| {
+        format!(
+            "{} of {} blocks culled, {} items, {} descents, {} nodes",
+            w.blocks_culled, w.blocks, w.items, w.descents, w.nodes
+        )
+    };
     for &n in &args.sizes {
         let points = cloud(n);
-        let (cpu, _, dc) = time(&points, Backend::Cpu)?;
-        let (gpu, kernel, dg) = time(&points, Backend::Gpu)?;
+        let cpu = time(&points, Backend::Cpu)?;
+        let gpu = time(&points, Backend::Gpu)?;
+        let (dc, cpu_work) = (cpu.distance, cpu.work);
+        let (dg, gpu_work, kernel, passes) = (gpu.distance, gpu.work, gpu.kernel, gpu.steps);
+        let (cpu, gpu) = (cpu.wall, gpu.wall);
         let (cpu_ms, gpu_end_to_end_ms) = (Spread::of(cpu), Spread::of(gpu));
         let row = GpuRow {
             points: n,
             cpu_ms,
             gpu_end_to_end_ms,
             gpu_kernel_ms: (!kernel.is_empty()).then(|| Spread::of(kernel)),
+            upload_floor_ms: 12.0 * n as f64 / bandwidth * 1e3,
             cpu_over_gpu: cpu_ms.median / gpu_end_to_end_ms.median,
             max_difference_m: (dc - dg).abs(),
+            cpu_work,
+            gpu_work,
         };
         println!(
-            "{:>10} {:>24} {:>24} {:>24} {:>8.2} {:>10.1e}",
+            "{:>10} {:>24} {:>24} {:>24} {:>9.3} {:>8.2} {:>10.1e}",
             n,
             show(row.cpu_ms),
             show(row.gpu_end_to_end_ms),
             row.gpu_kernel_ms.map_or_else(|| "-".into(), show),
+            row.upload_floor_ms,
             row.cpu_over_gpu,
             row.max_difference_m
         );
+        println!("{:>10} CPU work: {}", "", work(&row.cpu_work));
+        println!("{:>10} GPU work: {}", "", work(&row.gpu_work));
+        if !passes.is_empty() {
+            let each: Vec<String> = passes
+                .iter()
+                .map(|(n, t)| format!("{n} {:.1}", t.median * 1e3))
+                .collect();
+            println!("{:>10} GPU steps, µs: {}", "", each.join(", "));
+        }
         rows.push(row);
     }
     let mut crossover = None;
     for &n in &args.crossover {
         let points = cloud(n);
-        let (cpu, _, _) = time(&points, Backend::Cpu)?;
-        let (gpu, _, _) = time(&points, Backend::Gpu)?;
+        let cpu = time(&points, Backend::Cpu)?.wall;
+        let gpu = time(&points, Backend::Gpu)?.wall;
         let (c, g) = (Spread::of(cpu).median, Spread::of(gpu).median);
         println!("crossover sweep: {n:>9} points: CPU {c:.3} ms, GPU {g:.3} ms");
         if g < c && crossover.is_none() {

@@ -1,0 +1,115 @@
+//! The dispatches of one GPU query ([`Step`]) and how they are recorded: in three compute passes
+//! (the ones before `plan`, `plan`, the ones after: the dispatch buffer `plan` writes is read as
+//! indirect arguments after it), with a timestamp at each end; or, to profile, each dispatch in a
+//! pass of its own with its own timestamps (`bench gpu --passes`).
+
+/// Most dispatches in one query.
+pub(super) const MAX_STEPS: usize = 10;
+/// Room for the timestamps in the readback.
+pub(super) const STAMP_BYTES: u64 = 16 * MAX_STEPS as u64;
+
+/// How many workgroups a dispatch runs.
+pub(super) enum Size {
+    Groups(u32),
+    /// Read from the dispatch buffer at this offset (written by `plan`).
+    Indirect(u64),
+}
+
+/// One dispatch of a query.
+pub(super) struct Step<'a> {
+    pub(super) name: &'static str,
+    pub(super) pipeline: &'a wgpu::ComputePipeline,
+    pub(super) size: Size,
+    /// Binds the dispatch buffer for writing (`plan`): in a pass apart from its readers.
+    pub(super) writes_dispatch: bool,
+}
+
+impl<'a> Step<'a> {
+    pub(super) fn direct(
+        name: &'static str,
+        pipeline: &'a wgpu::ComputePipeline,
+        groups: u32,
+    ) -> Self {
+        Self {
+            name,
+            pipeline,
+            size: Size::Groups(groups),
+            writes_dispatch: false,
+        }
+    }
+
+    pub(super) fn indirect(
+        name: &'static str,
+        pipeline: &'a wgpu::ComputePipeline,
+        offset: u64,
+    ) -> Self {
+        Self {
+            name,
+            pipeline,
+            size: Size::Indirect(offset),
+            writes_dispatch: false,
+        }
+    }
+}
+
+/// Records `steps` into `encoder`: in three compute passes (before `plan`, `plan`, after it) with
+/// a timestamp at the start of the first and the end of the last; or, with `profile`, each in a
+/// pass of its own with a timestamp at each end. Returns the index of the last timestamp.
+pub(super) fn encode(
+    encoder: &mut wgpu::CommandEncoder,
+    steps: &[Step],
+    group: &wgpu::BindGroup,
+    dispatch_group: &wgpu::BindGroup,
+    dispatch: &wgpu::Buffer,
+    stamps: Option<&wgpu::QuerySet>,
+    profile: bool,
+) -> u32 {
+    // The passes: runs of steps, cut around the one that writes the dispatch buffer.
+    let mut passes: Vec<&[Step]> = Vec::new();
+    if profile {
+        passes.extend(steps.chunks(1));
+    } else {
+        let mut start = 0;
+        for (k, step) in steps.iter().enumerate() {
+            if step.writes_dispatch {
+                passes.extend([&steps[start..k], &steps[k..k + 1]]);
+                start = k + 1;
+            }
+        }
+        passes.push(&steps[start..]);
+        passes.retain(|p| !p.is_empty());
+    }
+    let last = passes.len().saturating_sub(1);
+    let end = if profile { 2 * last as u32 + 1 } else { 1 };
+    for (k, run) in passes.iter().enumerate() {
+        let timestamp_writes = stamps.and_then(|set| {
+            let (begin, end) = if profile {
+                (Some(2 * k as u32), Some(2 * k as u32 + 1))
+            } else {
+                ((k == 0).then_some(0), (k == last).then_some(1))
+            };
+            (begin.is_some() || end.is_some()).then_some(wgpu::ComputePassTimestampWrites {
+                query_set: set,
+                beginning_of_pass_write_index: begin,
+                end_of_pass_write_index: end,
+            })
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(run[0].name),
+            timestamp_writes,
+        });
+        pass.set_bind_group(0, group, &[]);
+        for step in *run {
+            pass.set_pipeline(step.pipeline);
+            if step.writes_dispatch {
+                pass.set_bind_group(1, dispatch_group, &[]);
+            }
+            match step.size {
+                Size::Groups(0) => {}
+                Size::Groups(n) => pass.dispatch_workgroups(n, 1, 1),
+                Size::Indirect(offset) => pass.dispatch_workgroups_indirect(dispatch, offset),
+            }
+        }
+    }
+    end
+}

@@ -1,0 +1,157 @@
+//! What crosses between the host and the GPU: the points, through a staging buffer that stays
+//! allocated and is mapped again for writing after each query (filled in parallel); the small
+//! readback, by spinning on the device for a short while before the thread parks; and the
+//! host-to-device bandwidth that `bench gpu` gives each cloud's upload floor by.
+
+use std::num::NonZeroU64;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::{GpuEngine, GpuError};
+
+/// The states of the points' staging buffer.
+pub(super) const UNMAPPED: u8 = 0;
+pub(super) const MAPPING: u8 = 1;
+pub(super) const MAPPED: u8 = 2;
+
+impl GpuEngine {
+    /// Writes the points into the staging buffer, mapped since the last query's readback (or
+    /// since its creation), in parallel: one thread's copy of a 5 M-point cloud took 11.5 ms,
+    /// and a staging buffer allocated per query (the queue's `write_buffer`) cost more than the
+    /// copy at 307 k points. Returns the bytes to copy to the points buffer.
+    pub(super) fn upload_points(&self, points: &[[f32; 3]]) -> Result<u64, GpuError> {
+        let Some(sized) = &self.sized else {
+            return Err(GpuError::Device("no point buffers".into()));
+        };
+        let bytes: &[u8] = bytemuck::cast_slice(points);
+        if bytes.is_empty() {
+            return Ok(0);
+        }
+        // The map asked for after the last readback (done by now, as the GPU is idle), or
+        // asked for now after a query that ended early.
+        self.remap_staging();
+        loop {
+            match sized.staging_state.load(Ordering::Acquire) {
+                MAPPED => break,
+                UNMAPPED => return Err(GpuError::Device("the points' staging map failed".into())),
+                _ => {
+                    self.device
+                        .poll(wgpu::PollType::Wait)
+                        .map_err(|e| GpuError::Readback(e.to_string()))?;
+                }
+            }
+        }
+        {
+            let slice = sized.staging.slice(..bytes.len() as u64);
+            let mut view = slice.get_mapped_range_mut();
+            const CHUNK: usize = 1 << 18;
+            let target: &mut [u8] = &mut view;
+            target
+                .par_chunks_mut(CHUNK)
+                .zip(bytes.par_chunks(CHUNK))
+                .for_each(|(to, from)| to.copy_from_slice(from));
+        }
+        sized.staging.unmap();
+        sized.staging_state.store(UNMAPPED, Ordering::Release);
+        Ok(bytes.len() as u64)
+    }
+
+    /// Asks for the staging buffer to be mapped for the next query's points (done once this
+    /// query's copy is), unless it is mapped or being mapped.
+    pub(super) fn remap_staging(&self) {
+        if let Some(sized) = &self.sized {
+            let state = &sized.staging_state;
+            if state
+                .compare_exchange(UNMAPPED, MAPPING, Ordering::AcqRel, Ordering::Acquire)
+                .is_ok()
+            {
+                let state = state.clone();
+                sized
+                    .staging
+                    .slice(..)
+                    .map_async(wgpu::MapMode::Write, move |r| {
+                        state.store(if r.is_ok() { MAPPED } else { UNMAPPED }, Ordering::Release)
+                    });
+            }
+        }
+    }
+
+    /// The host-to-device bandwidth, bytes/s: `bytes` written through the queue as the points
+    /// are (into the staging memory, in parallel) and copied to a device buffer, timed to the
+    /// copy's completion; the median of nine. A cloud's upload floor is its bytes over this.
+    pub fn upload_bandwidth(&self, bytes: usize) -> Result<f64, GpuError> {
+        let size =
+            NonZeroU64::new(bytes.max(4).next_multiple_of(4) as u64).expect("at least four bytes");
+        let target = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bandwidth"),
+            size: size.get(),
+            usage: wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let source = vec![0x5au8; size.get() as usize];
+        let mut times = Vec::new();
+        for _ in 0..10 {
+            let start = std::time::Instant::now();
+            {
+                let mut view = self
+                    .queue
+                    .write_buffer_with(&target, 0, size)
+                    .ok_or_else(|| GpuError::Device("the bandwidth buffer's staging".into()))?;
+                let to: &mut [u8] = &mut view;
+                to.par_chunks_mut(1 << 18)
+                    .zip(source.par_chunks(1 << 18))
+                    .for_each(|(t, f)| t.copy_from_slice(f));
+            }
+            let submission = self.queue.submit([]);
+            self.device
+                .poll(wgpu::PollType::WaitForSubmissionIndex(submission))
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            times.push(start.elapsed().as_secs_f64());
+        }
+        // The first one also maps the staging memory.
+        times.remove(0);
+        times.sort_by(f64::total_cmp);
+        Ok(size.get() as f64 / times[times.len() / 2])
+    }
+
+    /// Maps the readback buffer once `submission` is done: spinning on the device for a short
+    /// while (a query's readback is ready in tens of microseconds on a hardware GPU, and a
+    /// parked thread takes longer to wake), then waiting.
+    pub(super) fn read_back(&self, submission: wgpu::SubmissionIndex) -> Result<(), GpuError> {
+        let mapped = Arc::new(AtomicBool::new(false));
+        let failed = Arc::new(AtomicBool::new(false));
+        let (m, f) = (mapped.clone(), failed.clone());
+        self.readback
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                f.store(r.is_err(), Ordering::Release);
+                m.store(true, Ordering::Release);
+            });
+        let spin_until = std::time::Instant::now() + std::time::Duration::from_micros(2000);
+        while !mapped.load(Ordering::Acquire) && std::time::Instant::now() < spin_until {
+            self.device
+                .poll(wgpu::PollType::Poll)
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            std::hint::spin_loop();
+        }
+        if !mapped.load(Ordering::Acquire) {
+            self.device
+                .poll(wgpu::PollType::WaitForSubmissionIndex(submission))
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            // The map's callback runs in a poll after the submission is done.
+            while !mapped.load(Ordering::Acquire) {
+                self.device
+                    .poll(wgpu::PollType::Wait)
+                    .map_err(|e| GpuError::Readback(e.to_string()))?;
+            }
+        }
+        if failed.load(Ordering::Acquire) {
+            return Err(GpuError::Readback(
+                "the readback buffer could not be mapped".into(),
+            ));
+        }
+        Ok(())
+    }
+}
