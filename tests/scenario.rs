@@ -248,3 +248,88 @@ fn query_command_on_the_bag() {
     assert!((d - 0.0979).abs() < 1e-3, "{d}");
     assert_eq!(json["counts"]["invalid"], 73_899);
 }
+
+/// `ist_monitor query --backend gpu` on the real Kinect scene equals `--backend cpu` on every
+/// vector width lavapipe runs the shader at (`LP_NATIVE_VECTOR_WIDTH` 128, 256, 512: four, eight
+/// and sixteen lanes to a SIMD group), with the minima in 64-bit atomics and on the portable
+/// path (`IST_MONITOR_GPU_NO_INT64`), certified with per-link minima (the node's defaults, every
+/// link measured): the same nearest link and point, distances within 1e-5 m, the same counts
+/// that do not depend on the bounds' history. On a hardware GPU the width changes nothing.
+#[test]
+fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_without_int64() {
+    let Some(shared) = common::shared() else {
+        return;
+    };
+    let cache = tempfile::tempdir().unwrap();
+    let s = kinect_root_from_sensor();
+    let (t, q) = (s.translation.vector, s.rotation.coords);
+    let pose = format!("{} {} {} {} {} {} {}", t.x, t.y, t.z, q.x, q.y, q.z, q.w);
+    let query = |backend: &str, env: &[(&str, &str)]| {
+        let mut command = ist_monitor();
+        command
+            .args(["query", "--urdf"])
+            .arg(shared.join("robots/panda/robot.urdf"))
+            .args(["--max-spheres", "256", "--cache-dir"])
+            .arg(cache.path())
+            .args([
+                "--joints",
+                "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
+                "--per-link-range",
+                ".inf",
+                "--backend",
+                backend,
+                "--json",
+                "--sensor-pose",
+                &pose,
+                "--cloud",
+            ])
+            .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap"));
+        for (k, v) in env {
+            command.env(k, v);
+        }
+        common::json_output(&mut command)
+    };
+    let cpu = query("cpu", &[]);
+    for width in ["128", "256", "512"] {
+        for no_int64 in ["0", "1"] {
+            let env = [
+                ("LP_NATIVE_VECTOR_WIDTH", width),
+                ("IST_MONITOR_GPU_NO_INT64", no_int64),
+            ];
+            let gpu = query("gpu", &env);
+            let what = format!("width {width}, no int64 {no_int64}");
+            if gpu["backend"] != "gpu" {
+                if std::env::var_os("CI").is_some() {
+                    panic!("{what}: the query ran on {} in CI", gpu["backend"]);
+                }
+                common::skip("no GPU adapter and CI is not set");
+                return;
+            }
+            assert_eq!(gpu["nearest"]["link"], cpu["nearest"]["link"], "{what}");
+            assert_eq!(
+                gpu["nearest"]["point_index"], cpu["nearest"]["point_index"],
+                "{what}"
+            );
+            let d = |j: &serde_json::Value| j["nearest"]["distance_m"].as_f64().unwrap();
+            assert!((d(&gpu) - d(&cpu)).abs() < 1e-5, "{what}: {gpu} {cpu}");
+            for (a, b) in cpu["links"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .zip(gpu["links"].as_array().unwrap())
+            {
+                let (x, y) = (a["distance_m"].as_f64(), b["distance_m"].as_f64());
+                assert_eq!(x.is_some(), y.is_some(), "{what}: {a} {b}");
+                if let (Some(x), Some(y)) = (x, y) {
+                    assert!((x - y).abs() < 1e-5, "{what}: {a} {b}");
+                }
+            }
+            for count in ["total", "invalid", "outside_roi", "self_filtered"] {
+                assert_eq!(
+                    gpu["counts"][count], cpu["counts"][count],
+                    "{what}: {count}"
+                );
+            }
+        }
+    }
+}

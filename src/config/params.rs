@@ -59,7 +59,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("per_link", "true", "", "also compute the minimum of every link"),
     p("per_link_range", "~", "m", "per-link minima are measured up to this distance; a link farther away is reported as farther than a certified bound, which costs far less (default: warn_distance + hysteresis; .inf: every link measured)"),
     p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points on a hardware GPU"),
-    p("gpu_min_points", "100000", "points", "crossover of backend auto (measure it with `ist_monitor bench gpu`)"),
+    p("gpu_min_points", "307200", "points", "crossover of backend auto (measure it with `ist_monitor bench gpu`)"),
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
     p("exclude_links", "[]", "", "leave these links out"),
     p("convex_hull_links", "[]", "", "pack these links' convex hulls instead of their meshes ([\"*\"]: every link); a hull contains the link, so only its certified lower bound holds for the link, and that is what is published as its distance"),

@@ -12,6 +12,7 @@
 //! | [`Counters`] | `State` | the shared bounds and the stage counts of the GPU |
 //! | [`Candidate`] | `Candidate` | an exact-mode (point, link) pair |
 //! | [`BoxedBlock`] | `Boxed` | a block the GPU's cull pass kept, with its box |
+//! | [`GridHeader`] | `Grid` | one link's self-filter grid |
 //! | [`KeptBlock`] | `Kept` | a block the GPU's block pass kept, with its points to measure |
 //!
 //! The WGSL side never writes a constant of its own: [`wgsl_constants`] generates the constants
@@ -271,6 +272,19 @@ pub struct KeptBlock {
 }
 const _: () = assert!(size_of::<KeptBlock>() == 32);
 
+/// One link's self-filter grid on the GPU (`query::self_grid::SelfGrid`, the CPU's): its
+/// origin and inverse cell width in the link frame, its cells per axis, and where its cells
+/// start in the packed cell words (2 bits a cell, 16 to a word, x fastest). WGSL `Grid`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, Default)]
+pub struct GridHeader {
+    pub origin: [f32; 3],
+    pub inv_cell: f32,
+    pub dims: [u32; 3],
+    pub base: u32,
+}
+const _: () = assert!(size_of::<GridHeader>() == 32);
+
 /// How the GPU keeps each link's minimum: both ways give the CPU's answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Minima {
@@ -375,6 +389,7 @@ pub const MIRRORS: &[Mirror] = &[
     ),
     mirror!("Candidate", Candidate, [lower, link, point, pad]),
     mirror!("Boxed", BoxedBlock, [lo, block, hi, partial]),
+    mirror!("Grid", GridHeader, [origin, inv_cell, dims, base]),
     mirror!(
         "Kept",
         KeptBlock,
@@ -408,6 +423,9 @@ pub fn wgsl_constants() -> String {
         u("STAGE_PRUNED", Stage::Pruned as u32),
         u("STAGE_EVALUATED", Stage::Evaluated as u32),
         u("STAGE_INSIDE", Stage::Inside as u32),
+        u("CELL_CLEAR", super::self_grid::Cell::Clear as u32),
+        u("CELL_SHELL", super::self_grid::Cell::Shell as u32),
+        u("CELL_SELF", super::self_grid::Cell::SelfPoint as u32),
         u("WORK_BLOCKS", Work::Blocks as u32),
         u("WORK_CULLED", Work::Culled as u32),
         u("WORK_ITEMS", Work::Items as u32),

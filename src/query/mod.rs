@@ -90,10 +90,12 @@ use crate::robot::{LinkGeometry, RobotModel};
 /// Most links with collision geometry one engine handles (a bit mask per point).
 pub const MAX_LINKS: usize = 128;
 
-/// Default crossover of `Backend::Auto`, in points. On the one hardware GPU measured (an H100
-/// beside 16 CPU cores, README) the GPU never won end to end on the Kinect scene, at any size:
-/// `ist_monitor bench gpu` measures it; set `gpu_min_points` (or `backend: cpu`) from its figure.
-pub const DEFAULT_GPU_MIN_POINTS: usize = 100_000;
+/// Default crossover of `Backend::Auto`, in points: a 640 × 480 cloud. On the one hardware GPU
+/// measured (an H100 beside 16 CPU cores, docs/gpu.md) the GPU first wins end to end at 307,200
+/// points, and from there on the two are within about 10 % of each other; below it the CPU
+/// wins. `ist_monitor bench gpu` measures it on a machine; set `gpu_min_points` (or
+/// `backend: cpu`) from its figure.
+pub const DEFAULT_GPU_MIN_POINTS: usize = 307_200;
 
 /// What the query computes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -548,12 +550,23 @@ impl Engine {
             .prepare(&self.links, root_from_sensor, link_poses, options);
         if options.wants_gpu(points.len()) {
             self.gpu();
-            if let GpuSlot::Ready(gpu) = &mut self.gpu {
-                let usable = options.backend == Backend::Gpu || !gpu.is_software();
-                if usable {
+            let usable = match &self.gpu {
+                GpuSlot::Ready(gpu) => options.backend == Backend::Gpu || !gpu.is_software(),
+                _ => false,
+            };
+            if usable {
+                // The GPU's self-filter takes the CPU's grids.
+                self.prepare_self_filter(options);
+            }
+            if let (GpuSlot::Ready(gpu), true) = (&mut self.gpu, usable) {
+                let grids = match (&self.self_grids, options.self_filter_padding_m) {
+                    (Some((_, grids)), Some(_)) => grids.as_slice(),
+                    _ => &[],
+                };
+                {
                     // A GPU that gives up leaves `bounds` as prepared (it writes them only on
                     // success), so the CPU below starts from the same state.
-                    match gpu.query(&self.links, &mut self.bounds, &robot_box, input) {
+                    match gpu.query(&self.links, &mut self.bounds, &robot_box, input, grids) {
                         Ok(Some(r)) => return r,
                         Ok(None) => log::debug!(
                             "GPU result incomplete (candidate list full, or an arg-min lost): CPU"

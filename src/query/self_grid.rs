@@ -157,6 +157,23 @@ impl SelfGrid {
         self.cells[index]
     }
 
+    /// The grid for the GPU: its header, with its cells appended to `words` (2 bits a cell, 16
+    /// to a word, in the order `at` indexes them).
+    pub fn pack(&self, words: &mut Vec<u32>) -> super::layout::GridHeader {
+        let base = words.len() as u32;
+        words.extend(self.cells.chunks(16).map(|c| {
+            c.iter()
+                .enumerate()
+                .fold(0u32, |w, (k, &cell)| w | (cell as u32) << (2 * k))
+        }));
+        super::layout::GridHeader {
+            origin: self.origin,
+            inv_cell: self.inv_cell,
+            dims: self.dims.map(|d| d as u32),
+            base,
+        }
+    }
+
     /// Cells of each kind (clear, shell, self), for the tests and the log.
     pub fn census(&self) -> [usize; 3] {
         let mut n = [0; 3];

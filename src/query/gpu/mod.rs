@@ -37,11 +37,13 @@ use bytemuck::Zeroable;
 
 use super::bounds::{pack_minimum, threshold, Bounds, EMPTY};
 use super::layout::{
-    BoxedBlock, Candidate, Counters, KeptBlock, Minima, QueryParams, RobotBox, Stage, Work, BLOCK,
-    GPU_CANDIDATES, GPU_STACK, SEED_STRIDE, SUB, WORKGROUP, WORK_COUNTERS,
+    BoxedBlock, Candidate, Counters, GridHeader, KeptBlock, Minima, QueryParams, RobotBox, Stage,
+    Work, BLOCK, GPU_CANDIDATES, GPU_STACK, SEED_STRIDE, SUB, WORKGROUP, WORK_COUNTERS,
 };
+use super::self_grid::SelfGrid;
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
 use passes::{encode, Size, Step, STAMP_BYTES};
+use setup::storage;
 use transfer::MAPPED;
 
 /// Setting this variable (to anything but `0`) keeps the GPU from using 64-bit atomics even
@@ -87,12 +89,14 @@ struct Sized {
     /// (`UNMAPPED`, `MAPPING`, `MAPPED`).
     staging: wgpu::Buffer,
     staging_state: Arc<AtomicU8>,
-    /// The boxed and kept blocks and the work items, which only the shader reads and writes.
-    _scratch: [wgpu::Buffer; 3],
+    /// The kept blocks, the work items and the boxed blocks, which only the shader reads and
+    /// writes.
+    scratch: [wgpu::Buffer; 3],
     points_capacity: usize,
     blocks_capacity: usize,
     items_capacity: usize,
-    group: wgpu::BindGroup,
+    /// Over every buffer; `None` once one of them changed.
+    group: Option<wgpu::BindGroup>,
 }
 
 /// The compute pipelines, one per entry point.
@@ -146,6 +150,8 @@ pub struct GpuEngine {
     pub last_host_s: [f64; 3],
     /// Each link's arg-min point of the last query (`u32::MAX`: none): the next one's seeds.
     last_winners: Vec<u32>,
+    /// The self-filter's grids (headers, packed cells) and the padding they were built for.
+    grids: (wgpu::Buffer, wgpu::Buffer, Option<f32>),
 }
 
 /// The blocks of a cloud of `n` points, as `cpu::blocks::Tiling` cuts them: (width, height,
@@ -184,7 +190,7 @@ impl GpuEngine {
     }
 
     /// Grows the cloud's buffers to hold `points` points in `blocks` blocks with `items` work
-    /// items, and makes the bind group over them.
+    /// items.
     fn ensure(&mut self, points: usize, blocks: usize, items: usize) -> Result<(), GpuError> {
         if self.sized.as_ref().is_some_and(|s| {
             s.points_capacity >= points && s.blocks_capacity >= blocks && s.items_capacity >= items
@@ -223,19 +229,67 @@ impl GpuEngine {
             "boxed blocks",
             (std::mem::size_of::<BoxedBlock>() * blocks) as u64,
         )?;
+        self.sized = Some(Sized {
+            points: point_buffer,
+            staging,
+            staging_state: Arc::new(AtomicU8::new(MAPPED)),
+            scratch: [kept, item_buffer, boxed],
+            points_capacity: points,
+            blocks_capacity: blocks,
+            items_capacity: items,
+            group: None,
+        });
+        Ok(())
+    }
+
+    /// The self-filter's grids for `padding` on the GPU (built by the engine once per padding),
+    /// uploaded when the padding changes.
+    fn use_grids(&mut self, padding: f32, grids: &[SelfGrid]) -> Result<(), GpuError> {
+        if self.grids.2 == Some(padding) || grids.is_empty() {
+            return Ok(());
+        }
+        let mut words = Vec::new();
+        let headers: Vec<GridHeader> = grids.iter().map(|g| g.pack(&mut words)).collect();
+        words.push(0);
+        let bytes = 4 * words.len() as u64;
+        if bytes > self.max_binding {
+            return Err(GpuError::TooLarge(bytes));
+        }
+        self.grids = (
+            storage(&self.device, "grid headers", bytemuck::cast_slice(&headers)),
+            storage(&self.device, "grid cells", bytemuck::cast_slice(&words)),
+            Some(padding),
+        );
+        if let Some(sized) = &mut self.sized {
+            sized.group = None;
+        }
+        Ok(())
+    }
+
+    /// The bind group over the current buffers, made anew when one of them changed.
+    fn bind(&mut self) {
+        let Some(sized) = &mut self.sized else {
+            return;
+        };
+        if sized.group.is_some() {
+            return;
+        }
+        let [kept, items, boxed] = &sized.scratch;
         let buffers = [
             &self.nodes,
             &self.spheres,
             &self.links,
-            &point_buffer,
+            &sized.points,
             &self.params,
             &self.state,
             &self.minima_buffer,
             &self.candidates,
-            &kept,
-            &item_buffer,
+            kept,
+            items,
             &self.winners,
-            &boxed,
+            boxed,
+            &self.grids.0,
+            &self.grids.1,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = (0u32..)
             .zip(buffers)
@@ -244,33 +298,25 @@ impl GpuEngine {
                 resource: b.as_entire_binding(),
             })
             .collect();
-        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        sized.group = Some(self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("traverse"),
             layout: &self.layout,
             entries: &entries,
-        });
-        self.sized = Some(Sized {
-            points: point_buffer,
-            staging,
-            staging_state: Arc::new(AtomicU8::new(MAPPED)),
-            _scratch: [kept, item_buffer, boxed],
-            points_capacity: points,
-            blocks_capacity: blocks,
-            items_capacity: items,
-            group,
-        });
-        Ok(())
+        }));
     }
 
     /// The query on the GPU; `bounds` must hold the posed links (`Bounds::prepare`).
     /// Returns `Ok(None)` when the exact candidates or the work items overflowed, or an arg-min
     /// was not found again (the caller runs the CPU).
+    /// `grids`: the self-filter's grids for the padding of `input`'s options (none when it is
+    /// off).
     pub(super) fn query(
         &mut self,
         links: &[QueryLink],
         bounds: &mut Bounds,
         robot_box: &RobotBox,
         input: Input,
+        grids: &[SelfGrid],
     ) -> Result<Option<QueryResult>, GpuError> {
         let Input {
             points,
@@ -283,8 +329,15 @@ impl GpuEngine {
         let started = std::time::Instant::now();
         let (width, height, n_blocks) = tiling(n, width);
         self.ensure(n, n_blocks, n_blocks * l)?;
+        if let Some(padding) = options.self_filter_padding_m {
+            self.use_grids(padding, grids)?;
+        }
+        self.bind();
         let Some(sized) = self.sized.as_ref() else {
             return Err(GpuError::Device("no point buffers".into()));
+        };
+        let Some(group) = sized.group.as_ref() else {
+            return Err(GpuError::Device("no bind group".into()));
         };
         let winners: Vec<u32> = self
             .last_winners
@@ -382,7 +435,7 @@ impl GpuEngine {
         let last_stamp = encode(
             &mut encoder,
             &steps,
-            &sized.group,
+            group,
             &self.dispatch_group,
             &self.dispatch,
             self.timestamps.as_ref().map(|(set, _)| set),

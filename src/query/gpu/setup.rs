@@ -17,7 +17,7 @@ use crate::query::layout::{
 };
 use crate::query::QueryLink;
 
-fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+pub(super) fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytes,
@@ -119,7 +119,8 @@ impl GpuEngine {
         let write = wgpu::BufferBindingType::Storage { read_only: false };
         let uniform = wgpu::BufferBindingType::Uniform;
         let kinds = [
-            read, read, read, read, uniform, write, write, write, write, write, read, write,
+            read, read, read, read, uniform, write, write, write, write, write, read, write, read,
+            read,
         ];
         let entries: Vec<_> = (0u32..).zip(kinds).map(|(b, t)| entry(b, t)).collect();
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -196,6 +197,13 @@ impl GpuEngine {
                 }),
             )
         });
+        // No grid yet: one empty header per link (every point outside it), until a query with
+        // the self-filter on brings the grids.
+        let grids = (
+            storage(&device, "grid headers", &vec![0u8; 32 * n]),
+            storage(&device, "grid cells", &[0u8; 4]),
+            None,
+        );
         let dispatch = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("dispatch"),
             size: 24,
@@ -254,6 +262,7 @@ impl GpuEngine {
             sized: None,
             max_binding,
             last_winners: vec![u32::MAX; n],
+            grids,
         })
     }
 }

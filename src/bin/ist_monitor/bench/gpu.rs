@@ -29,7 +29,7 @@ pub struct BenchGpuArgs {
     #[arg(long, value_delimiter = ',', default_values_t = [307_200usize, 1_000_000, 5_000_000])]
     sizes: Vec<usize>,
     /// Sizes of the crossover sweep (the smallest at which the GPU wins end to end is printed).
-    #[arg(long, value_delimiter = ',', default_values_t = [1_000usize, 3_000, 10_000, 30_000, 100_000, 307_200])]
+    #[arg(long, value_delimiter = ',', default_values_t = [1_000usize, 10_000, 100_000, 307_200, 1_000_000, 2_000_000, 5_000_000])]
     crossover: Vec<usize>,
     #[arg(long, value_enum, default_value_t = Mode::Certified)]
     mode: Mode,
