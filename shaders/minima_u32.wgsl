@@ -69,14 +69,10 @@ fn argmin(
     @builtin(local_invocation_index) lane: u32,
 ) {
     clear_counts(lane);
-    if lane == 0u {
-        wg_items = min(atomicLoad(&state.item_count), params.item_capacity);
-    }
-    let n = workgroupUniformLoad(&wg_items);
+    let n = item_count(lane);
     for (var k = wid.x; k < n; k += nwg.x) {
-        let item = items[k];
-        let s = item >> 7u;
-        let l = item & 127u;
+        let s = items[k] >> 7u;
+        let l = items[k] & 127u;
         let m = atomicLoad(&minima[l]);
         let d = bitcast<f32>(m);
         // The same for every invocation (the minima are final in this pass), made uniform.

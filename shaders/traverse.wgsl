@@ -1053,6 +1053,15 @@ fn descend_from_frontier(l: u32, q: vec3<f32>, bound: f32) -> Hit {
     return dfs(l, q, bound, sp);
 }
 
+// The work items appended (at most the room for them), the same for the whole workgroup. Called
+// in uniform control flow.
+fn item_count(lane: u32) -> u32 {
+    if lane == 0u {
+        wg_items = min(atomicLoad(&state.item_count), params.item_capacity);
+    }
+    return workgroupUniformLoad(&wg_items);
+}
+
 @compute @workgroup_size(BLOCK)
 fn measure(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -1060,14 +1069,10 @@ fn measure(
     @builtin(local_invocation_index) lane: u32,
 ) {
     clear_counts(lane);
-    if lane == 0u {
-        wg_items = min(atomicLoad(&state.item_count), params.item_capacity);
-    }
-    let n = workgroupUniformLoad(&wg_items);
+    let n = item_count(lane);
     for (var k = wid.x; k < n; k += nwg.x) {
-        let item = items[k];
-        let s = item >> 7u;
-        let l = item & 127u;
+        let s = items[k] >> 7u;
+        let l = items[k] & 127u;
         if lane == 0u {
             atomicStore(&wg_min, 0xffffffffu);
             atomicStore(&wg_arg, NO_POINT);

@@ -213,6 +213,41 @@ fn kinect_panda_reference_distances() {
     }
 }
 
+/// `ist_monitor query` of the Panda at the `ready` pose against the bag's Kinect cloud
+/// (SCENARIO.md's camera; 256 spheres a link, trees cached in `cache`), with `args` and the
+/// environment `env`: its JSON.
+fn query_the_bag(
+    shared: &std::path::Path,
+    cache: &std::path::Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> serde_json::Value {
+    // SCENARIO.md's camera as "x y z qx qy qz qw" (root_from_sensor).
+    let s = kinect_root_from_sensor();
+    let (t, q) = (s.translation.vector, s.rotation.coords);
+    let pose = format!("{} {} {} {} {} {} {}", t.x, t.y, t.z, q.x, q.y, q.z, q.w);
+    let mut command = ist_monitor();
+    command
+        .args(["query", "--urdf"])
+        .arg(shared.join("robots/panda/robot.urdf"))
+        .args(["--max-spheres", "256", "--cache-dir"])
+        .arg(cache)
+        .args([
+            "--joints",
+            "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
+            "--json",
+            "--sensor-pose",
+            &pose,
+        ])
+        .args(args)
+        .arg("--cloud")
+        .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap"));
+    for (k, v) in env {
+        command.env(k, v);
+    }
+    common::json_output(&mut command)
+}
+
 /// `ist_monitor query` on the bag folder, JSON out.
 #[test]
 fn query_command_on_the_bag() {
@@ -220,28 +255,7 @@ fn query_command_on_the_bag() {
         return;
     };
     let cache = tempfile::tempdir().unwrap();
-    // SCENARIO.md's camera as "x y z qx qy qz qw" (root_from_sensor).
-    let s = kinect_root_from_sensor();
-    let (t, q) = (s.translation.vector, s.rotation.coords);
-    let pose = format!("{} {} {} {} {} {} {}", t.x, t.y, t.z, q.x, q.y, q.z, q.w);
-    let json = common::json_output(
-        ist_monitor()
-            .args(["query", "--urdf"])
-            .arg(shared.join("robots/panda/robot.urdf"))
-            .args(["--max-spheres", "256", "--cache-dir"])
-            .arg(cache.path())
-            .args([
-                "--joints",
-                "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
-                "--mode",
-                "exact",
-                "--json",
-                "--sensor-pose",
-                &pose,
-                "--cloud",
-            ])
-            .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap")),
-    );
+    let json = query_the_bag(&shared, cache.path(), &["--mode", "exact"], &[]);
     assert_eq!(json["outcome"], "nearest");
     assert_eq!(json["nearest"]["link"], "panda_link0");
     let d = json["nearest"]["distance_m"].as_f64().unwrap();
@@ -261,33 +275,9 @@ fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_without_int64() 
         return;
     };
     let cache = tempfile::tempdir().unwrap();
-    let s = kinect_root_from_sensor();
-    let (t, q) = (s.translation.vector, s.rotation.coords);
-    let pose = format!("{} {} {} {} {} {} {}", t.x, t.y, t.z, q.x, q.y, q.z, q.w);
     let query = |backend: &str, env: &[(&str, &str)]| {
-        let mut command = ist_monitor();
-        command
-            .args(["query", "--urdf"])
-            .arg(shared.join("robots/panda/robot.urdf"))
-            .args(["--max-spheres", "256", "--cache-dir"])
-            .arg(cache.path())
-            .args([
-                "--joints",
-                "panda_joint2=-0.785,panda_joint4=-2.356,panda_joint6=1.571,panda_joint7=0.785",
-                "--per-link-range",
-                ".inf",
-                "--backend",
-                backend,
-                "--json",
-                "--sensor-pose",
-                &pose,
-                "--cloud",
-            ])
-            .arg(shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap"));
-        for (k, v) in env {
-            command.env(k, v);
-        }
-        common::json_output(&mut command)
+        let args = ["--per-link-range", ".inf", "--backend", backend];
+        query_the_bag(&shared, cache.path(), &args, env)
     };
     let cpu = query("cpu", &[]);
     for width in ["128", "256", "512"] {

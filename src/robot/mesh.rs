@@ -326,6 +326,24 @@ pub struct Tessellation {
     pub error_m: f64,
 }
 
+impl Tessellation {
+    /// The triangles as an ASCII STL file (a shape given as a mesh file, as a CAD tool would
+    /// export it: the benchmarks and tests of mesh volumes).
+    pub fn to_ascii_stl(&self) -> String {
+        let mut stl = String::from("solid shape\n");
+        for tri in &self.triangles {
+            stl.push_str(" facet normal 0 0 0\n  outer loop\n");
+            for &i in tri {
+                let v = self.vertices[i as usize];
+                stl.push_str(&format!("   vertex {} {} {}\n", v[0], v[1], v[2]));
+            }
+            stl.push_str("  endloop\n endfacet\n");
+        }
+        stl.push_str("endsolid shape\n");
+        stl
+    }
+}
+
 /// Segments around a circle: the sagitta is R·(1 − cos(π/64)) ≈ 0.0012·R.
 const SEGMENTS: usize = 64;
 

@@ -186,17 +186,7 @@ mod tests {
         let file = dir.path().join("box.stl");
         let half = [0.2f32, 0.15, 0.1];
         let t = crate::robot::mesh::tessellate_box(half.map(|h| 2.0 * h as f64));
-        let mut stl = String::from("solid box\n");
-        for tri in &t.triangles {
-            stl.push_str(" facet normal 0 0 0\n  outer loop\n");
-            for &i in tri {
-                let v = t.vertices[i as usize];
-                stl.push_str(&format!("   vertex {} {} {}\n", v[0], v[1], v[2]));
-            }
-            stl.push_str("  endloop\n endfacet\n");
-        }
-        stl.push_str("endsolid box\n");
-        std::fs::write(&file, stl).unwrap();
+        std::fs::write(&file, t.to_ascii_stl()).unwrap();
         let padding = 0.03;
         let grid = MeshGrid::build(&file, [1.0; 3], padding).unwrap();
         let band = grid.voxel_m * 3f64.sqrt();

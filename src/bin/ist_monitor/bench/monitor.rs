@@ -193,18 +193,10 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
 
 /// An ASCII STL of a cube of edge `edge` m centred on the origin.
 fn write_box_stl(path: &std::path::Path, edge: f64) -> std::io::Result<()> {
-    let t = ist_monitor::robot::mesh::tessellate_box([edge; 3]);
-    let mut stl = String::from("solid box\n");
-    for tri in &t.triangles {
-        stl.push_str(" facet normal 0 0 0\n  outer loop\n");
-        for &i in tri {
-            let v = t.vertices[i as usize];
-            stl.push_str(&format!("   vertex {} {} {}\n", v[0], v[1], v[2]));
-        }
-        stl.push_str("  endloop\n endfacet\n");
-    }
-    stl.push_str("endsolid box\n");
-    std::fs::write(path, stl)
+    std::fs::write(
+        path,
+        ist_monitor::robot::mesh::tessellate_box([edge; 3]).to_ascii_stl(),
+    )
 }
 
 /// Ten exclusion volumes in frame `root`, `away` metres up: nine 0.3 m boxes on a grid in front
