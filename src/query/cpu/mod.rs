@@ -339,9 +339,10 @@ impl Pass<'_> {
         let link_reach = self.link_reach();
         let mut counts = StageCounts::default();
         let mut last = None;
+        let mut taken = 0;
         for k in 0..n {
             let distances = (near2[k], far2[k], &link_reach[..]);
-            self.block(
+            taken += self.block(
                 first + k,
                 &blocks[k],
                 distances,
@@ -349,8 +350,9 @@ impl Pass<'_> {
                 spans,
                 &mut last,
                 &mut counts,
-            );
+            ) as u64;
         }
+        work::add(Work::Culled, n as u64 - taken);
         counts
     }
 
@@ -359,7 +361,8 @@ impl Pass<'_> {
     /// interest, robot box, the links' root spheres), or taken ([`Pass::take`]). A block that
     /// repeats the point before it ends where that one ended, with no work (same distance,
     /// larger index: it cannot change a minimum). `last` is the last point measured in this
-    /// run of blocks and where it ended.
+    /// run of blocks and where it ended. Returns whether the block was taken (the others are
+    /// the work counters' culled blocks).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn block(
@@ -371,12 +374,11 @@ impl Pass<'_> {
         spans: &mut [(u32, u32)],
         last: &mut Option<([f32; 3], PointStage)>,
         counts: &mut StageCounts,
-    ) {
+    ) -> bool {
         counts.total += u64::from(block.valid + block.invalid);
         counts.invalid += u64::from(block.invalid);
         if block.valid == 0 {
-            work::add(Work::Culled, 1);
-            return;
+            return false;
         }
         let valid = u64::from(block.valid);
         // A block that repeats the point before it (its box is that point).
@@ -384,8 +386,7 @@ impl Pass<'_> {
         if let Some((q, stage)) = *last {
             if uniform && q == block.lo {
                 *counts = *counts + self.repeat(stage, valid);
-                work::add(Work::Culled, 1);
-                return;
+                return false;
             }
         }
         let whole = |stage: PointStage, last: &mut Option<([f32; 3], PointStage)>| {
@@ -401,8 +402,7 @@ impl Pass<'_> {
                     _ => counts.pruned += valid,
                 }
                 whole(stage, last);
-                work::add(Work::Culled, 1);
-                return;
+                return false;
             }
         };
         // Then every link's root sphere against the block's box (no square root either): most
@@ -411,10 +411,10 @@ impl Pass<'_> {
         if links == 0 && !partial_roi {
             counts.pruned += valid;
             whole(PointStage::Pruned, last);
-            work::add(Work::Culled, 1);
-            return;
+            return false;
         }
         *counts = *counts + self.take(b, block, near2, partial_roi, links, frontier, spans, last);
+        true
     }
 
     /// The counts of `valid` more copies of a point that ended at `stage` (the rest of a run of
