@@ -9,22 +9,26 @@
 //     the nearest path, one invocation per (seed, link): an upper bound in as many steps as the
 //     tree is deep (the blocks pass measures every point that could do better). No stage is
 //     counted.
-//   * `blocks`: one workgroup of BLOCK invocations per block of 32 points — a run of consecutive
-//     points, or a tile of 8 × 4 pixels of an organized cloud, as the CPU's `Tiling` cuts them.
-//     The block's box is reduced in workgroup memory (order-preserving f32 keys, atomicMin/Max),
-//     then tested, as the CPU tests it: against the region of interest (the robot's box in its
-//     root frame, `box_distances2`), and against every link's root sphere, once with the link's
-//     threshold (the links its obstacle points may matter to) and once with the self-filter's
-//     padding (the links that may take its points as the robot), one invocation per link. Most
-//     blocks end here whole. In the others each point is tested on its own (region of interest
-//     where the block straddles its edge; the self-filter, stopping at the first inner sphere
-//     within the padding); the block's remaining points go on as one kept block and one work
-//     item per (kept block, link within reach), appended to compact lists.
+//   * `cull`: one invocation per block of 32 points — a run of consecutive points, or a tile of
+//     8 × 4 pixels of an organized cloud, as the CPU's `Tiling` cuts them: the box of its valid
+//     points, tested as the CPU tests it, against the region of interest (the robot's box in its
+//     root frame, `box_distances2`) and every link's root sphere (the link's threshold, or the
+//     self-filter's padding where larger). Most blocks end here whole, counted; the others are
+//     appended to the boxed list. No barrier.
+//   * `blocks`: one workgroup per boxed block (persistent), one invocation per link then per
+//     point: the links within reach of the box (by the threshold: its obstacle points may matter
+//     to them; by the padding: they may take its points as the robot), each confirmed by a
+//     descent of the block's sphere that gives up, keeping the link, after CONFIRM_BUDGET nodes;
+//     then each point on its own (region of interest where the box straddles its edge; the
+//     self-filter on the CPU's grids, a descent only in a cell across the padding). The block's
+//     remaining points go on as one kept block and one work item per (kept block, link).
 //   * `plan`: one invocation writes the indirect dispatch sizes of the next passes.
-//   * `measure`: one workgroup per item (persistent: a workgroup takes item after item), one
-//     invocation per point of the block: the point's descent of the link's tree from the root,
+//   * `measure`: one workgroup per item (persistent): the item's frontier, the CPU's cut of the
+//     link's tree at the block's sphere (cpu/measure.rs), refined cooperatively in workgroup
+//     memory; then each point of the block descends from the frontier nodes within its bound,
 //     depth first, nearest child on top, pruned by the link's threshold read from the atomics
-//     at each item (so every item prunes with the best bound any has found); minima recorded.
+//     (so every item prunes with the best bound any has found). The item's minimum and its
+//     smallest point are recorded once.
 //   * `tally`: per kept block, its points measured (a distance found) and inside an inner
 //     sphere, as the stage counts.
 //   * `argmin` (only without 64-bit atomics, minima_u32.wgsl): with the minima final, each link's
@@ -33,11 +37,11 @@
 //
 // Shared with the CPU: the flat arrays (`IstNode`, `InnerSphere`), the posed links and the robot
 // box (layout.rs, uploaded as they are), the blocks and their tiling, the box tests' arithmetic
-// and widening, the pruning rule (a node is skipped when |q − c| − r exceeds the link's
-// threshold), the threshold and recording rules per mode, the seed sample, and the result
-// assembly and exact refinement, which the host runs on what comes back. Not (yet) done here: the
-// CPU's frontiers (tree cuts per block), sub-blocks and packets (a block's points descending one
-// shared stack); each point of a kept block descends its item's link from the root.
+// and widening, the self-filter's grids, the frontiers, the pruning rule (a node is skipped when
+// |q − c| − r exceeds the link's threshold), the threshold and recording rules per mode, the
+// seed sample, and the result assembly and exact refinement, which the host runs on what comes
+// back. Not done here: the CPU's sub-blocks and packets (a sub-block's points descending one
+// shared stack); each point of an item descends on its own.
 //
 // Work counters (blocks, blocks culled, items, descents, nodes expanded) go through workgroup
 // atomics, as the stage counts do, and are the CPU's (query::WorkCounts) for comparison.
@@ -317,18 +321,9 @@ fn count_work(counter: u32, n: u32) {
     }
 }
 
-// The nearest inner sphere of link `l` to `q` (link frame) within `bound`: depth first, nearest
-// child on top, nodes pruned by |q − c| − r > best.
-fn descend(l: u32, q: vec3<f32>, bound: f32) -> Hit {
-    let root = links[l].node_base;
-    let node = nodes[root];
-    count_work(WORK_DESCENTS, 1u);
-    stack_lb[0] = lower_bound(node.center, node.radius, q);
-    stack_node[0] = root;
-    return dfs(l, q, bound, select(1u, 0u, stack_lb[0] > bound));
-}
-
-// The depth-first search of `descend` from the `sp` nodes on the stack (the nearest on top).
+// The nearest inner sphere of link `l` to `q` (link frame) within `bound`, depth first from the
+// `start` nodes on the stack (the nearest on top): nearest child on top, nodes pruned by
+// |q − c| − r > best.
 fn dfs(l: u32, q: vec3<f32>, bound: f32, start: u32) -> Hit {
     let link = links[l];
     var best = bound;

@@ -76,7 +76,7 @@ fn placed(
         Ok(x)
     };
     let (shape_name, shape_t) = n("shape");
-    let shape = match v.string(&shape_name, &shape_t)?.as_str() {
+    let shape: Shape = match v.string(&shape_name, &shape_t)?.as_str() {
         "mesh" => {
             let (name, t) = n("mesh");
             let file = resolve(&v.string(&name, &t)?).map_err(|e| Values::bad(&name, e))?;
@@ -88,18 +88,15 @@ fn placed(
                 [x, y, z] if [x, y, z].iter().all(|s| *s > 0.0) => [x, y, z],
                 _ => return Err(Values::bad(&sc, "expected [x, y, z], each > 0")),
             };
-            return Ok((
-                Shape::Mesh { file, scale },
-                transform(v, entry, template)?
-                    .to_isometry()
-                    .expect("a checked, finite transform"),
-            ));
+            Shape::Mesh { file, scale }
         }
         "box" => {
             let (name, t) = n("size");
             let size = v.numbers(&name, &t)?;
             match size[..] {
-                [x, y, z] if size.iter().all(|s| *s > 0.0) => Primitive::Box { size: [x, y, z] },
+                [x, y, z] if size.iter().all(|s| *s > 0.0) => {
+                    Primitive::Box { size: [x, y, z] }.into()
+                }
                 _ => {
                     return Err(Values::bad(
                         &name,
@@ -110,11 +107,13 @@ fn placed(
         }
         "sphere" => Primitive::Sphere {
             radius: positive("radius")?,
-        },
+        }
+        .into(),
         "cylinder" => Primitive::Cylinder {
             radius: positive("radius")?,
             length: positive("length")?,
-        },
+        }
+        .into(),
         other => {
             return Err(Values::bad(
                 &shape_name,
@@ -125,7 +124,7 @@ fn placed(
     let pose = transform(v, entry, template)?
         .to_isometry()
         .expect("a checked, finite transform");
-    Ok((shape.into(), pose))
+    Ok((shape, pose))
 }
 
 /// The grid of a mesh volume, shared while one of the same file (unchanged on disk), scale and
@@ -140,12 +139,18 @@ fn mesh_grid(file: &Path, scale: [f64; 3], padding_m: f64) -> Result<Arc<MeshGri
         padding_m.to_bits(),
         modified,
     );
-    let grids = GRIDS.get_or_init(Default::default);
-    if let Some(g) = crate::node::lock(grids).get(&key).and_then(Weak::upgrade) {
+    // Poisoned by a panic in another build: the map of weak handles is still sound.
+    let grids = || {
+        GRIDS
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    };
+    if let Some(g) = grids().get(&key).and_then(Weak::upgrade) {
         return Ok(g);
     }
     let g = Arc::new(MeshGrid::build(file, scale, padding_m)?);
-    let mut grids = crate::node::lock(grids);
+    let mut grids = grids();
     grids.retain(|_, w| w.strong_count() > 0);
     grids.insert(key, Arc::downgrade(&g));
     Ok(g)

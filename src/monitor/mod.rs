@@ -27,11 +27,13 @@ mod fault;
 pub mod fusion;
 pub mod outputs;
 pub mod replay;
+mod setup;
 mod stray;
 
 pub use fault::{Fault, InputError};
 pub use fusion::Fusion;
 pub use outputs::{Level, LevelTracker, Outputs};
+pub use setup::MonitorError;
 
 use std::time::Instant;
 
@@ -40,13 +42,12 @@ use nalgebra::Isometry3;
 use crate::cloud::depth::{self, PinholeCamera};
 use crate::cloud::exclusion::{self, ExclusionVolume};
 use crate::cloud::{pointcloud2, CloudError, RangeLimits};
-use crate::config::{Config, RobotSource, SourceKind};
-use crate::ist::{self, cache::TreeCache, LinkTree};
+use crate::config::{Config, SourceKind};
 use crate::msg::{self, CameraInfo, Image, JointState, PointCloud2, TfMessage};
-use crate::query::{Backend, Engine, Outcome, QueryError, QueryResult};
+use crate::query::{Backend, Engine, Outcome, QueryResult};
 use crate::robot::RobotModel;
 use crate::separation::{self, SpeedScaler, SpeedScaling};
-use crate::tf::{self, JointError, JointStateBuffer, TfBuffer, TfError};
+use crate::tf::{self, JointStateBuffer, TfBuffer};
 
 /// One processed cloud.
 #[derive(Debug)]
@@ -85,205 +86,22 @@ pub struct Monitor {
     cameras: Vec<Option<Result<PinholeCamera, String>>>,
     /// The points of the last depth image (kept so that its allocation is reused).
     depth_points: Vec<[f32; 3]>,
-    /// The robot before the config's attached objects joined it (what a change of them is
-    /// built from); `None` when the model came with them attached.
-    base_model: Option<RobotModel>,
+    /// What a change of attached objects is built from ([`Monitor::robot_without_objects`]).
+    base: Base,
 }
 
-/// A monitor to be built with other attached objects ([`Monitor::rebuild`]).
-pub struct Rebuild {
-    model: RobotModel,
-}
-
-impl Rebuild {
-    /// The monitor of `config` (a run-time change of attached objects: the trees of the robot's
-    /// links come from the cache, an object's are built unless cached). It has received no
-    /// input yet: [`Monitor::take_inputs`] hands it those of the monitor it replaces.
-    pub fn build(self, config: Config) -> Result<Monitor, MonitorError> {
-        Monitor::with_model(config, self.model, &|_| {})
-    }
-}
-
-/// A monitor that cannot start: each names the parameter, file, link or frame at fault.
-#[derive(Debug, thiserror::Error)]
-pub enum MonitorError {
-    #[error(transparent)]
-    Config(#[from] crate::config::ConfigError),
-    #[error("loading robot {urdf}: {source}")]
-    Robot {
-        urdf: std::path::PathBuf,
-        source: crate::robot::RobotError,
-    },
-    #[error("parameter attached_objects: {0}: {1}")]
-    Attached(String, crate::robot::RobotError),
-    #[error("inner sphere trees: {0}")]
-    Trees(#[from] crate::ist::IstError),
-    #[error("query: {0}")]
-    Query(#[from] QueryError),
-    #[error("parameter static_transforms: {parent} → {child}: {source}")]
-    StaticTransform {
-        parent: String,
-        child: String,
-        source: TfError,
-    },
-    #[error("parameter fixed_joint_state.names: {0}")]
-    FixedJoint(JointError),
-    #[error(
-        "robot_description_topic {0}: only the live node reads the robot from a topic (set \
-         robot_description for replay and the command line)"
-    )]
-    FromTopic(String),
+/// The robot without the config's attached objects.
+enum Base {
+    /// `model` itself: the config attaches none.
+    Model,
+    /// A copy of the robot taken before they joined it.
+    Detached(RobotModel),
+    /// Not known: the monitor was made from a model with its objects attached
+    /// ([`Monitor::with_trees`]).
+    Unknown,
 }
 
 impl Monitor {
-    /// Loads the robot, builds (or loads from the cache) its trees and applies the config's
-    /// static transforms and fixed joints; `built` is called with each link's name as its tree
-    /// is ready. Errors here are start-up errors.
-    pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self, MonitorError> {
-        let model = match config.robot_source()? {
-            RobotSource::File(urdf) => {
-                RobotModel::load(&urdf, &config.package_paths, &config.selection)
-                    .map_err(|source| MonitorError::Robot { urdf, source })?
-            }
-            RobotSource::Text(xml) => Self::model_from_text(&config, &xml, "robot_description")?,
-            RobotSource::Topic(topic) => return Err(MonitorError::FromTopic(topic)),
-        };
-        Self::with_model(config, model, built)
-    }
-
-    /// The robot of URDF text that came from `from` (the parameter or the topic): relative
-    /// mesh paths from the current folder, `package://` as for a file.
-    pub fn model_from_text(
-        config: &Config,
-        xml: &str,
-        from: &str,
-    ) -> Result<RobotModel, MonitorError> {
-        let urdf = std::path::PathBuf::from(from);
-        RobotModel::from_text(
-            xml,
-            &urdf,
-            std::path::Path::new("."),
-            &config.package_paths,
-            &config.selection,
-        )
-        .map_err(|source| MonitorError::Robot { urdf, source })
-    }
-
-    /// As [`Monitor::new`], with the robot loaded.
-    pub fn with_model(
-        config: Config,
-        mut model: RobotModel,
-        built: &(dyn Fn(&str) + Sync),
-    ) -> Result<Self, MonitorError> {
-        let base = model.clone();
-        for object in &config.attached_objects {
-            model
-                .attach(object)
-                .map_err(|e| MonitorError::Attached(object.name.clone(), e))?;
-        }
-        // The selection is checked before any tree is built (a robot with too many links, or a
-        // misspelt link, is refused at once), and only the selected links are built.
-        config.selection.check(&model)?;
-        let cache = TreeCache::at(config.cache_dir.as_deref());
-        let selected = |name: &str| config.selection.selects(name);
-        let trees: Vec<LinkTree> =
-            ist::build_links(&model, &selected, &config.build, Some(&cache), built)?
-                .into_iter()
-                .map(|(t, _)| t)
-                .collect();
-        let mut monitor = Self::with_trees(config, model, &trees)?;
-        monitor.base_model = Some(base);
-        Ok(monitor)
-    }
-
-    /// What a monitor with other attached objects is built from (`Rebuild::build`, on a thread
-    /// of its own): the robot without its objects. `None` for a monitor made from a model with
-    /// its objects already attached ([`Monitor::with_trees`]).
-    pub fn rebuild(&self) -> Option<Rebuild> {
-        Some(Rebuild {
-            model: self.base_model.clone()?,
-        })
-    }
-
-    /// Takes over the inputs `old` received (transforms, joint states, camera models), up to
-    /// the moment it is replaced: a `/tf_static` that arrived while this monitor was built is
-    /// kept. Its levels start anew: every source is in fault until its next frame.
-    pub fn take_inputs(&mut self, old: &mut Monitor) {
-        std::mem::swap(&mut self.tf, &mut old.tf);
-        std::mem::swap(&mut self.joints, &mut old.joints);
-        if old.cameras.len() == self.cameras.len() {
-            std::mem::swap(&mut self.cameras, &mut old.cameras);
-        }
-    }
-
-    /// As [`Monitor::new`], with the model and trees given (the model with the config's
-    /// attached objects attached).
-    pub fn with_trees(
-        config: Config,
-        model: RobotModel,
-        trees: &[LinkTree],
-    ) -> Result<Self, MonitorError> {
-        for object in &config.attached_objects {
-            if model.kinematics.link_index(&object.name).is_none() {
-                return Err(MonitorError::Attached(
-                    object.name.clone(),
-                    crate::robot::RobotError::Topology {
-                        path: model.urdf_path.display().to_string(),
-                        message: "not attached to the model the trees were built for".into(),
-                    },
-                ));
-            }
-        }
-        config.query.validate()?;
-        let mut engine = Engine::new(&model, trees, &config.selection)?;
-        // The self-filter's grids now, not on the first cloud.
-        engine.prepare_self_filter(&config.query);
-        let (tf, joints) = Self::inputs(&config, &model)?;
-        let fusion = Fusion::new(&config);
-        let scaler = Self::scaler(&config);
-        let cameras = vec![None; config.sources.len()];
-        Ok(Self {
-            config,
-            model,
-            engine,
-            tf,
-            joints,
-            fusion,
-            scaler,
-            cameras,
-            depth_points: Vec::new(),
-            base_model: None,
-        })
-    }
-
-    /// Empty input buffers, holding only what the config states (static transforms, fixed
-    /// joints).
-    fn inputs(
-        config: &Config,
-        model: &RobotModel,
-    ) -> Result<(TfBuffer, JointStateBuffer), MonitorError> {
-        let mut tf = TfBuffer::new(10.0);
-        for t in &config.static_transforms {
-            tf.insert(t, true)
-                .map_err(|source| MonitorError::StaticTransform {
-                    parent: t.header.frame_id.clone(),
-                    child: t.child_frame_id.clone(),
-                    source,
-                })?;
-        }
-        let mut joints = JointStateBuffer::new(model.kinematics.variables());
-        joints
-            .set_fixed(&config.fixed_joint_state)
-            .map_err(MonitorError::FixedJoint)?;
-        Ok((tf, joints))
-    }
-
-    /// The speed scaler of the config's sources, each starting at 0.
-    fn scaler(config: &Config) -> SpeedScaler {
-        let enabled: Vec<bool> = config.sources.iter().map(|s| s.enabled).collect();
-        SpeedScaler::new(&config.ssm, &enabled)
-    }
-
     /// Loads the GPU driver now when the backend may use it (`gpu`, or `auto`) instead of on
     /// the first cloud that needs it: the live node does this before it goes on the network, so
     /// that no frame's latency carries the probe (about 0.1 s with a software Vulkan driver).

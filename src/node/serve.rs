@@ -5,7 +5,7 @@
 //! A change of thresholds, the stray filter, sources' enabled flags or exclusion volumes is
 //! applied at once (`Monitor::reconfigure`); a source enabled then is subscribed to then, one
 //! disabled is left. A change of attached objects changes the robot: the monitor is rebuilt on
-//! a thread of its own (`Monitor::rebuild`: the robot's trees from the cache, the objects'
+//! a thread of its own (`Monitor::robot_without_objects`, then `Monitor::with_model`: the robot's trees from the cache, the objects'
 //! built unless cached; transforms, joint states and camera models kept) while the node
 //! publishes "not monitoring" (ERROR, the safety stop, no distance); a change that arrives
 //! meanwhile restarts the build with it, and a build that fails leaves the node not
@@ -169,13 +169,7 @@ pub(super) fn serve(
                     rebuilt.take_inputs(monitor);
                     log::info!(
                         "the monitor is rebuilt with the attached objects [{}]: monitoring",
-                        rebuilt
-                            .config
-                            .attached_objects
-                            .iter()
-                            .map(|o| o.name.as_str())
-                            .collect::<Vec<_>>()
-                            .join(", ")
+                        object_names(&rebuilt.config)
                     );
                     *monitor = rebuilt;
                     pending = None;
@@ -360,6 +354,14 @@ fn subscribe_source(
     Ok(tasks)
 }
 
+/// The names of `config`'s attached objects, for the log.
+fn object_names(config: &Config) -> String {
+    let names: Vec<&str> = (config.attached_objects.iter())
+        .map(|o| o.name.as_str())
+        .collect();
+    names.join(", ")
+}
+
 /// A monitor being rebuilt with the attached objects of `config`, or the reason its build
 /// failed.
 enum Pending {
@@ -376,7 +378,7 @@ enum Pending {
 impl Pending {
     /// Starts building the monitor of `config` from `monitor`'s robot and inputs.
     fn start(monitor: &Monitor, config: Config) -> Result<Self> {
-        let Some(rebuild) = monitor.rebuild() else {
+        let Some(model) = monitor.robot_without_objects() else {
             return Ok(Self::failed(
                 &config,
                 "this monitor's robot came with its objects attached".into(),
@@ -385,19 +387,14 @@ impl Pending {
         log::info!(
             "attached objects set to [{}]: rebuilding the monitor; not monitoring until it is \
              ready",
-            config
-                .attached_objects
-                .iter()
-                .map(|o| o.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
+            object_names(&config)
         );
         let (tx, done) = std::sync::mpsc::channel();
         let build = config.clone();
         std::thread::Builder::new()
             .name("monitor rebuild".into())
             .spawn(move || {
-                let _ = tx.send(rebuild.build(build));
+                let _ = tx.send(Monitor::with_model(build, model, &|_| {}));
             })?;
         Ok(Self::Building { done, config })
     }

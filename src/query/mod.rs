@@ -78,6 +78,8 @@ mod result;
 mod self_grid;
 mod work;
 
+pub use work::WorkCounts;
+
 pub use descent::valid as is_valid_point;
 
 use nalgebra::Isometry3;
@@ -446,16 +448,7 @@ impl Engine {
 
     /// The work counts of the last query, on whichever backend it ran.
     pub fn last_work(&self) -> WorkCounts {
-        let w = |k: layout::Work| {
-            self.bounds.work[k as usize].load(std::sync::atomic::Ordering::Relaxed)
-        };
-        WorkCounts {
-            blocks: w(layout::Work::Blocks),
-            blocks_culled: w(layout::Work::Culled),
-            items: w(layout::Work::Items),
-            descents: w(layout::Work::Descents),
-            nodes: w(layout::Work::Nodes),
-        }
+        WorkCounts::from(&self.bounds.work)
     }
 
     pub fn links(&self) -> &[QueryLink] {
@@ -548,39 +541,29 @@ impl Engine {
         let robot_box = self
             .bounds
             .prepare(&self.links, root_from_sensor, link_poses, options);
-        if options.wants_gpu(points.len()) {
+        let gpu = options.wants_gpu(points.len());
+        if gpu {
             self.gpu();
-            let usable = match &self.gpu {
-                GpuSlot::Ready(gpu) => options.backend == Backend::Gpu || !gpu.is_software(),
-                _ => false,
-            };
-            if usable {
-                // The GPU's self-filter takes the CPU's grids.
-                self.prepare_self_filter(options);
-            }
-            if let (GpuSlot::Ready(gpu), true) = (&mut self.gpu, usable) {
-                let grids = match (&self.self_grids, options.self_filter_padding_m) {
-                    (Some((_, grids)), Some(_)) => grids.as_slice(),
-                    _ => &[],
-                };
-                {
-                    // A GPU that gives up leaves `bounds` as prepared (it writes them only on
-                    // success), so the CPU below starts from the same state.
-                    match gpu.query(&self.links, &mut self.bounds, &robot_box, input, grids) {
-                        Ok(Some(r)) => return r,
-                        Ok(None) => log::debug!(
-                            "GPU result incomplete (candidate list full, or an arg-min lost): CPU"
-                        ),
-                        Err(e) => log::warn!("GPU query failed ({e}): this query runs on the CPU"),
-                    }
-                }
-            }
         }
+        // Both backends' self-filter looks points up in the links' grids (built once a padding).
         self.prepare_self_filter(options);
         let grids = match (&self.self_grids, options.self_filter_padding_m) {
             (Some((_, grids)), Some(_)) => grids.as_slice(),
             _ => &[],
         };
+        if let (GpuSlot::Ready(g), true) = (&mut self.gpu, gpu) {
+            if options.backend == Backend::Gpu || !g.is_software() {
+                // A GPU that gives up leaves `bounds` as prepared (it writes them only on
+                // success), so the CPU below starts from the same state.
+                match g.query(&self.links, &mut self.bounds, &robot_box, input, grids) {
+                    Ok(Some(r)) => return r,
+                    Ok(None) => log::debug!(
+                        "GPU result incomplete (candidate list full, or an arg-min lost): CPU"
+                    ),
+                    Err(e) => log::warn!("GPU query failed ({e}): this query runs on the CPU"),
+                }
+            }
+        }
         cpu::run(&self.links, grids, &mut self.bounds, input, robot_box)
     }
 
@@ -674,23 +657,6 @@ pub enum Outcome {
     NoPoints,
     /// Valid points, but none within `max_distance_m` (after the self-filter).
     NothingWithinMaxDistance,
-}
-
-/// The work of the last query's traversal, counted alike on both backends so that the GPU's
-/// pruning can be compared with the CPU's on any machine ([`Engine::last_work`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
-pub struct WorkCounts {
-    /// Blocks of `layout::BLOCK` points.
-    pub blocks: u64,
-    /// Blocks dropped whole by their box: no valid point, outside the region of interest, or
-    /// beyond every link's reach.
-    pub blocks_culled: u64,
-    /// (Block, link) pairs whose points were measured against the link.
-    pub items: u64,
-    /// Tree descents begun (a point against a link's tree, self-filter ones included).
-    pub descents: u64,
-    /// Tree nodes expanded, per point (a packet's node counts once for each point in it).
-    pub nodes: u64,
 }
 
 /// How many points each stage dropped. `total = invalid + outside_roi + self_filtered + pruned

@@ -5,6 +5,9 @@
 //! and each rayon task hands its counts over when it ends ([`counted`]).
 
 use std::cell::Cell;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+
+use serde::Serialize;
 
 use super::layout::{Work, WORK_COUNTERS};
 
@@ -48,4 +51,35 @@ pub(super) fn counted<R>(f: impl FnOnce() -> R) -> (R, Tally) {
 /// The sum of two tallies.
 pub(super) fn sum(a: Tally, b: Tally) -> Tally {
     std::array::from_fn(|k| a[k] + b[k])
+}
+
+/// The work of the last query's traversal, counted alike on both backends so that the GPU's
+/// pruning can be compared with the CPU's on any machine (`Engine::last_work`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct WorkCounts {
+    /// Blocks of `layout::BLOCK` points.
+    pub blocks: u64,
+    /// Blocks dropped whole by their box: no valid point, outside the region of interest, or
+    /// beyond every link's reach.
+    pub blocks_culled: u64,
+    /// (Block, link) pairs whose points were measured against the link.
+    pub items: u64,
+    /// Tree descents begun (a point against a link's tree, self-filter ones included).
+    pub descents: u64,
+    /// Tree nodes expanded, per point (a packet's node counts once for each point in it).
+    pub nodes: u64,
+}
+
+impl From<&[AtomicU64; WORK_COUNTERS]> for WorkCounts {
+    /// The counters as `Bounds::work` keeps them, one per [`Work`].
+    fn from(c: &[AtomicU64; WORK_COUNTERS]) -> Self {
+        let w = |k: Work| c[k as usize].load(Relaxed);
+        Self {
+            blocks: w(Work::Blocks),
+            blocks_culled: w(Work::Culled),
+            items: w(Work::Items),
+            descents: w(Work::Descents),
+            nodes: w(Work::Nodes),
+        }
+    }
 }

@@ -21,7 +21,7 @@ pub(super) use crate::query::layout::SUB;
 /// bounding sphere is about a third as large), so that blocks are culled, and their frontiers
 /// cut, more tightly.
 #[derive(Clone, Copy)]
-pub(super) struct Tiling {
+pub(in crate::query) struct Tiling {
     points: usize,
     /// Width and height of an organized cloud.
     image: Option<(usize, usize)>,
@@ -33,14 +33,19 @@ pub(super) const TILE_ROWS: usize = BLOCK / SUB;
 impl Tiling {
     /// Tiles for a `width`-wide image of `points` points (runs when the width does not divide
     /// the point count, or the cloud is one row).
-    pub(super) fn new(points: usize, width: Option<usize>) -> Self {
+    pub(in crate::query) fn new(points: usize, width: Option<usize>) -> Self {
         let image = width
             .filter(|&w| w > 0 && w < points && points.is_multiple_of(w))
             .map(|w| (w, points / w));
         Self { points, image }
     }
 
-    pub(super) fn blocks(&self) -> usize {
+    /// An organized cloud's width and height (blocks are tiles); `None`: runs.
+    pub(in crate::query) fn image(&self) -> Option<(usize, usize)> {
+        self.image
+    }
+
+    pub(in crate::query) fn blocks(&self) -> usize {
         match self.image {
             None => self.points.div_ceil(BLOCK),
             Some((w, h)) => w.div_ceil(SUB) * h.div_ceil(TILE_ROWS),

@@ -39,7 +39,7 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 use wide::{f32x8, CmpGe, CmpLe};
 
-mod blocks;
+pub(super) mod blocks;
 mod measure;
 mod seed;
 

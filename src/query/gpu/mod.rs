@@ -10,10 +10,10 @@
 //!   and grown with the cloud.
 //! - **Per query**: the links are posed by the code the CPU uses (`Bounds::prepare`: f64,
 //!   rounded once); the posed links, one `layout::QueryParams` uniform and the points are
-//!   written (the points straight into the staging memory, in parallel). One submission runs
-//!   the passes the shader's header describes — seed, blocks, plan, measure, tally (and arg-min
-//!   without 64-bit atomics) — with no readback between them; the measure and tally passes are
-//!   dispatched indirectly, sized by the block pass. A few words come back: `layout::Counters`,
+//!   written (the points into the staging memory, in parallel). One submission runs the
+//!   passes the shader's header describes (`passes::steps`: seeds, cull, blocks, plan, measure,
+//!   tally, and arg-min without 64-bit atomics) with no readback between them; the measure and
+//!   tally passes are dispatched indirectly, sized by the blocks pass. A few words come back: `layout::Counters`,
 //!   the minima and the exact-mode candidates (`layout::Candidate`), read by spinning on the
 //!   map for a short while before the thread parks.
 //! - **Then** the shared `result::finish` refines the exact candidates and assembles the result,
@@ -36,13 +36,14 @@ use std::sync::Arc;
 use bytemuck::Zeroable;
 
 use super::bounds::{pack_minimum, threshold, Bounds, EMPTY};
+use super::cpu::blocks::Tiling;
 use super::layout::{
     BoxedBlock, Candidate, Counters, GridHeader, KeptBlock, Minima, QueryParams, RobotBox, Stage,
-    Work, BLOCK, GPU_CANDIDATES, GPU_STACK, SEED_STRIDE, SUB, WORKGROUP, WORK_COUNTERS,
+    GPU_CANDIDATES, GPU_STACK, SEED_STRIDE,
 };
 use super::self_grid::SelfGrid;
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
-use passes::{encode, Size, Step, STAMP_BYTES};
+use passes::{encode, steps, STAMP_BYTES};
 use setup::storage;
 use transfer::MAPPED;
 
@@ -152,28 +153,6 @@ pub struct GpuEngine {
     last_winners: Vec<u32>,
     /// The self-filter's grids (headers, packed cells) and the padding they were built for.
     grids: (wgpu::Buffer, wgpu::Buffer, Option<f32>),
-}
-
-/// The blocks of a cloud of `n` points, as `cpu::blocks::Tiling` cuts them: (width, height,
-/// blocks); width 0 for runs of consecutive points.
-fn tiling(n: usize, width: Option<usize>) -> (u32, u32, usize) {
-    match width.filter(|&w| w > 0 && w < n && n.is_multiple_of(w)) {
-        Some(w) => {
-            let h = n / w;
-            (
-                w as u32,
-                h as u32,
-                w.div_ceil(SUB) * h.div_ceil(BLOCK / SUB),
-            )
-        }
-        None => (0, 0, n.div_ceil(BLOCK)),
-    }
-}
-
-/// Workgroups of a dispatch over `n` units of work, each workgroup looping over the rest
-/// (the passes stride by the number of workgroups).
-fn groups(n: usize) -> u32 {
-    n.min(65_535) as u32
 }
 
 impl GpuEngine {
@@ -327,7 +306,10 @@ impl GpuEngine {
         let n = points.len();
         let l = links.len();
         let started = std::time::Instant::now();
-        let (width, height, n_blocks) = tiling(n, width);
+        // The CPU's blocks: runs, or tiles of an organized cloud (width 0: runs).
+        let tiling = Tiling::new(n, width);
+        let n_blocks = tiling.blocks();
+        let (width, height) = tiling.image().unwrap_or((0, 0));
         self.ensure(n, n_blocks, n_blocks * l)?;
         if let Some(padding) = options.self_filter_padding_m {
             self.use_grids(padding, grids)?;
@@ -357,8 +339,8 @@ impl GpuEngine {
             n_winners: winners.len() as u32,
             capacity: GPU_CANDIDATES,
             per_link_range: options.per_link_range_m,
-            width,
-            height,
+            width: width as u32,
+            height: height as u32,
             n_blocks: n_blocks as u32,
             item_capacity: sized.items_capacity.min(u32::MAX as usize) as u32,
             ..QueryParams::zeroed()
@@ -395,37 +377,7 @@ impl GpuEngine {
         // CPU), not as wgpu's default panic.
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let p = &self.pipelines;
-        let mut steps = Vec::new();
-        if n > 0 {
-            let samples = n_sample.div_ceil(WORKGROUP);
-            steps.push(Step::direct("seed_scan", &p.seed_scan, samples));
-            if let Some(pick) = &p.seed_pick {
-                steps.push(Step::direct("seed_pick", pick, samples));
-            }
-            let pairs = (l as u32 + params.n_winners) * l as u32;
-            steps.push(Step::direct("seed", &p.seed, pairs.div_ceil(WORKGROUP)));
-            let cull = n_blocks.div_ceil(WORKGROUP as usize);
-            steps.push(Step::direct("cull", &p.cull, groups(cull)));
-            // The kept blocks are a few percent: as many workgroups as could be resident at
-            // once on a large GPU, each taking block after block.
-            steps.push(Step::direct(
-                "blocks",
-                &p.blocks,
-                groups(n_blocks.min(4096)),
-            ));
-        }
-        steps.push(Step {
-            name: "plan",
-            pipeline: &p.plan,
-            size: Size::Groups(1),
-            writes_dispatch: true,
-        });
-        steps.push(Step::indirect("measure", &p.measure, 0));
-        steps.push(Step::indirect("tally", &p.tally, 12));
-        if let Some(argmin) = &p.argmin {
-            steps.push(Step::indirect("argmin", argmin, 0));
-        }
+        let steps = steps(&self.pipelines, n, n_blocks, l, params.n_winners);
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
@@ -510,11 +462,6 @@ impl GpuEngine {
             (state, minima, candidates)
         };
         self.readback.unmap();
-        let work = |w: Work| u64::from(state.work[w as usize]);
-        for (k, a) in bounds.work.iter().enumerate() {
-            a.store(u64::from(state.work[k]), Ordering::Relaxed);
-        }
-        debug_assert_eq!(bounds.work.len(), WORK_COUNTERS);
         if state.candidate_count > GPU_CANDIDATES {
             return Ok(None);
         }
@@ -529,42 +476,10 @@ impl GpuEngine {
         // Each link's minimum, packed as the CPU packs it.
         let packed: Vec<u64> = match self.minima {
             Minima::Packed64 => minima,
-            Minima::Split32 => {
-                let words: Vec<u32> = bytemuck::cast_slice(&minima).to_vec();
-                let (global, global_lower) = (
-                    f32::from_bits(state.global),
-                    f32::from_bits(state.global_lower),
-                );
-                let mut packed = Vec::with_capacity(l);
-                for k in 0..l {
-                    let (d, p) = (words[k], words[l + k]);
-                    if d == f32::INFINITY.to_bits() {
-                        packed.push(EMPTY);
-                    } else if p != u32::MAX {
-                        packed.push(pack_minimum(f32::from_bits(d), p));
-                    } else {
-                        // No point attains the minimum bit for bit: a seed's upper bound that
-                        // no exact descent went below, which is only so for a link farther
-                        // than its final threshold (reported as farther than it, as the CPU
-                        // reports a link it never measured). Within its threshold, the two
-                        // descents rounded differently: the CPU answers.
-                        let t = threshold(
-                            options.mode,
-                            options.per_link,
-                            options.per_link_range_m,
-                            global,
-                            global_lower,
-                            f32::from_bits(d),
-                            bounds.posed[k].gap,
-                        );
-                        if f32::from_bits(d) <= t {
-                            return Ok(None);
-                        }
-                        packed.push(EMPTY);
-                    }
-                }
-                packed
-            }
+            Minima::Split32 => match split_minima(&minima, &state, bounds, options) {
+                Some(packed) => packed,
+                None => return Ok(None),
+            },
         };
         // Into the CPU's layout, and on through the CPU's refinement and assembly.
         for ((best, &v), winner) in bounds.best.iter().zip(&packed).zip(&mut self.last_winners) {
@@ -579,6 +494,9 @@ impl GpuEngine {
         for (n, &s) in bounds.self_filtered.iter().zip(&state.self_filtered) {
             n.store(u64::from(s), Ordering::Relaxed);
         }
+        for (n, &w) in bounds.work.iter().zip(&state.work) {
+            n.store(u64::from(w), Ordering::Relaxed);
+        }
         let c = |stage: Stage| u64::from(state.counts[stage as usize]);
         let counts = StageCounts {
             total: n as u64,
@@ -590,14 +508,6 @@ impl GpuEngine {
             inside: c(Stage::Inside),
             exact_refined: 0,
         };
-        log::trace!(
-            "GPU: {} blocks, {} culled, {} items, {} descents, {} nodes",
-            work(Work::Blocks),
-            work(Work::Culled),
-            work(Work::Items),
-            work(Work::Descents),
-            work(Work::Nodes)
-        );
         let result = result::finish(links, bounds, input, counts, Backend::Gpu);
         self.last_host_s = [
             (written - started).as_secs_f64(),
@@ -606,4 +516,50 @@ impl GpuEngine {
         ];
         Ok(Some(result))
     }
+}
+
+/// The portable path's minima (`[0, l)` f32 bits, `[l, 2 l)` their points, read back as `l`
+/// words of 8 bytes) packed as the CPU packs them; `None` when a minimum within its link's
+/// final threshold has no point (the CPU answers).
+fn split_minima(
+    minima: &[u64],
+    state: &Counters,
+    bounds: &Bounds,
+    options: &super::QueryOptions,
+) -> Option<Vec<u64>> {
+    let l = minima.len();
+    let words: &[u32] = bytemuck::cast_slice(minima);
+    let (global, global_lower) = (
+        f32::from_bits(state.global),
+        f32::from_bits(state.global_lower),
+    );
+    let mut packed = Vec::with_capacity(l);
+    for k in 0..l {
+        let (d, p) = (words[k], words[l + k]);
+        if d == f32::INFINITY.to_bits() {
+            packed.push(EMPTY);
+        } else if p != u32::MAX {
+            packed.push(pack_minimum(f32::from_bits(d), p));
+        } else {
+            // No point attains the minimum bit for bit: a seed's upper bound that
+            // no exact descent went below, which is only so for a link farther
+            // than its final threshold (reported as farther than it, as the CPU
+            // reports a link it never measured). Within its threshold, the two
+            // descents rounded differently: the CPU answers.
+            let t = threshold(
+                options.mode,
+                options.per_link,
+                options.per_link_range_m,
+                global,
+                global_lower,
+                f32::from_bits(d),
+                bounds.posed[k].gap,
+            );
+            if f32::from_bits(d) <= t {
+                return None;
+            }
+            packed.push(EMPTY);
+        }
+    }
+    Some(packed)
 }

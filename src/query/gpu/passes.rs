@@ -3,6 +3,9 @@
 //! indirect arguments after it), with a timestamp at each end; or, to profile, each dispatch in a
 //! pass of its own with its own timestamps (`bench gpu --passes`).
 
+use super::Pipelines;
+use crate::query::layout::{SEED_STRIDE, WORKGROUP};
+
 /// Most dispatches in one query.
 pub(super) const MAX_STEPS: usize = 10;
 /// Room for the timestamps in the readback.
@@ -112,4 +115,52 @@ pub(super) fn encode(
         }
     }
     end
+}
+
+/// Workgroups of a dispatch over `n` units of work, each workgroup looping over the rest
+/// (the passes stride by the number of workgroups).
+fn groups(n: usize) -> u32 {
+    n.min(65_535) as u32
+}
+
+/// The dispatches of a query of `n` points in `n_blocks` blocks, `l` links and `n_winners` seeds
+/// from the last query, in order (the shader's header says what each does).
+pub(super) fn steps(
+    p: &Pipelines,
+    n: usize,
+    n_blocks: usize,
+    l: usize,
+    n_winners: u32,
+) -> Vec<Step<'_>> {
+    let mut steps = Vec::new();
+    if n > 0 {
+        let samples = (n as u32).div_ceil(SEED_STRIDE).div_ceil(WORKGROUP);
+        steps.push(Step::direct("seed_scan", &p.seed_scan, samples));
+        if let Some(pick) = &p.seed_pick {
+            steps.push(Step::direct("seed_pick", pick, samples));
+        }
+        let pairs = (l as u32 + n_winners) * l as u32;
+        steps.push(Step::direct("seed", &p.seed, pairs.div_ceil(WORKGROUP)));
+        let cull = n_blocks.div_ceil(WORKGROUP as usize);
+        steps.push(Step::direct("cull", &p.cull, groups(cull)));
+        // The kept blocks are a few percent: as many workgroups as could be resident at
+        // once on a large GPU, each taking block after block.
+        steps.push(Step::direct(
+            "blocks",
+            &p.blocks,
+            groups(n_blocks.min(4096)),
+        ));
+    }
+    steps.push(Step {
+        name: "plan",
+        pipeline: &p.plan,
+        size: Size::Groups(1),
+        writes_dispatch: true,
+    });
+    steps.push(Step::indirect("measure", &p.measure, 0));
+    steps.push(Step::indirect("tally", &p.tally, 12));
+    if let Some(argmin) = &p.argmin {
+        steps.push(Step::indirect("argmin", argmin, 0));
+    }
+    steps
 }

@@ -1,0 +1,203 @@
+//! Starting a monitor: the robot (from a file, URDF text, or a model given), the config's
+//! attached objects joined to it, its inner sphere trees built or loaded from the cache, the
+//! query engine, and input buffers holding only what the config states (static transforms,
+//! fixed joints). Every error here is a start-up error naming the parameter, file, link or
+//! frame at fault. A change of attached objects at run time starts a monitor the same way, from
+//! the robot without them, and hands it the inputs received so far (`Monitor::take_inputs`).
+
+use super::{Base, Fusion, Monitor};
+use crate::config::{Config, RobotSource};
+use crate::ist::{self, cache::TreeCache, LinkTree};
+use crate::query::{Engine, QueryError};
+use crate::robot::RobotModel;
+use crate::separation::SpeedScaler;
+use crate::tf::{JointError, JointStateBuffer, TfBuffer, TfError};
+
+/// A monitor that cannot start: each names the parameter, file, link or frame at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum MonitorError {
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    #[error("loading robot {urdf}: {source}")]
+    Robot {
+        urdf: std::path::PathBuf,
+        source: crate::robot::RobotError,
+    },
+    #[error("parameter attached_objects: {0}: {1}")]
+    Attached(String, crate::robot::RobotError),
+    #[error("inner sphere trees: {0}")]
+    Trees(#[from] crate::ist::IstError),
+    #[error("query: {0}")]
+    Query(#[from] QueryError),
+    #[error("parameter static_transforms: {parent} → {child}: {source}")]
+    StaticTransform {
+        parent: String,
+        child: String,
+        source: TfError,
+    },
+    #[error("parameter fixed_joint_state.names: {0}")]
+    FixedJoint(JointError),
+    #[error(
+        "robot_description_topic {0}: only the live node reads the robot from a topic (set \
+         robot_description for replay and the command line)"
+    )]
+    FromTopic(String),
+}
+
+impl Monitor {
+    /// Loads the robot, builds (or loads from the cache) its trees and applies the config's
+    /// static transforms and fixed joints; `built` is called with each link's name as its tree
+    /// is ready. Errors here are start-up errors.
+    pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self, MonitorError> {
+        let model = match config.robot_source()? {
+            RobotSource::File(urdf) => {
+                RobotModel::load(&urdf, &config.package_paths, &config.selection)
+                    .map_err(|source| MonitorError::Robot { urdf, source })?
+            }
+            RobotSource::Text(xml) => Self::model_from_text(&config, &xml, "robot_description")?,
+            RobotSource::Topic(topic) => return Err(MonitorError::FromTopic(topic)),
+        };
+        Self::with_model(config, model, built)
+    }
+
+    /// The robot of URDF text that came from `from` (the parameter or the topic): relative
+    /// mesh paths from the current folder, `package://` as for a file.
+    pub fn model_from_text(
+        config: &Config,
+        xml: &str,
+        from: &str,
+    ) -> Result<RobotModel, MonitorError> {
+        let urdf = std::path::PathBuf::from(from);
+        RobotModel::from_text(
+            xml,
+            &urdf,
+            std::path::Path::new("."),
+            &config.package_paths,
+            &config.selection,
+        )
+        .map_err(|source| MonitorError::Robot { urdf, source })
+    }
+
+    /// As [`Monitor::new`], with the robot loaded.
+    pub fn with_model(
+        config: Config,
+        mut model: RobotModel,
+        built: &(dyn Fn(&str) + Sync),
+    ) -> Result<Self, MonitorError> {
+        // The robot as it is, for a change of attached objects: a copy only where some join it.
+        let base = if config.attached_objects.is_empty() {
+            Base::Model
+        } else {
+            Base::Detached(model.clone())
+        };
+        for object in &config.attached_objects {
+            model
+                .attach(object)
+                .map_err(|e| MonitorError::Attached(object.name.clone(), e))?;
+        }
+        // The selection is checked before any tree is built (a robot with too many links, or a
+        // misspelt link, is refused at once), and only the selected links are built.
+        config.selection.check(&model)?;
+        let cache = TreeCache::at(config.cache_dir.as_deref());
+        let selected = |name: &str| config.selection.selects(name);
+        let trees: Vec<LinkTree> =
+            ist::build_links(&model, &selected, &config.build, Some(&cache), built)?
+                .into_iter()
+                .map(|(t, _)| t)
+                .collect();
+        let mut monitor = Self::with_trees(config, model, &trees)?;
+        monitor.base = base;
+        Ok(monitor)
+    }
+
+    /// The robot without its attached objects: what the monitor of a change of them is built
+    /// from ([`Monitor::with_model`], on a thread of its own; the trees of the robot's links come
+    /// from the cache). `None` for a monitor made from a model with its objects already attached
+    /// ([`Monitor::with_trees`]).
+    pub fn robot_without_objects(&self) -> Option<RobotModel> {
+        match &self.base {
+            Base::Model => Some(self.model.clone()),
+            Base::Detached(model) => Some(model.clone()),
+            Base::Unknown => None,
+        }
+    }
+
+    /// Takes over the inputs `old` received (transforms, joint states, camera models), up to
+    /// the moment it is replaced: a `/tf_static` that arrived while this monitor was built is
+    /// kept. Its levels start anew: every source is in fault until its next frame.
+    pub fn take_inputs(&mut self, old: &mut Monitor) {
+        std::mem::swap(&mut self.tf, &mut old.tf);
+        std::mem::swap(&mut self.joints, &mut old.joints);
+        if old.cameras.len() == self.cameras.len() {
+            std::mem::swap(&mut self.cameras, &mut old.cameras);
+        }
+    }
+
+    /// As [`Monitor::new`], with the model and trees given (the model with the config's
+    /// attached objects attached).
+    pub fn with_trees(
+        config: Config,
+        model: RobotModel,
+        trees: &[LinkTree],
+    ) -> Result<Self, MonitorError> {
+        for object in &config.attached_objects {
+            if model.kinematics.link_index(&object.name).is_none() {
+                return Err(MonitorError::Attached(
+                    object.name.clone(),
+                    crate::robot::RobotError::Topology {
+                        path: model.urdf_path.display().to_string(),
+                        message: "not attached to the model the trees were built for".into(),
+                    },
+                ));
+            }
+        }
+        config.query.validate()?;
+        let mut engine = Engine::new(&model, trees, &config.selection)?;
+        // The self-filter's grids now, not on the first cloud.
+        engine.prepare_self_filter(&config.query);
+        let (tf, joints) = Self::inputs(&config, &model)?;
+        let fusion = Fusion::new(&config);
+        let scaler = Self::scaler(&config);
+        let cameras = vec![None; config.sources.len()];
+        Ok(Self {
+            config,
+            model,
+            engine,
+            tf,
+            joints,
+            fusion,
+            scaler,
+            cameras,
+            depth_points: Vec::new(),
+            base: Base::Unknown,
+        })
+    }
+
+    /// Empty input buffers, holding only what the config states (static transforms, fixed
+    /// joints).
+    pub(super) fn inputs(
+        config: &Config,
+        model: &RobotModel,
+    ) -> Result<(TfBuffer, JointStateBuffer), MonitorError> {
+        let mut tf = TfBuffer::new(10.0);
+        for t in &config.static_transforms {
+            tf.insert(t, true)
+                .map_err(|source| MonitorError::StaticTransform {
+                    parent: t.header.frame_id.clone(),
+                    child: t.child_frame_id.clone(),
+                    source,
+                })?;
+        }
+        let mut joints = JointStateBuffer::new(model.kinematics.variables());
+        joints
+            .set_fixed(&config.fixed_joint_state)
+            .map_err(MonitorError::FixedJoint)?;
+        Ok((tf, joints))
+    }
+
+    /// The speed scaler of the config's sources, each starting at 0.
+    pub(super) fn scaler(config: &Config) -> SpeedScaler {
+        let enabled: Vec<bool> = config.sources.iter().map(|s| s.enabled).collect();
+        SpeedScaler::new(&config.ssm, &enabled)
+    }
+}
