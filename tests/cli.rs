@@ -291,3 +291,44 @@ fn config_files_and_their_documentation() {
     }
     assert!(files >= 2);
 }
+
+/// The ROS package: `package.xml` names the package, its licence (Cargo.toml's) and colcon's
+/// `ament_cargo` build type; what Cargo.toml installs to share/ exists; the launch file
+/// declares the arguments docs/launch.md names and defaults to a shipped parameters file.
+#[test]
+fn the_ros_package_is_declared() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let xml = std::fs::read_to_string(root.join("package.xml")).unwrap();
+    let doc = roxmltree::Document::parse(&xml).unwrap();
+    let text = |tag: &str| {
+        doc.descendants()
+            .find(|n| n.has_tag_name(tag))
+            .and_then(|n| n.text())
+            .unwrap_or_default()
+            .to_owned()
+    };
+    assert_eq!(doc.root_element().attribute("format"), Some("3"));
+    assert_eq!(text("name"), env!("CARGO_PKG_NAME"));
+    assert_eq!(text("version"), env!("CARGO_PKG_VERSION"));
+    assert_eq!(text("license"), env!("CARGO_PKG_LICENSE"));
+    assert_eq!(text("build_type"), "ament_cargo");
+    let cargo = std::fs::read_to_string(root.join("Cargo.toml")).unwrap();
+    let share = cargo
+        .lines()
+        .find_map(|l| l.strip_prefix("install_to_share = "))
+        .expect("[package.metadata.ros] install_to_share");
+    for dir in share.trim_matches(['[', ']']).split(',') {
+        let dir = dir.trim().trim_matches('"');
+        assert!(root.join(dir).is_dir(), "install_to_share: {dir}");
+    }
+    let launch = std::fs::read_to_string(root.join("launch/ist_monitor.launch.py")).unwrap();
+    for arg in ["params_file", "namespace", "use_sim_time", "log_level"] {
+        assert!(
+            launch.contains(&format!("DeclareLaunchArgument(\"{arg}\"")),
+            "{arg}"
+        );
+    }
+    assert!(launch.contains("\"config\", \"ur5e.yaml\""));
+    assert!(root.join("config/ur5e.yaml").exists());
+    assert!(root.join("LICENSE").exists());
+}

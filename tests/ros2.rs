@@ -135,3 +135,90 @@ fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
         .unwrap()
         .contains(&serde_json::json!("patch.size")));
 }
+
+/// The node started as a launch file starts it, with simulated time: launch_ros's argument list
+/// for `Node(package='ist_monitor', executable='ist_monitor', name='cell_monitor',
+/// namespace='cell1', parameters=[package_file, {...}], remappings=[(cloud, realsense)],
+/// ros_arguments=['--log-level', 'warn'])` — no subcommand, the package's file (`/**`) and the
+/// dict launch_ros writes to a temporary file (the node's full name as key, lists tagged as
+/// Python tuples), the cloud source remapped. rclpy then drives `/clock`: nothing on it yet is
+/// ERROR naming it; clouds stamped with simulated time 1000 s (stale by the wall clock) are
+/// answered OK, and the outputs carry simulated stamps; `/clock` silent is ERROR again; a
+/// clock restarted 500 s back (a bag played again) is taken after the node forgets what it had.
+#[test]
+fn rclpy_runs_the_node_as_launch_does_on_simulated_time() {
+    if !common::in_private_network("rclpy_runs_the_node_as_launch_does_on_simulated_time") {
+        return;
+    }
+    let Some(python) = common::rclpy_python() else {
+        return;
+    };
+    // The demo arm's trees in the cache (the parameters below pack as the demo's do).
+    common::demo_trees();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let package_file = dir.path().join("cell.yaml");
+    std::fs::write(
+        &package_file,
+        format!(
+            "/**:\n  ros__parameters:\n    robot_description: {}\n    backend: cpu\n    \
+             max_spheres: 8192\n    fixed_joint_state:\n      names: [shoulder_pan, \
+             shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]\n    \
+             stop_distance: 0.1\n    camera:\n      min_range: 0.1\n",
+            root.join("urdf/demo_arm.urdf").display()
+        ),
+    )
+    .unwrap();
+    let launch_file = dir.path().join("launch_params_x1");
+    std::fs::write(
+        &launch_file,
+        "/cell1/cell_monitor:\n  ros__parameters:\n    use_sim_time: true\n    clock_timeout: \
+         0.5\n    stop_distance: 0.12\n    fixed_joint_state.positions: !!python/tuple\n    \
+         - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n",
+    )
+    .unwrap();
+    let node = ist_monitor()
+        .args(["--ros-args", "--log-level", "warn", "--ros-args"])
+        .args(["-r", "__node:=cell_monitor", "-r", "__ns:=/cell1"])
+        .arg("--params-file")
+        .arg(&package_file)
+        .arg("--params-file")
+        .arg(&launch_file)
+        .args(["-r", "/camera/depth/points:=/realsense/depth/points"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _reap = common::Reap(vec![node.id()]);
+    let script = root.join("tests/python/rclpy_interop.py");
+    let out = common::json_output(Command::new(python).arg(script).args([
+        "sim",
+        "/cell1/cell_monitor",
+        "/realsense/depth/points",
+    ]));
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let log = node.wait_with_output().unwrap();
+    let log = String::from_utf8_lossy(&log.stderr);
+    assert!(
+        log.is_empty() || !log.contains("INFO"),
+        "--log-level warn: {log}"
+    );
+    // The launch dict's value wins over the package file's; the rest is the file's.
+    assert_eq!(
+        out["get"],
+        serde_json::json!([0.12, true, "cpu", 0.3]),
+        "{out}"
+    );
+    assert_eq!(out["waits_for_clock"], true, "{out}");
+    assert_eq!(out["ok_on_sim_time"], true, "{out}\n{log}");
+    let stamp = out["stamp_s"].as_f64().unwrap();
+    assert!((1000.0..1100.0).contains(&stamp), "{out}");
+    assert_eq!(out["silent_clock"], true, "{out}");
+    assert_eq!(out["ok_after_jump"], true, "{out}\n{log}");
+    let stamp = out["stamp_after_jump_s"].as_f64().unwrap();
+    assert!((500.0..600.0).contains(&stamp), "{out}");
+    assert!(log.contains("/clock went back"), "{log}");
+}

@@ -3,6 +3,14 @@
 //! profile, in zstd or lz4 chunks. A path ending in `.mcap` is written as that one file; any
 //! other path becomes a rosbag2 folder with `<name>_0.mcap` and a `metadata.yaml` (version 8, as
 //! `ros2 bag` and rosbags write it), so `ros2 bag info`, rosbags and Foxglove all open it.
+//!
+//! Each topic carries what `ros2 bag play` needs to republish it as it was offered: its
+//! `offered_qos_profiles` (in the channel's metadata and in `metadata.yaml`, rosbag2's version-8
+//! form: a YAML list with the rmw enums as integers) and its REP-2016 `type_description_hash`
+//! (the channel's `topic_type_hash`). Topics are offered reliable and volatile; `/tf_static`
+//! and the topics marked with [`BagWriter::latch`] (the node's `~/speed_scaling`) transient
+//! local with the last message kept, so that rosbag2 republishes them transient local and a
+//! late tf2 listener or controller still gets them.
 
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -25,6 +33,23 @@ struct Topic {
     channel: u16,
     ty: String,
     count: u64,
+    qos: String,
+    hash: String,
+}
+
+/// rmw's "infinite" duration as rosbag2 writes it.
+const INFINITE: &str = "    sec: 9223372036\n    nsec: 854775807\n";
+
+/// One offered QoS profile in rosbag2's version-8 form (`rmw` enums as integers: history 1
+/// keep last, reliability 1 reliable, durability 1 transient local or 2 volatile, liveliness 1
+/// automatic; durations infinite).
+pub fn offered_qos_yaml(transient_local: bool) -> String {
+    let (durability, depth) = if transient_local { (1, 1) } else { (2, 10) };
+    format!(
+        "- history: 1\n  depth: {depth}\n  reliability: 1\n  durability: {durability}\n  \
+         deadline:\n{INFINITE}  lifespan:\n{INFINITE}  liveliness: 1\n  \
+         liveliness_lease_duration:\n{INFINITE}  avoid_ros_namespace_conventions: false\n"
+    )
 }
 
 pub struct BagWriter {
@@ -35,9 +60,16 @@ pub struct BagWriter {
     topics: BTreeMap<String, Topic>,
     first_ns: u64,
     last_ns: u64,
+    /// Topics offered transient local besides `/tf_static`.
+    latched: Vec<String>,
 }
 
 impl BagWriter {
+    /// Offers `topic` transient local (call before its first message).
+    pub fn latch(&mut self, topic: &str) {
+        self.latched.push(topic.to_owned());
+    }
+
     /// Creates `path`: a `.mcap` file, or a rosbag2 folder (which must not exist yet).
     pub fn create(path: &Path, compression: Compression) -> Result<Self, BagError> {
         let io = |path: &Path| {
@@ -74,6 +106,7 @@ impl BagWriter {
             topics: BTreeMap::new(),
             first_ns: u64::MAX,
             last_ns: 0,
+            latched: Vec::new(),
         })
     }
 
@@ -117,7 +150,13 @@ impl BagWriter {
                 .writer
                 .add_schema(ty, "ros2msg", definition.as_bytes())
                 .map_err(|e| self.mcap_error(e))?;
-            let metadata = BTreeMap::from([("offered_qos_profiles".to_owned(), String::new())]);
+            let latched = topic == "/tf_static" || self.latched.iter().any(|t| t == topic);
+            let qos = offered_qos_yaml(latched);
+            let hash = msg::type_hash(ty).unwrap_or_default();
+            let metadata = BTreeMap::from([
+                ("offered_qos_profiles".to_owned(), qos.clone()),
+                ("topic_type_hash".to_owned(), hash.clone()),
+            ]);
             let channel = self
                 .writer
                 .add_channel(schema, topic, "cdr", &metadata)
@@ -128,6 +167,8 @@ impl BagWriter {
                     channel,
                     ty: ty.to_owned(),
                     count: 0,
+                    qos,
+                    hash,
                 },
             );
         }
@@ -171,9 +212,11 @@ impl BagWriter {
         let duration = self.last_ns.saturating_sub(start);
         let mut topics = String::new();
         for (name, t) in &self.topics {
+            // The profiles as one double-quoted YAML string (JSON's escapes are YAML's).
+            let qos = serde_json::to_string(&t.qos).unwrap_or_default();
             topics.push_str(&format!(
-                "  - message_count: {}\n    topic_metadata:\n      name: {name}\n      offered_qos_profiles: ''\n      serialization_format: cdr\n      type: {}\n      type_description_hash: ''\n",
-                t.count, t.ty
+                "  - message_count: {}\n    topic_metadata:\n      name: {name}\n      offered_qos_profiles: {qos}\n      serialization_format: cdr\n      type: {}\n      type_description_hash: {}\n",
+                t.count, t.ty, t.hash
             ));
         }
         let yaml = format!(
@@ -181,5 +224,61 @@ impl BagWriter {
         );
         let path = folder.join("metadata.yaml");
         std::fs::write(&path, yaml).map_err(|source| BagError::Io { path, source })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::{Bool, TfMessage};
+
+    #[test]
+    fn topics_carry_offered_qos_and_type_hash() {
+        let dir = tempfile::tempdir().unwrap();
+        let bag = dir.path().join("out");
+        let mut w = BagWriter::create(&bag, Compression::None).unwrap();
+        w.latch("/ist_monitor/speed_scaling");
+        w.write("/tf_static", 1, &TfMessage::default()).unwrap();
+        w.write("/tf", 2, &TfMessage::default()).unwrap();
+        w.write("/ist_monitor/speed_scaling", 3, &Bool::default())
+            .unwrap();
+        w.finish().unwrap();
+        // metadata.yaml: each topic's profiles as one YAML string, its hash as ROS 2's.
+        let meta = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
+        let doc = &yaml_rust2::YamlLoader::load_from_str(&meta).unwrap()[0];
+        let topics = doc["rosbag2_bagfile_information"]["topics_with_message_count"]
+            .as_vec()
+            .unwrap();
+        assert_eq!(topics.len(), 3);
+        for t in topics {
+            let m = &t["topic_metadata"];
+            let name = m["name"].as_str().unwrap();
+            let qos = m["offered_qos_profiles"].as_str().unwrap();
+            let profiles = yaml_rust2::YamlLoader::load_from_str(qos).unwrap();
+            let p = &profiles[0][0];
+            let latched = name != "/tf";
+            assert_eq!(p["durability"].as_i64(), Some(if latched { 1 } else { 2 }));
+            assert_eq!(p["reliability"].as_i64(), Some(1));
+            assert_eq!(p["deadline"]["sec"].as_i64(), Some(9223372036));
+            let ty = m["type"].as_str().unwrap();
+            assert_eq!(
+                m["type_description_hash"].as_str(),
+                msg::type_hash(ty).as_deref()
+            );
+            assert!(m["type_description_hash"]
+                .as_str()
+                .unwrap()
+                .starts_with("RIHS01_"));
+        }
+        // The MCAP channels carry the same, under rosbag2_storage_mcap's keys.
+        let data = std::fs::read(bag.join("out_0.mcap")).unwrap();
+        let summary = mcap::Summary::read(&data).unwrap().unwrap();
+        for c in summary.channels.values() {
+            assert_eq!(
+                c.metadata["offered_qos_profiles"],
+                offered_qos_yaml(c.topic != "/tf")
+            );
+            assert!(c.metadata["topic_type_hash"].starts_with("RIHS01_"));
+        }
     }
 }

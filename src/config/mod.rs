@@ -24,11 +24,13 @@ use crate::query::{Backend, LinkSelection, Mode, QueryOptions};
 use crate::robot::{urdf::resolve_uri, AttachedObject, PackagePath};
 use crate::separation::{SsmParams, StoppingTable};
 
+mod files;
 mod params;
 mod runtime;
 mod shapes;
 mod values;
 
+pub use files::{key_matches, ParameterSources};
 pub use params::{default_of, markdown_table, ParamDecl, ParamKind, PARAMETERS};
 pub use runtime::Parameter;
 use values::{flatten, scalar_yaml, Values};
@@ -127,6 +129,10 @@ pub struct Config {
     pub tf_tolerance_s: f64,
     pub joint_state_tolerance_s: f64,
     pub future_stamp_tolerance_s: f64,
+    /// The clock is `/clock`'s (`use_sim_time`); a silence of `clock_timeout_s` (wall) is a
+    /// fault.
+    pub use_sim_time: bool,
+    pub clock_timeout_s: f64,
     pub warn_distance_m: f64,
     pub stop_distance_m: f64,
     pub hysteresis_m: f64,
@@ -203,12 +209,7 @@ impl Config {
             .iter()
             .find(|(_, v)| !v["ros__parameters"].is_badvalue())
             .ok_or_else(no_params)?;
-        let key = key.as_str().unwrap_or("ist_monitor");
-        let (namespace, node_name) = match key.trim_start_matches('/').rsplit_once('/') {
-            _ if key == "/**" => ("/".to_owned(), "ist_monitor".to_owned()),
-            Some((ns, name)) => (format!("/{ns}"), name.to_owned()),
-            None => ("/".to_owned(), key.trim_start_matches('/').to_owned()),
-        };
+        let (namespace, node_name) = files::key_name(key.as_str().unwrap_or("ist_monitor"));
         let mut values = BTreeMap::new();
         flatten("", &section["ros__parameters"], &mut values);
         for (name, value) in overrides {
@@ -510,6 +511,16 @@ impl Config {
                 .distance("joint_state_tolerance", "joint_state_tolerance")?,
             future_stamp_tolerance_s: v
                 .distance("future_stamp_tolerance", "future_stamp_tolerance")?,
+            use_sim_time: v.bool("use_sim_time", "use_sim_time")?,
+            clock_timeout_s: match v.distance("clock_timeout", "clock_timeout")? {
+                t if t > 0.0 => t,
+                t => {
+                    return Err(Values::bad(
+                        "clock_timeout",
+                        format!("must be > 0, got {t}"),
+                    ))
+                }
+            },
             warn_distance_m,
             stop_distance_m,
             hysteresis_m,

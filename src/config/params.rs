@@ -71,6 +71,8 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
     p("joint_state_tolerance", "0.1", "s", "a joint state may be this much older or newer than the cloud"),
     p("future_stamp_tolerance", "0.1", "s", "a cloud stamped more than this ahead of the clock is a fault (clock skew between machines)"),
+    p("use_sim_time", "false", "", "take the clock from /clock (rosgraph_msgs/Clock: a simulator, `ros2 bag play --clock`) for the stamp checks, the timeouts, the SSM ages and the output stamps; /clock silent for clock_timeout is a fault, and a jump back in time forgets the transforms, joint states and results received"),
+    p("clock_timeout", "1.0", "s", "use_sim_time: /clock silent this long (wall time) is a fault: ERROR, no distance, until it ticks again"),
     rt("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),
     rt("stop_distance", "0.1", "m", "diagnostics ERROR (and safety stop) below this distance"),
     rt("hysteresis", "0.02", "m", "a level is left only this far beyond its threshold"),

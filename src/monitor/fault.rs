@@ -1,7 +1,7 @@
 //! The fault model: why a frame has no distance ([`Fault`], each with a short kind that the
 //! diagnostics and the counts name), and the errors of the inputs that are not frames
 //! ([`InputError`]: the message is dropped, the stream goes on). A fault is reported with its
-//! reason at ERROR and never as a distance (README, "The fault model").
+//! reason at ERROR and never as a distance (docs/safety.md, "The fault model").
 
 use crate::cloud::CloudError;
 use crate::msg::MsgError;
@@ -46,6 +46,10 @@ pub enum Fault {
     /// An exclusion volume whose frame has no transform at the cloud's stamp.
     #[error("exclusion volume {volume}: {source}")]
     ExclusionFrame { volume: String, source: TfError },
+    /// The node's clock cannot be trusted: with `use_sim_time`, `/clock` silent or not heard
+    /// yet (stamps cannot be checked against it).
+    #[error("clock: {0}")]
+    Clock(String),
     #[error("source {source_name}: {what} for {silent_s:.2} s (source_timeout {timeout_s} s)")]
     SourceTimeout {
         source_name: String,
@@ -72,6 +76,7 @@ impl Fault {
             Fault::FutureCloud { .. } => "future_cloud",
             Fault::NoValidPoints { .. } => "no_valid_points",
             Fault::SourceTimeout { .. } => "stale_source",
+            Fault::Clock(_) => "clock",
             Fault::ExclusionFrame { .. } => "exclusion_tf",
         }
     }

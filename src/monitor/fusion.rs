@@ -99,6 +99,12 @@ impl Fusion {
         }
     }
 
+    /// Forgets every source's result (each is then in fault until its next frame); the levels
+    /// held are kept.
+    pub fn forget_results(&mut self) {
+        self.latest.iter_mut().for_each(|l| *l = None);
+    }
+
     /// Whether the fused level is ERROR now (the safety stop is raised).
     pub fn stop_raised(&self) -> bool {
         self.fused.level() == Level::Error

@@ -323,10 +323,16 @@ impl Monitor {
         }
     }
 
-    /// The outputs of a source silent for `silent_s` (never heard from: `never`): a fault.
-    pub fn on_source_timeout(&mut self, source: usize, silent_s: f64, never: bool) -> Frame {
+    /// The outputs of a source silent for `silent_s` (never heard from: `never`) at `now_ns` by
+    /// the node's clock: a fault.
+    pub fn on_source_timeout(
+        &mut self,
+        source: usize,
+        silent_s: f64,
+        never: bool,
+        now_ns: i64,
+    ) -> Frame {
         let s = &self.config.sources[source];
-        let now = msg::Time::now_nanos();
         let fault = Fault::SourceTimeout {
             source_name: s.name.clone(),
             what: if never {
@@ -337,7 +343,25 @@ impl Monitor {
             silent_s,
             timeout_s: s.source_timeout_s,
         };
-        self.finish_frame(source, Instant::now(), now, Some(now), |_| Err(fault))
+        self.on_source_fault(source, fault, now_ns)
+    }
+
+    /// The outputs of a fault of source `source` that is not a frame of its own (a silent
+    /// source, an unusable clock) at `now_ns` by the node's clock.
+    pub fn on_source_fault(&mut self, source: usize, fault: Fault, now_ns: i64) -> Frame {
+        self.finish_frame(source, Instant::now(), now_ns, Some(now_ns), |_| Err(fault))
+    }
+
+    /// The clock went back (a bag played again, a simulation reset): everything received is
+    /// from another time line. Forgets the dynamic transforms, the joint states, the sources'
+    /// results (each source is in fault until its next frame) and the speed scaler's history.
+    /// Levels held stay held, so nothing is released by the jump; static transforms and camera
+    /// models, which hold for all time, are kept.
+    pub fn on_clock_jump(&mut self) {
+        self.tf.forget_dynamic();
+        self.joints.forget();
+        self.fusion.forget_results();
+        self.scaler = Self::scaler(&self.config);
     }
 
     /// Processes one decoded cloud of source `source`; `start` is when it was received and

@@ -195,6 +195,15 @@ impl OutputTopic {
         self == OutputTopic::SpeedScaling
     }
 
+    /// The topics of the node at `node_path` that keep their last message (transient local).
+    pub fn latched(node_path: &str) -> Vec<String> {
+        [OutputTopic::SpeedScaling]
+            .into_iter()
+            .filter(|t| t.transient_local())
+            .map(|t| t.topic(node_path))
+            .collect()
+    }
+
     /// Whether the node publishes the topic on every heartbeat (with `ssm` the separation
     /// monitor on): all but `~/min_distance`, which carries only a known distance. These are
     /// the topics that can offer a QoS deadline.

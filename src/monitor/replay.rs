@@ -210,10 +210,13 @@ pub fn replay(
     let truth = truth_of(GROUND_TRUTH_TOPIC);
     let truth_approach = truth_of(APPROACH_TRUTH_TOPIC);
     let truth_margin = truth_of(MARGIN_TRUTH_TOPIC);
+    let node_path = monitor.config.node_path();
     let mut writer = out
         .map(|(path, compression)| BagWriter::create(path, compression))
         .transpose()?;
-    let node_path = monitor.config.node_path();
+    for t in OutputTopic::latched(&node_path) {
+        writer.iter_mut().for_each(|w| w.latch(&t));
+    }
     let mut summary = Summary::default();
     let mut times = Vec::new();
     for m in &messages {

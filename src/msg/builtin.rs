@@ -1,4 +1,4 @@
-//! `builtin_interfaces` and `std_msgs`.
+//! `builtin_interfaces`, `std_msgs` and `rosgraph_msgs/Clock`.
 
 use serde::{Deserialize, Serialize};
 
@@ -66,6 +66,18 @@ pub struct Float64 {
     pub data: f64,
 }
 ros_message!(Float64, "std_msgs/msg/Float64", "float64 data\n");
+
+/// `rosgraph_msgs/msg/Clock`: the simulated time on `/clock` (a simulator, `ros2 bag play
+/// --clock`), which nodes with `use_sim_time` take as their clock.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Clock {
+    pub clock: Time,
+}
+ros_message!(
+    Clock,
+    "rosgraph_msgs/msg/Clock",
+    "builtin_interfaces/Time clock\n"
+);
 
 /// `std_msgs/msg/String` (`/robot_description`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

@@ -118,6 +118,7 @@ const OWN_DEFINITIONS: &[(&str, &str)] = &[
     (Header::TYPE, Header::OWN_DEFINITION),
     (Float64::TYPE, Float64::OWN_DEFINITION),
     (StringMessage::TYPE, StringMessage::OWN_DEFINITION),
+    (Clock::TYPE, Clock::OWN_DEFINITION),
     (Bool::TYPE, Bool::OWN_DEFINITION),
     (ColorRgba::TYPE, ColorRgba::OWN_DEFINITION),
     (Vector3::TYPE, Vector3::OWN_DEFINITION),
@@ -265,7 +266,8 @@ owned_as_is!(
     SpeedScalingFactor,
     CameraInfo,
     StringMessage,
-    Range
+    Range,
+    Clock
 );
 
 /// `data` copied out of the sample.

@@ -198,6 +198,10 @@ mod tests {
             "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
         ),
         (
+            "rosgraph_msgs/msg/Clock",
+            "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
+        ),
+        (
             "std_msgs/msg/Bool",
             "RIHS01_feb91e995ff9ebd09c0cb3d2aed18b11077585839fb5db80193b62d74528f6c9",
         ),

@@ -7,8 +7,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
+use super::clock::NodeClock;
 use super::{lock, QosProfile, Result, RosNode};
-use crate::msg::{Image, OwnedMessage, PointCloud2, Time};
+use crate::msg::{Image, OwnedMessage, PointCloud2};
 
 /// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer
 /// numbers its own samples, so two publishers on one topic are followed separately.
@@ -53,9 +54,10 @@ impl SourceMessage {
 /// The newest unprocessed cloud (or depth image) of a source.
 #[derive(Default)]
 pub(super) struct Slot {
-    /// The message, when it was received, and the clock then (ns since the epoch).
+    /// The message, when it was received, and the node's clock then (ns since the epoch).
     pub(super) cloud: Option<(SourceMessage, Instant, i64)>,
-    pub(super) last_received: Option<Instant>,
+    /// When the last one was received, by the node's monotonic clock (`NodeClock`).
+    pub(super) last_received: Option<i64>,
 }
 
 /// Subscribes to source `k`'s messages of type `T`: each replaces the slot's unprocessed one
@@ -77,15 +79,12 @@ pub(super) fn source_task<T: OwnedMessage>(
                 let lost = gaps.lost(info.publisher_gid(), info.sequence_number());
                 shared.dropped.fetch_add(lost, Ordering::Relaxed);
                 let now = Instant::now();
+                let clock_ns = shared.clock.now_ns();
                 let mut slot = lock(&shared.slots[k]);
-                if slot
-                    .cloud
-                    .replace((wrap(m), now, Time::now_nanos()))
-                    .is_some()
-                {
+                if slot.cloud.replace((wrap(m), now, clock_ns)).is_some() {
                     shared.dropped.fetch_add(1, Ordering::Relaxed);
                 }
-                slot.last_received = Some(now);
+                slot.last_received = Some(shared.clock.monotonic_ns());
                 drop(slot);
                 *lock(&shared.wake_lock) = true;
                 shared.wake.notify_one();
@@ -125,6 +124,7 @@ pub(super) fn forward<T: OwnedMessage, U: Send + 'static>(
 
 pub(super) struct Shared {
     pub(super) slots: Vec<Mutex<Slot>>,
+    pub(super) clock: Arc<NodeClock>,
     pub(super) wake: Condvar,
     pub(super) wake_lock: Mutex<bool>,
     pub(super) dropped: AtomicU64,

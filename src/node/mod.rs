@@ -25,6 +25,7 @@
 //! is applied before its next frame (a source enabled then is subscribed to then). `transport` and
 //! `rmw_zenoh`: DDS or zenoh underneath.
 
+mod clock;
 mod inputs;
 pub mod parameters;
 pub mod play;
@@ -35,10 +36,11 @@ mod ros_args;
 mod serve;
 pub mod transport;
 
+pub use clock::NodeClock;
 use parameters::{Parameters, Safety};
 pub use publishers::PANIC_AFTER_ENV;
 use publishers::{last_word, panic_text, Publishers};
-pub use ros_args::{expand_topic, parse_ros_args, remap_topic, RosArgs};
+pub use ros_args::{expand_topic, parse_ros_args, remap_topic, resolve_topic, RosArgs};
 
 pub use transport::{Pub, RosNode, Transport};
 
@@ -51,7 +53,7 @@ use ros2_client::{MessageTypeName, Name, NodeName};
 
 use crate::config::{Config, RobotSource};
 use crate::monitor::{Monitor, Outputs};
-use crate::msg::{RosMessage, StringMessage, Time};
+use crate::msg::{Clock, RosMessage, StringMessage};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -76,6 +78,11 @@ pub const TF_STATIC_QOS: QosProfile = QosProfile::subscription_default()
 pub const ROBOT_DESCRIPTION_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_reliable(WhenFull::DEFAULT)
     .durability(Durability::TransientLocal)
+    .history(History::KeepLast { depth: 1 });
+/// QoS of `/clock`, as rclcpp's TimeSource subscribes (`ClockQoS`: best effort, the last one):
+/// a reliable publisher (rosbag2, Gazebo) is matched too.
+pub const CLOCK_QOS: QosProfile = QosProfile::subscription_default()
+    .reliability_best_effort()
     .history(History::KeepLast { depth: 1 });
 /// QoS of `/tf` and outputs: reliable, a short history.
 pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
@@ -159,6 +166,12 @@ pub fn context(domain: u16) -> Result<Context> {
         .map_err(|e| NodeError::Participant(format!("{e:?}")))
 }
 
+/// The topic the node subscribes to for the input topic `name` (a topic parameter, `/tf`,
+/// `/clock`): expanded in the node's namespace and remapped by `-r FROM:=TO`.
+pub fn input_topic(config: &Config, name: &str) -> String {
+    resolve_topic(name, &config.remaps, &config.node_path())
+}
+
 /// A ROS 2 name from a fully qualified topic name.
 pub fn topic_name(full: &str) -> Result<Name> {
     Name::parse(full).map_err(|e| entity("topic", full, e))
@@ -219,13 +232,13 @@ fn mib(bytes: usize) -> String {
 
 /// What the granted socket buffer means for a source's messages of `bytes`: a message larger
 /// than the buffer arrives as one burst the kernel cannot hold, so whole messages are lost
-/// (measured: 9.8 MB clouds with 4 MiB granted, 12–13 % lost at 30 Hz; README, 'Host setup').
+/// (measured: 9.8 MB clouds with 4 MiB granted, 12–13 % lost at 30 Hz; docs/host-setup.md).
 fn warn_burst(source: &str, what: &str, bytes: usize) {
     if let Some(granted) = granted_receive_buffer(SOCKET_BUFFER).filter(|&g| bytes > g) {
         log::warn!(
             "source {source}: each {what} is {}, more than the {} socket receive buffer the \
              kernel grants (net.core.rmem_max): expect lost {what}s and reassembly memory; \
-             raise rmem_max to at least {} (README, 'Host setup'), or publish depth images \
+             raise rmem_max to at least {} (docs/host-setup.md), or publish depth images \
              (type: depth_image)",
             mib(bytes),
             mib(granted),
@@ -241,7 +254,7 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
         .sources
         .iter()
         .filter(|s| s.enabled)
-        .map(|s| format!("{} on {}", s.name, s.topic))
+        .map(|s| format!("{} on {}", s.name, input_topic(config, &s.topic)))
         .collect();
     // The socket buffers are DDS's: zenoh's samples travel over TCP.
     let dds = node.transport() == Transport::Dds;
@@ -269,7 +282,7 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
         log::warn!(
             "the kernel grants {} of socket receive buffer (net.core.rmem_max): a cloud larger \
              than that arriving in one burst loses datagrams and is dropped whole; raise it once \
-             with `sudo sysctl -w net.core.rmem_max={SOCKET_BUFFER}` (README, 'Host setup')",
+             with `sudo sysctl -w net.core.rmem_max={SOCKET_BUFFER}` (docs/host-setup.md)",
             mib(g)
         );
     }
@@ -277,7 +290,7 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
 
 /// Makes the monitor on its own thread (the robot from its file or text, or from
 /// `robot_description_topic` once it arrives; the trees built or loaded), publishing "not
-/// monitoring" (ERROR with the reason, the safety stop, no distance) every half second
+/// monitoring" (ERROR with the reason, the safety stop, no distance) every `heartbeat_period`
 /// meanwhile; `None` when `stop` is set first.
 fn wait_for_monitor(
     config: &Config,
@@ -285,6 +298,7 @@ fn wait_for_monitor(
     node: &mut RosNode,
     executor: &smol::Executor<'static>,
     outputs: &Publishers,
+    clock: &NodeClock,
 ) -> Result<(Option<Monitor>, Option<smol::Task<()>>)> {
     let reason = Arc::new(Mutex::new(String::new()));
     let say = {
@@ -296,6 +310,7 @@ fn wait_for_monitor(
     let (urdf_tx, urdf_rx) = std::sync::mpsc::channel::<String>();
     let task = match &source {
         RobotSource::Topic(topic) => {
+            let topic = &input_topic(config, topic);
             say(format!("waiting for the robot description on {topic}"));
             let name = topic.clone();
             Some(node.subscribe::<StringMessage>(
@@ -357,8 +372,9 @@ fn wait_for_monitor(
             return Ok((None, task));
         }
         let r = lock(&reason).clone();
-        outputs.publish_outputs(Outputs::not_monitoring(config, &r, Time::now_nanos()));
-        match rx.recv_timeout(Duration::from_millis(500)) {
+        outputs.publish_outputs(Outputs::not_monitoring(config, &r, clock.now_ns()));
+        // Every heartbeat, as when serving: the offered deadline holds during the build too.
+        match rx.recv_timeout(Duration::from_secs_f64(config.heartbeat_period_s)) {
             Ok(monitor) => return Ok((Some(monitor?), task)),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
@@ -399,6 +415,29 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         events,
     ));
     let param_tasks = parameters::serve(&mut node, &executor, &params)?;
+    // The clock, `/clock`'s with use_sim_time: subscribed from the start, so that the stamps of
+    // the "not monitoring" reports during the build are simulated time too.
+    let clock = Arc::new(if config.use_sim_time {
+        NodeClock::simulated()
+    } else {
+        NodeClock::system()
+    });
+    let clock_task = if config.use_sim_time {
+        let ticks = clock.clone();
+        let topic = input_topic(&config, "/clock");
+        log::info!("use_sim_time: the clock is {topic}'s");
+        Some(
+            node.subscribe::<Clock>(&topic, CLOCK_QOS, false, &executor, move |item| {
+                match item {
+                    Ok((m, _)) => ticks.tick(m.clock),
+                    Err(e) => log::warn!("/clock: {e}"),
+                }
+                true
+            })?,
+        )
+    } else {
+        None
+    };
     let ex = executor.clone();
     // The executor outlives the node: dropping the node tells its spinner to stop.
     let stop_ex = Arc::new(AtomicBool::new(false));
@@ -413,7 +452,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             }))
         })?;
     let shutdown = move |tasks: Vec<smol::Task<()>>, outputs: Publishers, node: RosNode| {
-        for task in tasks.into_iter().chain(param_tasks) {
+        for task in tasks.into_iter().chain(param_tasks).chain(clock_task) {
             smol::block_on(task.cancel());
         }
         drop(params);
@@ -424,7 +463,8 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         let _ = spin_thread.join();
         drop(ctx);
     };
-    let mut monitor = match wait_for_monitor(&config, &stop, &mut node, &executor, &outputs) {
+    let mut monitor = match wait_for_monitor(&config, &stop, &mut node, &executor, &outputs, &clock)
+    {
         Ok((Some(m), task)) => {
             if let Some(t) = task {
                 smol::block_on(t.cancel());
@@ -432,12 +472,17 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             m
         }
         Ok((None, task)) => {
-            last_word(&outputs, &config, "shutting down");
+            last_word(&outputs, &config, "shutting down", &clock);
             shutdown(task.into_iter().collect(), outputs, node);
             return Ok(());
         }
         Err(e) => {
-            last_word(&outputs, &config, &format!("stopped by an error: {e}"));
+            last_word(
+                &outputs,
+                &config,
+                &format!("stopped by an error: {e}"),
+                &clock,
+            );
             shutdown(Vec::new(), outputs, node);
             return Err(e);
         }
@@ -462,6 +507,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             serve::Runtime {
                 apply: apply_rx,
                 safety,
+                clock: clock.clone(),
             },
         )
     }));
@@ -470,7 +516,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         Ok(Err(e)) => format!("stopped by an error: {e}"),
         Err(panic) => format!("stopped by a panic: {}", panic_text(panic.as_ref())),
     };
-    last_word(&outputs, &config, &reason);
+    last_word(&outputs, &config, &reason, &clock);
     shutdown(tasks, outputs, node);
     match served {
         Ok(r) => r,

@@ -5,12 +5,13 @@
 use std::any::Any;
 use std::time::Duration;
 
+use super::clock::NodeClock;
 use super::{remap_topic, Pub, QosProfile, Result, RosNode};
 use super::{Durability, History, NodeError};
 use crate::config::Config;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::Outputs;
-use crate::msg::{OwnedMessage, Time};
+use crate::msg::OwnedMessage;
 
 /// The node's publishers, one per row of the output table (`OutputTopic`), each a
 /// [`Pub<T>`] of that row's message type.
@@ -128,10 +129,10 @@ pub(super) fn panic_text(panic: &(dyn Any + Send)) -> String {
 /// and an ERROR status "not monitoring: REASON", published twice 0.1 s apart on the reliable
 /// outputs so that it is delivered before the participant closes (a controller keeps the last
 /// factor it received: it must be 0).
-pub(super) fn last_word(outputs: &Publishers, config: &Config, reason: &str) {
+pub(super) fn last_word(outputs: &Publishers, config: &Config, reason: &str, clock: &NodeClock) {
     log::info!("not monitoring: {reason}: safety_stop and a speed-scaling factor of 0 published");
     for _ in 0..2 {
-        outputs.publish_outputs(Outputs::not_monitoring(config, reason, Time::now_nanos()));
+        outputs.publish_outputs(Outputs::not_monitoring(config, reason, clock.now_ns()));
         std::thread::sleep(Duration::from_millis(100));
     }
 }

@@ -66,10 +66,11 @@ pub fn record(
     static EXECUTOR: std::sync::OnceLock<smol::Executor<'static>> = std::sync::OnceLock::new();
     let executor = EXECUTOR.get_or_init(smol::Executor::new);
     let mut node = RosNode::tool(transport, "ist_monitor_record", executor)?;
-    let sink: Sink = Arc::new(Mutex::new((
-        Some(BagWriter::create(out, Compression::Zstd)?),
-        0,
-    )));
+    let mut writer = BagWriter::create(out, Compression::Zstd)?;
+    for t in OutputTopic::latched(node_path.trim_end_matches('/')) {
+        writer.latch(&t);
+    }
+    let sink: Sink = Arc::new(Mutex::new((Some(writer), 0)));
     visit_output_topics(&mut Subscribe {
         node: &mut node,
         executor,

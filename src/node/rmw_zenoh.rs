@@ -536,7 +536,7 @@ fn check_router(session: &zenoh::Session) -> Result<usize, NodeError> {
             log::warn!(
                 "no zenoh router connected: other nodes are found only through a router at \
                  {ZENOH_ROUTER} (rmw_zenohd, or `ist_monitor zenoh-router`) or the endpoints \
-                 the session config names (README, 'The live node')"
+                 the session config names (docs/node.md)"
             );
             return Ok(0);
         }

@@ -19,12 +19,12 @@ use super::inputs::{forward, source_task, Shared, Slot, SourceMessage};
 use super::parameters::Safety;
 use super::publishers::Publishers;
 use super::{
-    lock, log_up, mib, warn_burst, History, QosProfile, Result, RosNode, Transport,
+    input_topic, lock, log_up, mib, warn_burst, History, QosProfile, Result, RosNode, Transport,
     PANIC_AFTER_ENV, RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS,
 };
 use crate::config::{Config, SourceConfig, SourceKind};
 use crate::monitor::{Monitor, Outputs};
-use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage, Time};
+use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
 
 /// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
 /// through the monitor, the fused outputs published, silent sources reported, and the fused
@@ -47,6 +47,7 @@ pub(super) fn serve(
             .iter()
             .map(|_| Mutex::new(Slot::default()))
             .collect(),
+        clock: runtime.clock.clone(),
         wake: Condvar::new(),
         wake_lock: Mutex::new(false),
         dropped: AtomicU64::new(0),
@@ -61,7 +62,7 @@ pub(super) fn serve(
     // time), dropped when it is disabled.
     let subscribe =
         |node: &mut RosNode, k: usize, s: &SourceConfig| -> Result<Vec<smol::Task<()>>> {
-            subscribe_source(node, executor, k, s, &shared, &info_tx)
+            subscribe_source(node, executor, k, s, config, &shared, &info_tx)
         };
     let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
     for (k, s) in config.sources.iter().enumerate() {
@@ -72,6 +73,7 @@ pub(super) fn serve(
         });
     }
     for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
+        let topic = input_topic(config, name);
         let qos = if is_static {
             TF_STATIC_QOS
         } else {
@@ -79,7 +81,7 @@ pub(super) fn serve(
         };
         tasks.push(forward(
             node,
-            name,
+            &topic,
             qos,
             executor,
             name,
@@ -93,7 +95,7 @@ pub(super) fn serve(
         .history(History::KeepLast { depth: 100 });
     tasks.push(forward(
         node,
-        &config.joint_states_topic,
+        &input_topic(config, &config.joint_states_topic),
         joint_qos,
         executor,
         "joint states",
@@ -105,9 +107,11 @@ pub(super) fn serve(
     let n = config.sources.len();
     let mut heard = vec![false; n];
     let mut silent_logged = vec![false; n];
+    let clock = runtime.clock.clone();
     let started = Instant::now();
-    // Since when each source is enabled: its silence counts from then.
-    let mut enabled_at = vec![started; n];
+    // Since when each source is enabled (the node's monotonic clock): its silence counts from
+    // then.
+    let mut enabled_at = vec![clock.monotonic_ns(); n];
     let heartbeat = Duration::from_secs_f64(config.heartbeat_period_s);
     let mut last_published = started;
     let mut published_frames = 0u64;
@@ -120,8 +124,10 @@ pub(super) fn serve(
             shared.input_errors.load(Ordering::Relaxed),
         )
     };
-    let mut last_fault_report = vec![None::<Instant>; n];
+    let mut last_fault_report = vec![None::<i64>; n];
     let mut pending: Option<Pending> = None;
+    let mut clock_jumps = 0;
+    let mut clock_fault_logged = false;
     while !stop.load(Ordering::Relaxed) {
         {
             let mut woken = lock(&shared.wake_lock);
@@ -183,10 +189,14 @@ pub(super) fn serve(
         }
         for (k, s) in monitor.config.sources.iter().enumerate() {
             if s.enabled && !was[k] {
-                log::info!("source {}: enabled on {}", s.name, s.topic);
+                log::info!(
+                    "source {}: enabled on {}",
+                    s.name,
+                    input_topic(config, &s.topic)
+                );
                 source_tasks[k] = subscribe(node, k, s)?;
                 (heard[k], silent_logged[k]) = (false, false);
-                (enabled_at[k], last_fault_report[k]) = (Instant::now(), None);
+                (enabled_at[k], last_fault_report[k]) = (clock.monotonic_ns(), None);
                 *lock(&shared.slots[k]) = Slot::default();
             } else if !s.enabled && was[k] {
                 log::info!("source {}: disabled", s.name);
@@ -202,19 +212,67 @@ pub(super) fn serve(
             }
             if last_published.elapsed() >= heartbeat {
                 let (config, reason) = p.describe();
-                outputs.publish_outputs(Outputs::not_monitoring(
-                    config,
-                    &reason,
-                    Time::now_nanos(),
-                ));
+                outputs.publish_outputs(Outputs::not_monitoring(config, &reason, clock.now_ns()));
                 last_published = Instant::now();
             }
-            let (_, in_fault) = monitor.safety(Time::now_nanos());
+            let (_, in_fault) = monitor.safety(clock.now_ns());
             runtime.safety.set(true, in_fault);
             continue;
         }
+        // Simulated time: a jump back forgets what was received; a silent /clock is a fault
+        // of every source (`clock`).
+        if clock.jumps() != clock_jumps {
+            clock_jumps = clock.jumps();
+            let (from, to) = clock.last_jump();
+            log::warn!(
+                "/clock went back from {:.3} s to {:.3} s: the transforms, joint states and \
+                 results received before are forgotten; each source is in fault until its next \
+                 frame",
+                from as f64 * 1e-9,
+                to as f64 * 1e-9
+            );
+            monitor.on_clock_jump();
+            enabled_at.fill(clock.monotonic_ns());
+            last_fault_report.fill(None);
+            for slot in &shared.slots {
+                *lock(slot) = Slot::default();
+            }
+        }
+        if let Some(reason) = clock.fault(monitor.config.clock_timeout_s) {
+            if !clock_fault_logged {
+                log::error!("{reason}: ERROR until it ticks");
+                clock_fault_logged = true;
+            }
+            for slot in &shared.slots {
+                lock(slot).cloud = None;
+            }
+            if last_published.elapsed() >= heartbeat {
+                let now_ns = clock.now_ns();
+                let enabled = (monitor.config.sources.iter().enumerate())
+                    .filter(|(_, s)| s.enabled)
+                    .map(|(k, _)| k)
+                    .collect::<Vec<_>>();
+                let mut last = None;
+                for k in enabled {
+                    let fault = crate::monitor::Fault::Clock(reason.clone());
+                    last = Some(monitor.on_source_fault(k, fault, now_ns).outputs);
+                }
+                let beat = last.unwrap_or_else(|| monitor.heartbeat(now_ns));
+                let (d, e) = counts();
+                outputs.publish(beat, d, e);
+                last_published = Instant::now();
+            }
+            let (_, in_fault) = monitor.safety(clock.now_ns());
+            runtime.safety.set(true, in_fault);
+            continue;
+        }
+        if clock_fault_logged {
+            log::info!("/clock ticks again");
+            clock_fault_logged = false;
+            enabled_at.fill(clock.monotonic_ns());
+        }
         let sources = monitor.config.sources.clone();
-        let now = Instant::now();
+        let now = clock.monotonic_ns();
         for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
             let (cloud, last) = {
                 let mut slot = lock(&shared.slots[k]);
@@ -231,7 +289,7 @@ pub(super) fn serve(
                         "source {}: {} {what} on {} ({width}×{height}, {}, frame '{frame_id}')",
                         s.name,
                         if heard[k] { "again a" } else { "first" },
-                        s.topic,
+                        input_topic(config, &s.topic),
                         mib(bytes),
                     );
                     if !heard[k] && transport == Transport::Dds {
@@ -257,22 +315,23 @@ pub(super) fn serve(
                 last_fault_report[k] = None;
                 continue;
             }
-            let silent = now.duration_since(last.unwrap_or(enabled_at[k]));
-            let timeout = Duration::from_secs_f64(s.source_timeout_s);
-            let due = last_fault_report[k].is_none_or(|t| now.duration_since(t) >= timeout / 2);
+            // Seconds by the node's clock since the last message (or since enabled).
+            let silent = (now - last.unwrap_or(enabled_at[k])).max(0) as f64 * 1e-9;
+            let timeout = s.source_timeout_s;
+            let due = last_fault_report[k].is_none_or(|t| (now - t) as f64 * 1e-9 >= timeout / 2.0);
             if silent > timeout && due {
                 if !silent_logged[k] {
                     log::warn!(
                         "source {}: no cloud on {} for {:.1} s (source_timeout {} s): ERROR \
                          until one arrives",
                         s.name,
-                        s.topic,
-                        silent.as_secs_f64(),
+                        input_topic(config, &s.topic),
+                        silent,
                         s.source_timeout_s
                     );
                     silent_logged[k] = true;
                 }
-                let frame = monitor.on_source_timeout(k, silent.as_secs_f64(), last.is_none());
+                let frame = monitor.on_source_timeout(k, silent, last.is_none(), clock.now_ns());
                 {
                     let (d, e) = counts();
                     outputs.publish(frame.outputs, d, e);
@@ -285,10 +344,10 @@ pub(super) fn serve(
         // heartbeat period (a subscriber can tell a quiet monitor from a dead one).
         if last_published.elapsed() >= heartbeat {
             let (d, e) = counts();
-            outputs.publish(monitor.heartbeat(Time::now_nanos()), d, e);
+            outputs.publish(monitor.heartbeat(clock.now_ns()), d, e);
             last_published = Instant::now();
         }
-        let (raised, in_fault) = monitor.safety(Time::now_nanos());
+        let (raised, in_fault) = monitor.safety(clock.now_ns());
         runtime.safety.set(raised, in_fault);
     }
     Ok(())
@@ -299,6 +358,8 @@ pub(super) fn serve(
 pub(super) struct Runtime {
     pub(super) apply: std::sync::mpsc::Receiver<Config>,
     pub(super) safety: Arc<Safety>,
+    /// The node's clock (`clock`).
+    pub(super) clock: Arc<super::NodeClock>,
 }
 
 /// Subscribes to source `k`'s messages (and a depth source's camera info).
@@ -307,10 +368,12 @@ fn subscribe_source(
     executor: &Arc<smol::Executor<'static>>,
     k: usize,
     s: &SourceConfig,
+    config: &Config,
     shared: &Arc<Shared>,
     info_tx: &std::sync::mpsc::Sender<(usize, CameraInfo)>,
 ) -> Result<Vec<smol::Task<()>>> {
     let mut tasks = Vec::new();
+    let topic = input_topic(config, &s.topic);
     let qos = if s.reliable {
         RELIABLE_QOS.history(History::KeepLast { depth: 1 })
     } else {
@@ -319,7 +382,7 @@ fn subscribe_source(
     match s.kind {
         SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
             node,
-            &s.topic,
+            &topic,
             qos,
             executor,
             k,
@@ -329,7 +392,7 @@ fn subscribe_source(
         SourceKind::DepthImage => {
             tasks.push(source_task::<Image<'static>>(
                 node,
-                &s.topic,
+                &topic,
                 qos.clone(),
                 executor,
                 k,
@@ -338,7 +401,7 @@ fn subscribe_source(
             )?);
             // The camera model, with the image's QoS as image_transport's CameraSubscriber
             // gives both; a latched (transient local) publisher is matched too.
-            let topic = s.camera_info_topic.clone().unwrap_or_default();
+            let topic = input_topic(config, s.camera_info_topic.as_deref().unwrap_or_default());
             tasks.push(forward(
                 node,
                 &topic,

@@ -110,6 +110,12 @@ impl JointStateBuffer {
         Ok(())
     }
 
+    /// Forgets the joint states received (the fixed values are kept).
+    pub fn forget(&mut self) {
+        self.samples.iter_mut().for_each(History::clear);
+        self.velocities.iter_mut().for_each(History::clear);
+    }
+
     /// Adds a message. The whole message is refused when its lengths disagree or a position of
     /// a known joint is not finite.
     pub fn insert(&mut self, m: &JointState) -> Result<(), JointError> {

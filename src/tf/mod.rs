@@ -108,6 +108,11 @@ impl TfBuffer {
         }
     }
 
+    /// Forgets the dynamic transforms (`/tf`), keeping the static ones.
+    pub fn forget_dynamic(&mut self) {
+        self.edges.retain(|_, e| e.is_static);
+    }
+
     /// Adds one transform (`header.frame_id` the parent, `parent_from_child`).
     pub fn insert(&mut self, t: &TransformStamped, is_static: bool) -> Result<(), TfError> {
         let parent = strip(&t.header.frame_id);

@@ -16,6 +16,16 @@ any ROS 2 node would.
         must name link shield, the rest of the plane a few cm from it) and releases it. Records
         every /parameter_events message of NODE. Prints one JSON object with
         every answer.
+
+    rclpy_interop.py sim NODE TOPIC
+        NODE started as a launch file starts it, with use_sim_time and its cloud source remapped
+        to TOPIC. Gets stop_distance, use_sim_time and backend; waits for the fused status to
+        be ERROR naming /clock (nothing on /clock yet); then publishes rosgraph_msgs/Clock on
+        /clock (simulated time from 1000 s, at the wall clock's pace, 100 Hz) and the plane on
+        TOPIC stamped with it, and waits for OK (a cloud stamped 1000 s is only fresh by the
+        simulated clock), reading the stamp of the node's /diagnostics; stops /clock (the
+        clouds go on) and waits for ERROR naming /clock again; restarts it at 500 s (a bag
+        played again) and waits for OK. Prints one JSON object.
 """
 import json
 import math
@@ -212,7 +222,91 @@ def params(node_name):
     rclpy.shutdown()
 
 
+def sim(node_name, topic):
+    from builtin_interfaces.msg import Time
+    from rosgraph_msgs.msg import Clock
+    rclpy.init()
+    node = rclpy.create_node("rclpy_sim_time")
+    executor = MultiThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    lock = threading.Lock()
+    fused = {"level": None, "message": "", "stamp": None}
+    out = {}
+
+    def on_diagnostics(m):
+        for s in m.status:
+            if s.name.endswith(": all sources"):
+                with lock:
+                    fused["level"] = s.level[0] if isinstance(s.level, bytes) else s.level
+                    fused["message"] = s.message
+                    fused["stamp"] = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+
+    def wait_for(what, timeout):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            with lock:
+                if what():
+                    return True
+            time.sleep(0.05)
+        return False
+
+    client = node.create_client(GetParameters, f"{node_name}/get_parameters")
+    if not client.wait_for_service(timeout_sec=30):
+        raise SystemExit(f"{node_name}/get_parameters: no service after 30 s")
+    answer = client.call(GetParameters.Request(
+        names=["stop_distance", "use_sim_time", "backend", "warn_distance"]), timeout_sec=10)
+    out["get"] = [plain(v) for v in answer.values]
+    out["waits_for_clock"] = wait_for(
+        lambda: fused["level"] == 2 and "/clock" in fused["message"], 30)
+    out["waiting_message"] = fused["message"]
+
+    sim_time = {"origin": 1000.0, "wall": time.time(), "running": True}
+
+    def now():
+        with lock:
+            t = sim_time["origin"] + time.time() - sim_time["wall"]
+        return Time(sec=int(t), nanosec=int((t % 1) * 1e9))
+
+    clock_pub = node.create_publisher(Clock, "/clock", 10)
+    cloud_pub = node.create_publisher(PointCloud2, topic, qos_profile_sensor_data)
+
+    def tick():
+        with lock:
+            running = sim_time["running"]
+        if running:
+            clock_pub.publish(Clock(clock=now()))
+
+    node.create_timer(0.01, tick)
+    node.create_timer(0.1, lambda: cloud_pub.publish(cloud(now())))
+    out["ok_on_sim_time"] = wait_for(lambda: fused["level"] == 0, 30)
+    with lock:
+        out["stamp_s"] = fused["stamp"]
+    # The simulation stops: /clock silent, the clouds go on.
+    with lock:
+        sim_time["running"] = False
+    out["silent_clock"] = wait_for(
+        lambda: fused["level"] == 2 and "/clock is silent" in fused["message"], 10)
+    out["silent_message"] = fused["message"]
+    # A bag played again: the clock restarts, 500 s back.
+    with lock:
+        sim_time.update(origin=500.0, wall=time.time(), running=True)
+        fused["level"] = None
+    out["ok_after_jump"] = wait_for(lambda: fused["level"] == 0, 30)
+    with lock:
+        out["stamp_after_jump_s"] = fused["stamp"]
+    print(json.dumps(out))
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
 if __name__ == "__main__":
-    if len(sys.argv) != 3 or sys.argv[1] != "params":
+    if len(sys.argv) == 3 and sys.argv[1] == "params":
+        params(sys.argv[2])
+    elif len(sys.argv) == 4 and sys.argv[1] == "sim":
+        sim(sys.argv[2], sys.argv[3])
+    else:
         raise SystemExit(__doc__)
-    params(sys.argv[2])

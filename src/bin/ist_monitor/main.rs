@@ -20,13 +20,18 @@ fn main() -> std::process::ExitCode {
     runtime_dir();
     // Ours at info (the node's "up" line, a source's first cloud, the GPU found), the rest at
     // warn; the GPU and DDS crates only at error. RUST_LOG replaces all of it.
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(
-        "warn,ist_monitor=info,wgpu_hal=error,wgpu_core=error,naga=error,rustdds=error,\
-         ros2_client=error",
-    ))
-    .format_timestamp(None)
-    .init();
-    match cli::run() {
+    // `--ros-args --log-level` sets ours (a launch file's `ros_arguments`).
+    let args = cli::args();
+    let ours = cli::ros_log_level(&args).unwrap_or(log::LevelFilter::Info);
+    let filter = format!(
+        "warn,ist_monitor={ours},wgpu_hal=error,wgpu_core=error,naga=error,rustdds=error,\
+         ros2_client=error"
+    )
+    .to_lowercase();
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(filter))
+        .format_timestamp(None)
+        .init();
+    match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_chain(&e));

@@ -54,7 +54,7 @@ pub fn run(bench: Bench) -> Result<()> {
 
 #[derive(Args)]
 pub struct BenchPackingArgs {
-    /// The robot (default: the demo arm; the README's table is the Panda of ../shared).
+    /// The robot (default: the demo arm; the table in docs/benchmarks.md is the Panda of ../shared).
     #[command(flatten)]
     robot: RobotArgs,
     /// Sphere budgets per link to sweep.

@@ -54,7 +54,7 @@ pub struct BenchQueryArgs {
     /// Tree cache folder (default as for `build`).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
-    /// Write a PNG plot per scenario to PREFIX_<scenario>.png (the README's figures:
+    /// Write a PNG plot per scenario to PREFIX_<scenario>.png (the figures of docs/benchmarks.md:
     /// --plot docs/error_vs_time).
     #[arg(long, value_name = "PREFIX")]
     plot: Option<PathBuf>,

@@ -61,8 +61,33 @@ enum Command {
     Bench(crate::bench::Bench),
 }
 
-pub fn run() -> Result<()> {
-    match Cli::parse().command {
+/// The command line, with `node` understood where it starts with `--ros-args` (as `ros2 run
+/// ist_monitor ist_monitor --ros-args …` and a launch file's `Node(executable='ist_monitor')`
+/// start it).
+pub fn args() -> Vec<std::ffi::OsString> {
+    let mut args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    if args.get(1).is_some_and(|a| a == "--ros-args") {
+        args.insert(1, "node".into());
+    }
+    args
+}
+
+/// The level `--ros-args --log-level` sets for the node's own log (`None`: not set, or the
+/// arguments do not parse, which the node then reports).
+pub fn ros_log_level(args: &[std::ffi::OsString]) -> Option<log::LevelFilter> {
+    let at = args.iter().position(|a| a == "--ros-args")?;
+    let ros: Vec<String> = args[at..]
+        .iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let ros = ist_monitor::node::parse_ros_args(&ros).ok()?;
+    let name = ros.node.clone().unwrap_or_else(|| "ist_monitor".into());
+    let ns = ros.namespace.clone().unwrap_or_default();
+    ros.log_level_for(&name, &ns)
+}
+
+pub fn run(args: Vec<std::ffi::OsString>) -> Result<()> {
+    match Cli::parse_from(args).command {
         Command::Build(args) => build::build(args),
         Command::Poses(args) => build::poses(args),
         Command::Query(args) => query::query(args),

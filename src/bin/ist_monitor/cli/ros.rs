@@ -4,12 +4,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 
+use ist_monitor::config::ParameterSources;
 use ist_monitor::node;
 
-use super::args::load_config;
 use super::args::{parse_positive, parse_seconds};
 use crate::demo;
 
@@ -22,8 +22,9 @@ pub struct NodeArgs {
     /// ROS 2 parameters file (default: config/demo_arm.yaml).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// `--ros-args -r __node:=NAME -r __ns:=/NS -r FROM:=TO -p NAME:=VALUE ...` (FROM:=TO
-    /// remaps an output topic, e.g. `~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input`)
+    /// `--ros-args` as rcl takes them: `-r __node:=NAME -r __ns:=/NS -r FROM:=TO --params-file
+    /// FILE -p NAME:=VALUE --log-level [NAME:=]LEVEL` (FROM:=TO remaps an input or an output,
+    /// e.g. `~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input`)
     #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
     ros_args: Vec<String>,
 }
@@ -76,14 +77,25 @@ pub struct RecordArgs {
 
 pub fn node(args: NodeArgs) -> Result<()> {
     let ros = node::parse_ros_args(&args.ros_args)?;
-    let mut config = load_config(&args.config, crate::demo::CONFIG, &ros.params)?;
-    if let Some(name) = ros.node {
-        config.node_name = name;
+    for note in &ros.noted {
+        log::info!("{note}");
     }
-    if let Some(ns) = ros.namespace {
-        config.namespace = ns;
-    }
-    config.remaps = ros.remaps;
+    // The demo's parameters unless a file is given (`--config`, or launch_ros's
+    // `--params-file`s, which start from the declared defaults as a ROS node does).
+    let config_file = match (&args.config, ros.params_files.is_empty()) {
+        (Some(c), _) => Some(c.clone()),
+        (None, true) => Some(demo::or_demo(&None, crate::demo::CONFIG)?),
+        (None, false) => None,
+    };
+    let mut config = ist_monitor::config::Config::from_sources(&ParameterSources {
+        config: config_file,
+        params_files: ros.params_files.clone(),
+        node: ros.node.clone(),
+        namespace: ros.namespace.clone(),
+        overrides: ros.params.clone(),
+    })
+    .context("parameters")?;
+    config.remaps = ros.remaps_for(&config.node_name);
     // Signals first: the node answers them throughout, the tree build included.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
