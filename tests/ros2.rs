@@ -222,3 +222,210 @@ fn rclpy_runs_the_node_as_launch_does_on_simulated_time() {
     assert!((500.0..600.0).contains(&stamp), "{out}");
     assert!(log.contains("/clock went back"), "{log}");
 }
+
+/// The `-p` overrides of a node's argument list, as `(name, value)`.
+fn overrides(args: &[String]) -> Vec<(String, String)> {
+    args.windows(2)
+        .filter(|w| w[0] == "-p")
+        .map(|w| ist_monitor::config::parse_override(&w[1]).unwrap())
+        .collect()
+}
+
+/// rclpy publishes what a camera driver publishes — a PointCloud2, or a 16UC1 depth image with
+/// its CameraInfo — deserialized by rclpy from our own CDR and stamped by it; the node's
+/// `~/min_distance`, `~/closest_points` and fused `/diagnostics` equal what the library computes
+/// for the same message in-process (within 1e-6 m), and once the camera stops, the source's
+/// timeout turns the cell to ERROR.
+#[test]
+fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
+    use ist_monitor::cloud::pointcloud2;
+    use ist_monitor::msg::{self, CameraInfo, Header, Image, Time};
+    if !common::in_private_network(
+        "rclpy_clouds_and_depth_images_are_answered_as_the_library_answers",
+    ) {
+        return;
+    }
+    let Some(python) = common::rclpy_python() else {
+        return;
+    };
+    common::demo_trees();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    // A plane 0.6 m ahead of the camera: 20 × 20 points in camera_link (x ahead), or a 64 × 48
+    // depth image of it in camera_optical_frame (z ahead).
+    let plane: Vec<[f32; 3]> = (0..400)
+        .map(|i| {
+            let (u, v) = ((i % 20) as f32, (i / 20) as f32);
+            [0.6, -0.2 + 0.02 * u, -0.2 + 0.02 * v]
+        })
+        .collect();
+    let header = |frame: &str| Header {
+        stamp: Time::from_nanos(Time::now_nanos()),
+        frame_id: frame.into(),
+    };
+    let cloud = pointcloud2::encode(
+        header("camera_link"),
+        &plane,
+        &pointcloud2::Layout::unorganized(400),
+    )
+    .unwrap();
+    let (w, h) = (64u32, 48u32);
+    let depth: Vec<u8> = (0..w * h).flat_map(|_| 600u16.to_le_bytes()).collect();
+    let image = Image {
+        header: header("camera_optical_frame"),
+        height: h,
+        width: w,
+        encoding: "16UC1".into(),
+        is_bigendian: 0,
+        step: 2 * w,
+        data: depth.into(),
+    };
+    let (f, cx, cy) = (60.0, 31.5, 23.5);
+    let info = CameraInfo {
+        header: image.header.clone(),
+        height: h,
+        width: w,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.0; 5],
+        k: [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0],
+        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let write = |name: &str, bytes: Vec<u8>| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    let cloud_file = write("cloud.cdr", msg::encode(&cloud).unwrap());
+    let image_file = write("image.cdr", msg::encode(&image).unwrap());
+    let info_file = write("info.cdr", msg::encode(&info).unwrap());
+    let optical = [
+        "-p",
+        "static_transforms:=[optical]",
+        "-p",
+        "optical.parent_frame:=camera_link",
+        "-p",
+        "optical.child_frame:=camera_optical_frame",
+        "-p",
+        "optical.rotation:=[-0.5, 0.5, -0.5, 0.5]",
+    ];
+    for depth_image in [false, true] {
+        let mut args = common::at_rest_args();
+        args.extend(optical.map(String::from));
+        let topic = if depth_image {
+            args.extend(["-p", "camera.type:=depth_image"].map(String::from));
+            "/camera/depth/image_raw"
+        } else {
+            "/camera/depth/points"
+        };
+        args.extend(["-p".into(), format!("camera.topic:={topic}")]);
+        // The library's answer for the same message.
+        let config =
+            ist_monitor::config::Config::load(Path::new(common::DEMO_CONFIG), &overrides(&args))
+                .unwrap();
+        let mut monitor = ist_monitor::monitor::Monitor::new(config, &|_| {}).unwrap();
+        // Stamped now, as rclpy stamps what it publishes.
+        let now = Time::now_nanos();
+        let (mut cloud, mut image) = (cloud.clone(), image.clone());
+        (cloud.header.stamp, image.header.stamp) = (Time::from_nanos(now), Time::from_nanos(now));
+        let start = std::time::Instant::now();
+        let frame = if depth_image {
+            monitor.on_camera_info_message(0, &info).unwrap();
+            monitor.on_depth_image_message(0, &image, start, now)
+        } else {
+            monitor.on_cloud_message(0, &cloud, start, now)
+        };
+        assert!(frame.result.is_ok(), "library: {:?}", frame.result.err());
+        let library = frame.outputs;
+        let expected = library.min_distance.expect("the plane is measured").data;
+        let markers: Vec<Vec<[f64; 3]>> = (library.closest_points.markers.iter())
+            .filter(|m| !m.points.is_empty())
+            .map(|m| m.points.iter().map(|p| [p.x, p.y, p.z]).collect())
+            .collect();
+
+        let node = ist_monitor()
+            .args(&args)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let _reap = common::Reap(vec![node.id()]);
+        let mut command = Command::new(&python);
+        command
+            .arg(root.join("tests/python/rclpy_interop.py"))
+            .args(["answers", "/ist_monitor", topic])
+            .arg(if depth_image {
+                &image_file
+            } else {
+                &cloud_file
+            });
+        if depth_image {
+            command.arg(&info_file);
+        }
+        let out = common::json_output(&mut command);
+        Command::new("kill")
+            .arg(node.id().to_string())
+            .status()
+            .unwrap();
+        let log = node.wait_with_output().unwrap();
+        let log = String::from_utf8_lossy(&log.stderr);
+        let what = if depth_image { "depth image" } else { "cloud" };
+        assert_eq!(out["answered"], true, "{what}: {out}\n{log}");
+        // In the graph, with the outputs' types.
+        assert!(
+            out["nodes"]
+                .as_array()
+                .unwrap()
+                .contains(&"/ist_monitor".into()),
+            "{out}"
+        );
+        for (topic, ty) in [
+            ("/ist_monitor/min_distance", "std_msgs/msg/Float64"),
+            (
+                "/ist_monitor/closest_points",
+                "visualization_msgs/msg/MarkerArray",
+            ),
+            ("/ist_monitor/safety_stop", "std_msgs/msg/Bool"),
+            ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
+        ] {
+            assert_eq!(out["topics"][topic], serde_json::json!([ty]), "{out}");
+        }
+        let got = out["min_distance"].as_f64().unwrap();
+        assert!(
+            (got - expected).abs() <= 1e-6,
+            "{what}: the node says {got} m, the library {expected} m"
+        );
+        assert_eq!(
+            out["level"].as_u64(),
+            Some(library.level.diagnostic() as u64),
+            "{what}: {out}"
+        );
+        let seen: Vec<Vec<[f64; 3]>> = serde_json::from_value(out["markers"].clone()).unwrap();
+        assert_eq!(seen.len(), markers.len(), "{what}: {out}");
+        for (a, b) in seen.iter().flatten().zip(markers.iter().flatten()) {
+            for k in 0..3 {
+                assert!(
+                    (a[k] - b[k]).abs() <= 1e-6,
+                    "{what}: marker {a:?} against {b:?}"
+                );
+            }
+        }
+        assert_eq!(out["error_after_last"], true, "{what}: {out}");
+        // Its log on /rosout: the up line (INFO, from the start: transient local) and the
+        // source's timeout (WARN).
+        let lines = out["rosout"].as_array().unwrap();
+        let said = |level: u64, text: &str| {
+            lines
+                .iter()
+                .any(|l| l["level"] == level && l["msg"].as_str().unwrap().contains(text))
+        };
+        assert!(said(20, "up: node /ist_monitor"), "{what}: {lines:?}");
+        assert!(said(30, "no cloud on"), "{what}: {lines:?}");
+        assert!(
+            out["error_message"].as_str().unwrap().contains("no cloud"),
+            "{what}: {out}"
+        );
+        eprintln!("rclpy {what}: {got:.6} m, as the library");
+    }
+}

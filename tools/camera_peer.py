@@ -3,8 +3,9 @@ publishes a real organized cloud, as a PointCloud2 or as the 16UC1 depth image a
 made from it, at a given rate with fresh stamps, and measures the node's answers on
 ~/link_distances (stamped with the cloud's stamp): how many came back and how late.
 
-    camera_peer.py BAG --mode cloud|depth [--transport dds|zenoh] [--rate HZ] [--duration S]
-                   [--node /ist_monitor] [--connect tcp/localhost:7447]
+    camera_peer.py BAG --mode cloud|depth [--transport dds|zenoh|rclpy] [--rate HZ]
+                   [--duration S] [--node /ist_monitor] [--connect tcp/localhost:7447]
+                   [--node-pid PID]
 
 BAG is a rosbag2 holding an organized PointCloud2 (the first is used; the real Kinect bag of
 ../shared/bags/moveit_perception_tutorial). `cloud` publishes it as it is (its own point_step)
@@ -15,6 +16,12 @@ squares (u = fx·x/z + cx, v = fy·y/z + cy; the residual is printed), on
 keep last 1). Prints one JSON line: published, answered, latency p50/p99/max (ms), the
 publisher's own share of it (from the stamp until write/put returned) and the rest (from then
 to the answer: middleware and node), p50/p99, the sizes.
+
+`--transport rclpy` publishes them with ROS 2 Jazzy's own client, rclpy on rmw_fastrtps_cpp (Fast
+DDS; the venv's ros-jazzy packages): each message serialized once by rclpy, its stamp patched in
+the bytes and the bytes published, as a C++ driver hands over a ready message; the answers are
+read by an rclpy subscription. `--node-pid` adds the node's CPU use over the publishing (% of one
+core, from /proc) and its peak resident memory to the line.
 
 `--transport zenoh` publishes the same messages the way rmw_zenoh does (key
 `<domain>/<topic>/<DDS type>/<type hash>`, CDR payload with its encapsulation header, the rmw_zenoh
@@ -103,6 +110,120 @@ def fast_byte_sequences():
     machinery.PlainCdrV2SequenceOfPrimitiveMachine.serialize = serialize
 
 
+def node_usage(pid):
+    """(CPU seconds, peak resident MiB) of process `pid`."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    cpu = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    with open(f"/proc/{pid}/status") as f:
+        peak = next(int(line.split()[1]) for line in f if line.startswith("VmHWM:"))
+    return cpu, peak / 1024.0
+
+
+def run_rclpy(args):
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data, QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2, PointField
+
+    topic, cloud = read_cloud(args.bag)
+    width, height = cloud.width, cloud.height
+    rclpy.init()
+    node = rclpy.create_node("camera_peer")
+    info = {"mode": args.mode, "rate_hz": args.rate, "width": width, "height": height,
+            "transport": "rclpy (rmw_fastrtps_cpp)"}
+
+    def header_of(m):
+        m.header.frame_id = cloud.header.frame_id
+        return m
+
+    if args.mode == "cloud":
+        m = header_of(PointCloud2())
+        m.height, m.width = height, width
+        m.fields = [PointField(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
+                    for f in cloud.fields]
+        m.is_bigendian, m.point_step, m.row_step = bool(cloud.is_bigendian), cloud.point_step, \
+            cloud.row_step
+        m.data, m.is_dense = bytes(cloud.data), bool(cloud.is_dense)
+        pubs = [(node.create_publisher(PointCloud2, topic, qos_profile_sensor_data),
+                 bytearray(serialize_message(m)))]
+        info.update(topic=topic, bytes=len(cloud.data))
+    else:
+        points = xyz(cloud)
+        fx, fy, cx, cy, res = fit_intrinsics(points, width)
+        z = points[:, 2]
+        mm = np.where(np.isfinite(z) & (z > 0), np.round(z * 1000.0), 0).astype("<u2")
+        ns = topic.rsplit("/", 1)[0]
+        image_topic, info_topic = ns + "/image_raw", ns + "/camera_info"
+        ci = header_of(CameraInfo())
+        ci.height, ci.width, ci.distortion_model = height, width, "plumb_bob"
+        ci.d = [0.0] * 5
+        ci.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
+        ci.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        ci.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+        im = header_of(Image())
+        im.height, im.width, im.encoding, im.step = height, width, "16UC1", 2 * width
+        im.data = mm.tobytes()
+        pubs = [(node.create_publisher(CameraInfo, info_topic, qos_profile_sensor_data),
+                 bytearray(serialize_message(ci))),
+                (node.create_publisher(Image, image_topic, qos_profile_sensor_data),
+                 bytearray(serialize_message(im)))]
+        info.update(topic=image_topic, camera_info_topic=info_topic, bytes=len(im.data),
+                    fx=fx, fy=fy, cx=cx, cy=cy, fit_rms_px=res)
+
+    sent, latencies, lock = {}, [], threading.Lock()
+
+    def on_answer(m):
+        now = time.monotonic()
+        stamp = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+        with lock:
+            at = sent.pop(stamp, None)
+        if at is not None:
+            latencies.append((now - at) * 1e3)
+
+    node.create_subscription(JointState, args.node + "/link_distances", on_answer,
+                             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    from rclpy.executors import SingleThreadedExecutor
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    time.sleep(args.wait)
+    usage0 = node_usage(args.node_pid) if args.node_pid else None
+    period, count = 1.0 / args.rate, int(args.duration * args.rate)
+    start, publishing = time.monotonic(), []
+    for i in range(count):
+        delay = start + i * period - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        stamp_ns = time.time_ns()
+        t0 = time.monotonic()
+        with lock:
+            sent[stamp_ns] = t0
+        for pub, raw in pubs:
+            # The header's stamp follows the 4-byte encapsulation: sec int32, nanosec uint32.
+            struct.pack_into("<iI", raw, 4, stamp_ns // 10**9, stamp_ns % 10**9)
+            pub.publish(bytes(raw))
+        publishing.append((time.monotonic() - t0) * 1e3)
+    elapsed = time.monotonic() - start
+    time.sleep(1.0)
+    if usage0:
+        cpu1, peak = node_usage(args.node_pid)
+        info.update(node_cpu_percent=round(100.0 * (cpu1 - usage0[0]) / elapsed, 1),
+                    node_peak_mib=round(peak, 1))
+    lat = sorted(latencies)
+    q = lambda v, f: round(v[min(len(v) - 1, int(f * len(v)))], 2) if v else None
+    pub = sorted(publishing)
+    info.update(published=count, answered=len(lat), p50_ms=q(lat, 0.5), p99_ms=q(lat, 0.99),
+                max_ms=round(lat[-1], 2) if lat else None, publish_p50_ms=q(pub, 0.5),
+                publish_p99_ms=q(pub, 0.99))
+    print(json.dumps(info), flush=True)
+    executor.shutdown()
+    spinner.join()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("bag")
@@ -111,10 +232,13 @@ def main():
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--node", default="/ist_monitor")
     ap.add_argument("--wait", type=float, default=3.0, help="discovery time before publishing, s")
-    ap.add_argument("--transport", choices=["dds", "zenoh"], default="dds")
+    ap.add_argument("--transport", choices=["dds", "zenoh", "rclpy"], default="dds")
+    ap.add_argument("--node-pid", type=int, help="report this process's CPU and peak memory")
     ap.add_argument("--connect", default="tcp/localhost:7447")
     args = ap.parse_args()
     refuse_outside_private_network()
+    if args.transport == "rclpy":
+        return run_rclpy(args)
     fast_byte_sequences()
 
     from cyclonedds.core import Policy, Qos

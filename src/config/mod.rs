@@ -154,6 +154,9 @@ pub struct Config {
     pub attached_objects: Vec<AttachedObject>,
     /// Speed and separation monitoring.
     pub ssm: SsmParams,
+    /// Whether the live node publishes its log on `/rosout` (`--disable-rosout-logs`; not a
+    /// parameter).
+    pub rosout: bool,
     /// Output topic remappings of the live node (`--ros-args -r FROM:=TO`; not a parameter).
     pub remaps: Vec<(String, String)>,
     /// The values as given (flattened names; a declared default is not in it), and the folder
@@ -541,6 +544,7 @@ impl Config {
             attached_objects,
             ssm: Self::ssm(&v)?,
             remaps: Vec::new(),
+            rosout: true,
             base: base.map(Path::to_owned),
             values: v.values,
         })

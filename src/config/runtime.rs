@@ -117,6 +117,7 @@ impl Config {
             values,
         )?;
         new.remaps = self.remaps.clone();
+        new.rosout = self.rosout;
         let old: BTreeMap<String, Parameter> = by_name(self.parameters());
         let now: BTreeMap<String, Parameter> = by_name(new.parameters());
         for (name, p) in old.iter().chain(now.iter()) {

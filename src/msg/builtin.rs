@@ -1,4 +1,4 @@
-//! `builtin_interfaces`, `std_msgs` and `rosgraph_msgs/Clock`.
+//! `builtin_interfaces`, `std_msgs`, `rosgraph_msgs/Clock` and `rcl_interfaces/Log`.
 
 use serde::{Deserialize, Serialize};
 
@@ -78,6 +78,30 @@ ros_message!(
     "rosgraph_msgs/msg/Clock",
     "builtin_interfaces/Time clock\n"
 );
+
+/// `rcl_interfaces/msg/Log`: a line of a node's log on `/rosout` (`level` one of the constants).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Log {
+    pub stamp: Time,
+    pub level: u8,
+    pub name: String,
+    pub msg: String,
+    pub file: String,
+    pub function: String,
+    pub line: u32,
+}
+ros_message!(
+    Log,
+    "rcl_interfaces/msg/Log",
+    "uint8 DEBUG=10\nuint8 INFO=20\nuint8 WARN=30\nuint8 ERROR=40\nuint8 FATAL=50\nbuiltin_interfaces/Time stamp\nuint8 level\nstring name\nstring msg\nstring file\nstring function\nuint32 line\n"
+);
+
+impl Log {
+    pub const DEBUG: u8 = 10;
+    pub const INFO: u8 = 20;
+    pub const WARN: u8 = 30;
+    pub const ERROR: u8 = 40;
+}
 
 /// `std_msgs/msg/String` (`/robot_description`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

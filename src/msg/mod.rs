@@ -119,6 +119,7 @@ const OWN_DEFINITIONS: &[(&str, &str)] = &[
     (Float64::TYPE, Float64::OWN_DEFINITION),
     (StringMessage::TYPE, StringMessage::OWN_DEFINITION),
     (Clock::TYPE, Clock::OWN_DEFINITION),
+    (Log::TYPE, Log::OWN_DEFINITION),
     (Bool::TYPE, Bool::OWN_DEFINITION),
     (ColorRgba::TYPE, ColorRgba::OWN_DEFINITION),
     (Vector3::TYPE, Vector3::OWN_DEFINITION),
@@ -267,7 +268,8 @@ owned_as_is!(
     CameraInfo,
     StringMessage,
     Range,
-    Clock
+    Clock,
+    Log
 );
 
 /// `data` copied out of the sample.

@@ -198,6 +198,10 @@ mod tests {
             "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18",
         ),
         (
+            "rcl_interfaces/msg/Log",
+            "RIHS01_e28ce254ca8abc06abf92773b74602cdbf116ed34fbaf294fb9f81da9f318eac",
+        ),
+        (
             "rosgraph_msgs/msg/Clock",
             "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
         ),

@@ -33,7 +33,9 @@ mod publishers;
 pub mod record;
 pub mod rmw_zenoh;
 mod ros_args;
+pub mod rosout;
 mod serve;
+mod socket;
 pub mod transport;
 
 pub use clock::NodeClock;
@@ -41,6 +43,7 @@ use parameters::{Parameters, Safety};
 pub use publishers::PANIC_AFTER_ENV;
 use publishers::{last_word, panic_text, Publishers};
 pub use ros_args::{expand_topic, parse_ros_args, remap_topic, resolve_topic, RosArgs};
+pub use socket::granted_receive_buffer;
 
 pub use transport::{Pub, RosNode, Transport};
 
@@ -53,7 +56,7 @@ use ros2_client::{MessageTypeName, Name, NodeName};
 
 use crate::config::{Config, RobotSource};
 use crate::monitor::{Monitor, Outputs};
-use crate::msg::{Clock, RosMessage, StringMessage};
+use crate::msg::{Clock, Log, RosMessage, StringMessage};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
 
@@ -84,6 +87,13 @@ pub const ROBOT_DESCRIPTION_QOS: QosProfile = QosProfile::subscription_default()
 pub const CLOCK_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_best_effort()
     .history(History::KeepLast { depth: 1 });
+/// QoS of `/rosout`, as rcl publishes a node's log: reliable, transient local, the last 1000
+/// kept for 10 s.
+pub const ROSOUT_QOS: QosProfile = QosProfile::publisher_default()
+    .reliability_reliable(WhenFull::DEFAULT)
+    .durability(Durability::TransientLocal)
+    .history(History::KeepLast { depth: 1000 })
+    .lifespan(Some(Duration::from_secs(10)));
 /// QoS of `/tf` and outputs: reliable, a short history.
 pub const RELIABLE_QOS: QosProfile = QosProfile::subscription_default()
     .reliability_reliable(WhenFull::DEFAULT)
@@ -155,13 +165,17 @@ pub fn domain_id() -> Result<u16> {
     }
 }
 
-/// A DDS context on `domain`, with [`SOCKET_BUFFER`] socket buffers.
+/// A DDS context on `domain`, with [`SOCKET_BUFFER`] socket buffers: forced past
+/// `net.core.rmem_max` where the process may (`socket`).
 pub fn context(domain: u16) -> Result<Context> {
     let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
         .socket_receive_buffer_size(SOCKET_BUFFER)
         .socket_send_buffer_size(SOCKET_BUFFER)
         .build()
         .map_err(|e| NodeError::Participant(format!("{e:?}")))?;
+    if let Err(e) = socket::force_receive_buffers(SOCKET_BUFFER) {
+        log::debug!("SO_RCVBUFFORCE: {e} (the kernel's net.core.rmem_max stands)");
+    }
     Context::from_domain_participant(participant)
         .map_err(|e| NodeError::Participant(format!("{e:?}")))
 }
@@ -219,13 +233,6 @@ pub fn source_subscription<T: RosMessage + 'static>(
         .map_err(|e| entity("subscription", topic, e))
 }
 
-/// What the kernel grants a socket that asks for `requested` receive-buffer bytes with
-/// `SO_RCVBUF` (Linux clamps it to `net.core.rmem_max`); `None` where that is not readable.
-pub fn granted_receive_buffer(requested: usize) -> Option<usize> {
-    let max = std::fs::read_to_string("/proc/sys/net/core/rmem_max").ok()?;
-    Some(requested.min(max.trim().parse().ok()?))
-}
-
 fn mib(bytes: usize) -> String {
     format!("{:.1} MiB", bytes as f64 / (1 << 20) as f64)
 }
@@ -259,11 +266,22 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
     // The socket buffers are DDS's: zenoh's samples travel over TCP.
     let dds = node.transport() == Transport::Dds;
     let granted = dds.then(|| granted_receive_buffer(SOCKET_BUFFER)).flatten();
-    let buffer = if dds {
+    let buffer = if dds && socket::forced() {
         format!(
-            "; socket receive buffer {} asked, {} granted",
+            "; socket receive buffer {} forced (SO_RCVBUFFORCE, CAP_NET_ADMIN)",
+            mib(SOCKET_BUFFER)
+        )
+    } else if dds {
+        let short = granted.is_some_and(|g| g < SOCKET_BUFFER);
+        format!(
+            "; socket receive buffer {} asked, {} granted (net.core.rmem_max{})",
             mib(SOCKET_BUFFER),
-            granted.map_or("unknown".into(), mib)
+            granted.map_or("unknown".into(), mib),
+            if short {
+                "; no CAP_NET_ADMIN to force it"
+            } else {
+                ""
+            }
         )
     } else {
         String::new()
@@ -282,7 +300,8 @@ fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
         log::warn!(
             "the kernel grants {} of socket receive buffer (net.core.rmem_max): a cloud larger \
              than that arriving in one burst loses datagrams and is dropped whole; raise it once \
-             with `sudo sysctl -w net.core.rmem_max={SOCKET_BUFFER}` (docs/host-setup.md)",
+             with `sudo sysctl -w net.core.rmem_max={SOCKET_BUFFER}`, or give the node \
+             CAP_NET_ADMIN to force its own (docs/host-setup.md)",
             mib(g)
         );
     }
@@ -401,6 +420,16 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         .history(History::KeepLast { depth: 10 })
         .liveliness_lease(Some(OUTPUT_LIVELINESS_LEASE));
     let outputs = Publishers::new(&mut node, &config, out_qos)?;
+    // The node's log on /rosout (unless --disable-rosout-logs), from here to its last word.
+    let rosout = if config.rosout {
+        let publisher = node.publisher::<Log>("/rosout", ROSOUT_QOS)?;
+        rosout::forward(
+            publisher,
+            rosout::logger_name(&config.namespace, &config.node_name),
+        )
+    } else {
+        None
+    };
     // The parameters are on the graph from the start; a change taken during the build waits in
     // the channel for the processing thread.
     let safety = Arc::new(Safety::raised());
@@ -452,6 +481,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
             }))
         })?;
     let shutdown = move |tasks: Vec<smol::Task<()>>, outputs: Publishers, node: RosNode| {
+        drop(rosout);
         for task in tasks.into_iter().chain(param_tasks).chain(clock_task) {
             smol::block_on(task.cancel());
         }

@@ -1,9 +1,9 @@
 //! The ROS 2 command line after `--ros-args`, as rcl parses it: `-r`/`--remap` (`__node:=`,
 //! `__ns:=`, and topic remappings `FROM:=TO`, optionally for one node as `NODE:FROM:=TO`),
 //! `-p`/`--param NAME:=VALUE`, `--params-file FILE` (repeatable), `--log-level [NAME:=]LEVEL`,
-//! and the arguments that concern rcl's own logging or security (`--enclave`, `--log-config-file`,
-//! `--enable-`/`--disable-rosout-logs`, `-stdout-logs`, `-external-lib-logs`), which are taken
-//! and noted: the node has no rcl underneath. Anything else is refused naming it. A launch file
+//! `--enable-`/`--disable-rosout-logs`, and the arguments that concern rcl's own logging or
+//! security (`--enclave`, `--log-config-file`, `--enable-`/`--disable-stdout-logs`,
+//! `-external-lib-logs`), which are taken and noted: the node has no rcl underneath. Anything else is refused naming it. A launch file
 //! starts the node with exactly these (launch_ros's `Node(name=, namespace=, parameters=,
 //! remappings=, ros_arguments=)`).
 //!
@@ -29,6 +29,9 @@ pub struct RosArgs {
     pub params_files: Vec<PathBuf>,
     /// `--log-level`: `(logger, level)`; `None` for the default level.
     pub log_levels: Vec<(Option<String>, log::LevelFilter)>,
+    /// `--enable-rosout-logs` / `--disable-rosout-logs` (the node's log on `/rosout`, on
+    /// unless disabled).
+    pub rosout: Option<bool>,
     /// Arguments taken but without effect here, with why (for the log).
     pub noted: Vec<String>,
 }
@@ -185,9 +188,9 @@ pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
                      --log-level set its levels)"
                 ));
             }
-            "--enable-rosout-logs"
-            | "--disable-rosout-logs"
-            | "--enable-stdout-logs"
+            "--enable-rosout-logs" => out.rosout = Some(true),
+            "--disable-rosout-logs" => out.rosout = Some(false),
+            "--enable-stdout-logs"
             | "--disable-stdout-logs"
             | "--enable-external-lib-logs"
             | "--disable-external-lib-logs" => out.noted.push(format!(
@@ -302,7 +305,8 @@ mod tests {
             r.log_level_for("other", "/cell1"),
             Some(log::LevelFilter::Warn)
         );
-        assert_eq!(r.noted.len(), 2);
+        assert_eq!(r.noted.len(), 1);
+        assert_eq!(r.rosout, Some(false));
         // An input, expanded then remapped.
         let remaps = r.remaps_for("watch");
         assert_eq!(

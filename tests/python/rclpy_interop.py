@@ -26,6 +26,16 @@ any ROS 2 node would.
         simulated clock), reading the stamp of the node's /diagnostics; stops /clock (the
         clouds go on) and waits for ERROR naming /clock again; restarts it at 500 s (a bag
         played again) and waits for OK. Prints one JSON object.
+
+    rclpy_interop.py answers NODE TOPIC MESSAGE_CDR [CAMERA_INFO_CDR]
+        Publishes the message in MESSAGE_CDR (a serialized sensor_msgs/PointCloud2, or with
+        CAMERA_INFO_CDR a sensor_msgs/Image with its CameraInfo, published beside it on
+        camera_info) on TOPIC at 10 Hz, stamped now, until NODE has answered 10 of them on
+        ~/min_distance; records the last ~/min_distance, ~/closest_points and the fused
+        /diagnostics status; then stops publishing and waits for the fused status to turn ERROR
+        (the source's timeout). Also lists the nodes and NODE's topics as the graph shows them,
+        and NODE's lines on /rosout.
+        Prints one JSON object.
 """
 import json
 import math
@@ -303,10 +313,118 @@ def sim(node_name, topic):
     rclpy.shutdown()
 
 
+def answers(node_name, topic, message_file, info_file):
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import CameraInfo, Image
+    from std_msgs.msg import Float64
+    from visualization_msgs.msg import MarkerArray
+    rclpy.init()
+    node = rclpy.create_node("rclpy_answers")
+    executor = MultiThreadedExecutor()
+    executor.add_node(node)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    lock = threading.Lock()
+    seen = {"min_distance": [], "markers": None, "level": None, "message": "",
+            "distance_m": None, "link": None}
+
+    def on_min(m):
+        with lock:
+            seen["min_distance"].append(m.data)
+
+    def on_markers(m):
+        with lock:
+            seen["markers"] = [[[p.x, p.y, p.z] for p in k.points] for k in m.markers
+                               if k.points]
+
+    def on_diagnostics(m):
+        for s in m.status:
+            if s.name.endswith(": all sources"):
+                values = {kv.key: kv.value for kv in s.values}
+                with lock:
+                    seen["level"] = s.level[0] if isinstance(s.level, bytes) else s.level
+                    seen["message"] = s.message
+                    seen["link"] = values.get("link")
+                    seen["distance_m"] = (float(values["distance_m"]) if "distance_m" in values
+                                          else None)
+
+    from rcl_interfaces.msg import Log
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    logger = node_name.strip("/").replace("/", ".")
+    rosout = []
+
+    def on_log(m):
+        if m.name == logger:
+            with lock:
+                rosout.append({"level": m.level, "msg": m.msg, "function": m.function})
+
+    node.create_subscription(Log, "/rosout", on_log, QoSProfile(
+        depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    node.create_subscription(Float64, f"{node_name}/min_distance", on_min, 10)
+    node.create_subscription(MarkerArray, f"{node_name}/closest_points", on_markers, 10)
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+    with open(message_file, "rb") as f:
+        raw = f.read()
+    if info_file:
+        message = deserialize_message(raw, Image)
+        with open(info_file, "rb") as f:
+            info = deserialize_message(f.read(), CameraInfo)
+        info_pub = node.create_publisher(
+            CameraInfo, topic.rsplit("/", 1)[0] + "/camera_info", qos_profile_sensor_data)
+        pub = node.create_publisher(Image, topic, qos_profile_sensor_data)
+    else:
+        message, info, info_pub = deserialize_message(raw, PointCloud2), None, None
+        pub = node.create_publisher(PointCloud2, topic, qos_profile_sensor_data)
+    running = {"on": True}
+
+    def publish():
+        if not running["on"]:
+            return
+        stamp = node.get_clock().now().to_msg()
+        message.header.stamp = stamp
+        if info is not None:
+            info.header.stamp = stamp
+            info_pub.publish(info)
+        pub.publish(message)
+
+    node.create_timer(0.1, publish)
+
+    def wait_for(what, timeout):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            with lock:
+                if what():
+                    return True
+            time.sleep(0.05)
+        return False
+
+    out = {"answered": wait_for(lambda: len(seen["min_distance"]) >= 10, 60)}
+    # The node in the graph, its outputs with their types.
+    out["nodes"] = [f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()]
+    out["topics"] = {t: types for t, types in node.get_topic_names_and_types()
+                     if t.startswith(node_name + "/") or t == "/diagnostics"}
+    time.sleep(0.3)
+    with lock:
+        out.update(min_distance=seen["min_distance"][-1] if seen["min_distance"] else None,
+                   markers=seen["markers"], level=seen["level"], link=seen["link"],
+                   distance_m=seen["distance_m"])
+    running["on"] = False
+    out["error_after_last"] = wait_for(lambda: seen["level"] == 2, 10)
+    out["error_message"] = seen["message"]
+    with lock:
+        out["rosout"] = rosout
+    print(json.dumps(out))
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "params":
         params(sys.argv[2])
     elif len(sys.argv) == 4 and sys.argv[1] == "sim":
         sim(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) in (5, 6) and sys.argv[1] == "answers":
+        answers(sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5] if len(sys.argv) == 6 else None)
     else:
         raise SystemExit(__doc__)

@@ -28,9 +28,13 @@ fn main() -> std::process::ExitCode {
          ros2_client=error"
     )
     .to_lowercase();
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(filter))
-        .format_timestamp(None)
-        .init();
+    // stderr, and the node's own lines on /rosout once it runs (`node::rosout`).
+    let logger =
+        env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(filter))
+            .format_timestamp(None)
+            .build();
+    let max = logger.filter();
+    let _ = ist_monitor::node::rosout::install(Box::new(logger), max);
     match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

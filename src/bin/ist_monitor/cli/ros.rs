@@ -96,6 +96,7 @@ pub fn node(args: NodeArgs) -> Result<()> {
     })
     .context("parameters")?;
     config.remaps = ros.remaps_for(&config.node_name);
+    config.rosout = ros.rosout.unwrap_or(true);
     // Signals first: the node answers them throughout, the tree build included.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
