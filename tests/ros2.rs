@@ -9,6 +9,31 @@ use std::process::{Command, Stdio};
 
 use common::ist_monitor;
 
+/// Starts the node as `node` says, runs `tests/python/rclpy_interop.py SCRIPT_ARGS` beside it,
+/// then stops the node (SIGTERM: it must exit cleanly); the script's JSON and the node's log.
+fn beside_node(
+    node: &mut Command,
+    python: &Path,
+    script_args: &[&std::ffi::OsStr],
+) -> (serde_json::Value, String) {
+    let node = node
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _reap = common::Reap(vec![node.id()]);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/rclpy_interop.py");
+    let out = common::json_output(Command::new(python).arg(script).args(script_args));
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let log = node.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&log.stderr).into_owned();
+    assert!(log.status.success(), "the node: {text}");
+    (out, text)
+}
+
 /// `ros2 param list/describe/get/set` through rclpy: every declared parameter is on the graph
 /// with its type, meaning, unit and range; a read-only one and one that would weaken
 /// protection while the stop is raised are refused with the reason; an exclusion volume added
@@ -24,25 +49,11 @@ fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
     let Some(python) = common::rclpy_python() else {
         return;
     };
-    let node = ist_monitor()
-        .args(common::at_rest_args())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let _reap = common::Reap(vec![node.id()]);
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/rclpy_interop.py");
-    let out = common::json_output(
-        Command::new(python)
-            .arg(script)
-            .args(["params", "/ist_monitor"]),
+    let (out, _) = beside_node(
+        ist_monitor().args(common::at_rest_args()),
+        &python,
+        &["params".as_ref(), "/ist_monitor".as_ref()],
     );
-    Command::new("kill")
-        .arg(node.id().to_string())
-        .status()
-        .unwrap();
-    let log = node.wait_with_output().unwrap();
-    assert!(log.status.success());
 
     // Every parameter of the declaration table, expanded for the one source.
     let listed: Vec<&str> = out["list"]
@@ -177,31 +188,22 @@ fn rclpy_runs_the_node_as_launch_does_on_simulated_time() {
          - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n    - 0.0\n",
     )
     .unwrap();
-    let node = ist_monitor()
-        .args(["--ros-args", "--log-level", "warn", "--ros-args"])
-        .args(["-r", "__node:=cell_monitor", "-r", "__ns:=/cell1"])
-        .arg("--params-file")
-        .arg(&package_file)
-        .arg("--params-file")
-        .arg(&launch_file)
-        .args(["-r", "/camera/depth/points:=/realsense/depth/points"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let _reap = common::Reap(vec![node.id()]);
-    let script = root.join("tests/python/rclpy_interop.py");
-    let out = common::json_output(Command::new(python).arg(script).args([
-        "sim",
-        "/cell1/cell_monitor",
-        "/realsense/depth/points",
-    ]));
-    Command::new("kill")
-        .arg(node.id().to_string())
-        .status()
-        .unwrap();
-    let log = node.wait_with_output().unwrap();
-    let log = String::from_utf8_lossy(&log.stderr);
+    let (out, log) = beside_node(
+        ist_monitor()
+            .args(["--ros-args", "--log-level", "warn", "--ros-args"])
+            .args(["-r", "__node:=cell_monitor", "-r", "__ns:=/cell1"])
+            .arg("--params-file")
+            .arg(&package_file)
+            .arg("--params-file")
+            .arg(&launch_file)
+            .args(["-r", "/camera/depth/points:=/realsense/depth/points"]),
+        &python,
+        &[
+            "sim".as_ref(),
+            "/cell1/cell_monitor".as_ref(),
+            "/realsense/depth/points".as_ref(),
+        ],
+    );
     assert!(
         log.is_empty() || !log.contains("INFO"),
         "--log-level warn: {log}"
@@ -249,7 +251,6 @@ fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
         return;
     };
     common::demo_trees();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = tempfile::tempdir().unwrap();
     // A plane 0.6 m ahead of the camera: 20 × 20 points in camera_link (x ahead), or a 64 × 48
     // depth image of it in camera_optical_frame (z ahead).
@@ -344,32 +345,17 @@ fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
             .map(|m| m.points.iter().map(|p| [p.x, p.y, p.z]).collect())
             .collect();
 
-        let node = ist_monitor()
-            .args(&args)
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let _reap = common::Reap(vec![node.id()]);
-        let mut command = Command::new(&python);
-        command
-            .arg(root.join("tests/python/rclpy_interop.py"))
-            .args(["answers", "/ist_monitor", topic])
-            .arg(if depth_image {
-                &image_file
-            } else {
-                &cloud_file
-            });
+        let mut script_args: Vec<&std::ffi::OsStr> = vec![
+            "answers".as_ref(),
+            "/ist_monitor".as_ref(),
+            topic.as_ref(),
+            cloud_file.as_os_str(),
+        ];
         if depth_image {
-            command.arg(&info_file);
+            script_args[3] = image_file.as_os_str();
+            script_args.push(info_file.as_os_str());
         }
-        let out = common::json_output(&mut command);
-        Command::new("kill")
-            .arg(node.id().to_string())
-            .status()
-            .unwrap();
-        let log = node.wait_with_output().unwrap();
-        let log = String::from_utf8_lossy(&log.stderr);
+        let (out, log) = beside_node(ist_monitor().args(&args), &python, &script_args);
         let what = if depth_image { "depth image" } else { "cloud" };
         assert_eq!(out["answered"], true, "{what}: {out}\n{log}");
         // In the graph, with the outputs' types.

@@ -105,12 +105,59 @@ def cloud(stamp):
     return m
 
 
-def params(node_name):
+def spin(name):
+    """rclpy started and a node `name` spun by a thread of its own: (node, executor)."""
     rclpy.init()
-    node = rclpy.create_node("rclpy_interop")
+    node = rclpy.create_node(name)
     executor = MultiThreadedExecutor()
     executor.add_node(node)
     threading.Thread(target=executor.spin, daemon=True).start()
+    return node, executor
+
+
+def shut(node, executor):
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+def waiter(lock):
+    """wait_for(what, timeout): True once `what()` (called under `lock`) is, False after
+    `timeout` seconds."""
+    def wait_for(what, timeout):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            with lock:
+                if what():
+                    return True
+            time.sleep(0.05)
+        return False
+    return wait_for
+
+
+def watch_fused(node, lock):
+    """A dict that follows the monitor's fused status on /diagnostics (under `lock`): level,
+    message, link, distance_m and the array's stamp in seconds."""
+    fused = {"level": None, "message": "", "link": None, "distance_m": None, "stamp": None}
+
+    def on_diagnostics(m):
+        for s in m.status:
+            if s.name.endswith(": all sources"):
+                values = {kv.key: kv.value for kv in s.values}
+                with lock:
+                    fused.update(
+                        level=s.level[0] if isinstance(s.level, bytes) else s.level,
+                        message=s.message, link=values.get("link"),
+                        distance_m=(float(values["distance_m"]) if "distance_m" in values
+                                    else None),
+                        stamp=m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec)
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+    return fused
+
+
+def params(node_name):
+    node, executor = spin("rclpy_interop")
     out = {"events": []}
     lock = threading.Lock()
     fused = {"level": None, "excluded": None, "link": None, "distance_m": None}
@@ -163,14 +210,7 @@ def params(node_name):
     def get(*names):
         return [plain(v) for v in call(GetParameters, "get_parameters", names=list(names)).values]
 
-    def wait_for(what, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            with lock:
-                if what():
-                    return True
-            time.sleep(0.05)
-        return False
+    wait_for = waiter(lock)
 
     out["list"] = list(call(ListParameters, "list_parameters").result.names)
     out["types"] = list(call(GetParameterTypes, "get_parameter_types",
@@ -227,41 +267,18 @@ def params(node_name):
     time.sleep(0.5)
     with lock:
         print(json.dumps(out))
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown()
+    shut(node, executor)
 
 
 def sim(node_name, topic):
     from builtin_interfaces.msg import Time
     from rosgraph_msgs.msg import Clock
-    rclpy.init()
-    node = rclpy.create_node("rclpy_sim_time")
-    executor = MultiThreadedExecutor()
-    executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    node, executor = spin("rclpy_sim_time")
     lock = threading.Lock()
-    fused = {"level": None, "message": "", "stamp": None}
+    fused = watch_fused(node, lock)
     out = {}
 
-    def on_diagnostics(m):
-        for s in m.status:
-            if s.name.endswith(": all sources"):
-                with lock:
-                    fused["level"] = s.level[0] if isinstance(s.level, bytes) else s.level
-                    fused["message"] = s.message
-                    fused["stamp"] = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
-
-    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
-
-    def wait_for(what, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            with lock:
-                if what():
-                    return True
-            time.sleep(0.05)
-        return False
+    wait_for = waiter(lock)
 
     client = node.create_client(GetParameters, f"{node_name}/get_parameters")
     if not client.wait_for_service(timeout_sec=30):
@@ -308,9 +325,7 @@ def sim(node_name, topic):
     with lock:
         out["stamp_after_jump_s"] = fused["stamp"]
     print(json.dumps(out))
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown()
+    shut(node, executor)
 
 
 def answers(node_name, topic, message_file, info_file):
@@ -318,14 +333,10 @@ def answers(node_name, topic, message_file, info_file):
     from sensor_msgs.msg import CameraInfo, Image
     from std_msgs.msg import Float64
     from visualization_msgs.msg import MarkerArray
-    rclpy.init()
-    node = rclpy.create_node("rclpy_answers")
-    executor = MultiThreadedExecutor()
-    executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    node, executor = spin("rclpy_answers")
     lock = threading.Lock()
-    seen = {"min_distance": [], "markers": None, "level": None, "message": "",
-            "distance_m": None, "link": None}
+    seen = watch_fused(node, lock)
+    seen.update(min_distance=[], markers=None)
 
     def on_min(m):
         with lock:
@@ -335,17 +346,6 @@ def answers(node_name, topic, message_file, info_file):
         with lock:
             seen["markers"] = [[[p.x, p.y, p.z] for p in k.points] for k in m.markers
                                if k.points]
-
-    def on_diagnostics(m):
-        for s in m.status:
-            if s.name.endswith(": all sources"):
-                values = {kv.key: kv.value for kv in s.values}
-                with lock:
-                    seen["level"] = s.level[0] if isinstance(s.level, bytes) else s.level
-                    seen["message"] = s.message
-                    seen["link"] = values.get("link")
-                    seen["distance_m"] = (float(values["distance_m"]) if "distance_m" in values
-                                          else None)
 
     from rcl_interfaces.msg import Log
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -362,7 +362,6 @@ def answers(node_name, topic, message_file, info_file):
         durability=DurabilityPolicy.TRANSIENT_LOCAL))
     node.create_subscription(Float64, f"{node_name}/min_distance", on_min, 10)
     node.create_subscription(MarkerArray, f"{node_name}/closest_points", on_markers, 10)
-    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
     with open(message_file, "rb") as f:
         raw = f.read()
     if info_file:
@@ -389,14 +388,7 @@ def answers(node_name, topic, message_file, info_file):
 
     node.create_timer(0.1, publish)
 
-    def wait_for(what, timeout):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            with lock:
-                if what():
-                    return True
-            time.sleep(0.05)
-        return False
+    wait_for = waiter(lock)
 
     out = {"answered": wait_for(lambda: len(seen["min_distance"]) >= 10, 60)}
     # The node in the graph, its outputs with their types.
@@ -414,9 +406,7 @@ def answers(node_name, topic, message_file, info_file):
     with lock:
         out["rosout"] = rosout
     print(json.dumps(out))
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.shutdown()
+    shut(node, executor)
 
 
 if __name__ == "__main__":
