@@ -929,6 +929,43 @@ fn zenoh_transport_serves_the_node() {
             "no {kind} token ending {tail}: {tokens:#?}"
         );
     }
+    // `ros2 param list` over zenoh, asked as an rmw_zenoh client asks: every declared parameter
+    // of this node's configuration, the reply paired to the request by its sequence number.
+    let listed: Vec<&str> = (peer["parameters"].as_array())
+        .unwrap_or_else(|| panic!("no answer from list_parameters: {peer}"))
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    let overrides: Vec<(String, String)> = common::at_rest_args()
+        .iter()
+        .map(String::as_str)
+        .chain([
+            "-p",
+            "sources:=[camera, depth]",
+            "-p",
+            "depth.type:=depth_image",
+        ])
+        .collect::<Vec<_>>()
+        .windows(2)
+        .filter(|w| w[0] == "-p")
+        .map(|w| ist_monitor::config::parse_override(w[1]).unwrap())
+        .collect();
+    let config =
+        ist_monitor::config::Config::load(Path::new(common::DEMO_CONFIG), &overrides).unwrap();
+    let expected = config.parameters();
+    assert_eq!(listed.len(), expected.len(), "{listed:?}");
+    for p in &expected {
+        assert!(listed.contains(&p.name.as_str()), "{} not listed", p.name);
+    }
+    assert_eq!(peer["parameters_reply_sequence"], 41, "{peer}");
+    assert!(
+        tokens.iter().any(|k| k.contains(
+            "/SS/%/%/ist_monitor/%ist_monitor%list_parameters/\
+             rcl_interfaces::srv::dds_::ListParameters_/\
+             RIHS01_3e6062bfbb27bfb8730d4cef2558221f51a11646d78e7bb30a1e83afac3aad9d/"
+        )),
+        "no list_parameters service token: {tokens:#?}"
+    );
     // The demo bag over zenoh, twice, recorded over zenoh.
     let record = dir.path().join("outputs.mcap");
     let mut recorder = ist_monitor();

@@ -31,6 +31,12 @@
 //! subscription asks every publisher it detects, early or late, for that history (reliable
 //! ones also recover missed samples by heartbeat).
 //!
+//! **Services** (the node's parameter services) are queryables on
+//! `d/<node>/<service>/rcl_interfaces::srv::dds_::<Service>_/<hash>` (any hash taken), announced
+//! by a liveliness token of kind `SS`: a request is a query with the CDR request as its payload
+//! and the client's attachment; the reply carries the CDR response and an attachment with the
+//! request's sequence number and the client's gid, by which the client pairs them.
+//!
 //! **Messages** are CDR with the encapsulation header, as on DDS and in bags; each carries an
 //! attachment of 32 bytes: sequence number and source timestamp (ns), little-endian `i64`, then
 //! the publisher's 16-byte gid.
@@ -251,6 +257,8 @@ pub struct ZenohNode {
     /// The end of it: `<enclave>/<namespace>/<node>`.
     lv_node: String,
     next_entity: AtomicU64,
+    /// The node's fully qualified name, `/ns/name`.
+    path: String,
     _token: zenoh::liveliness::LivelinessToken,
 }
 
@@ -289,10 +297,16 @@ impl ZenohNode {
                 lv_prefix,
                 lv_node,
                 next_entity: AtomicU64::new(NODE_ID + 1),
+                path: format!("{namespace}/{name}"),
                 _token: token,
             },
             describe,
         ))
+    }
+
+    /// The node's fully qualified name, `/ns/name`.
+    pub fn node_path(&self) -> &str {
+        &self.path
     }
 
     /// Declares the liveliness token `key` of the `what` (publisher, subscription) on `topic`.
@@ -439,6 +453,83 @@ impl ZenohNode {
         }))
     }
 
+    /// Answers service `service` (absolute) of type `rcl_interfaces/srv/<ty>` (REP-2016 hash
+    /// `hash`) with `answer`, on zenoh's own threads, until the returned server is dropped.
+    pub fn service<Req, Resp>(
+        &self,
+        service: &str,
+        ty: &str,
+        hash: &str,
+        answer: impl Fn(Req) -> Resp + Send + Sync + 'static,
+    ) -> Result<ZenohService, NodeError>
+    where
+        Req: serde::de::DeserializeOwned + 'static,
+        Resp: serde::Serialize + 'static,
+    {
+        super::topic_name(service)?; // a ROS name, as on DDS
+        let service = format!("/{}", service.trim_matches('/'));
+        let dds_type = format!("rcl_interfaces::srv::dds_::{ty}_");
+        let id = self.next_entity.fetch_add(1, Ordering::Relaxed);
+        // rclcpp's services: reliable, volatile, the last 10.
+        let qos = QosProfile::publisher_default()
+            .reliability_reliable(ros2_client::qos::WhenFull::DEFAULT)
+            .history(History::KeepLast { depth: 10 });
+        let liveliness = format!(
+            "{}/{id}/SS/{}/{}/{dds_type}/{hash}/{}",
+            self.lv_prefix,
+            self.lv_node,
+            mangle(&service),
+            qos_key(&qos)
+        );
+        let name = service.clone();
+        let queryable = self
+            .session
+            .declare_queryable(format!("{}{service}/{dds_type}/*", self.domain))
+            .complete(true)
+            .callback(move |query| {
+                let Some(request) = query.payload().map(|p| p.to_bytes()) else {
+                    log::warn!("service {name}: a request without a payload");
+                    return;
+                };
+                let request: Req = match decode_cdr(&request) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        log::warn!("service {name}: a request that does not decode: {e}");
+                        return;
+                    }
+                };
+                let mut response = vec![0u8, 1, 0, 0];
+                if let Err(e) = cdr_encoding::to_writer::<_, byteorder::LittleEndian, _>(
+                    &mut response,
+                    &answer(request),
+                ) {
+                    log::warn!("service {name}: encoding the answer: {e}");
+                    return;
+                }
+                // The client pairs the reply by the request's sequence number and its own gid.
+                let (seq, gid) = query.attachment().map_or((0, [0; 16]), |a| {
+                    let b = a.to_bytes();
+                    let seq = b.get(0..8).and_then(|s| s.try_into().ok());
+                    let gid = b.get(16..32).and_then(|g| g.try_into().ok());
+                    (seq.map_or(0, i64::from_le_bytes), gid.unwrap_or([0; 16]))
+                });
+                if let Err(e) = query
+                    .reply(query.key_expr().clone(), response)
+                    .attachment(attachment(seq, &gid))
+                    .wait()
+                {
+                    log::warn!("service {name}: answering: {e}");
+                }
+            })
+            .wait()
+            .map_err(|e| entity("service", &service, e))?;
+        let token = self.token(liveliness, "service", &service)?;
+        Ok(ZenohService {
+            _queryable: queryable,
+            _token: token,
+        })
+    }
+
     /// Closes the session (its tokens go with it: peers see the node leave at once).
     pub fn close(self) {
         let _ = self.session.close().wait();
@@ -466,6 +557,26 @@ impl Take {
             Take::Latched(s) => s.handler().recv_async().await,
         }
     }
+}
+
+/// A service answered on zenoh, until dropped.
+pub struct ZenohService {
+    _queryable: zenoh::query::Queryable<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+/// A CDR payload with its encapsulation header (either byte order) as `T`.
+fn decode_cdr<T: serde::de::DeserializeOwned>(payload: &[u8]) -> Result<T, String> {
+    let (header, body) = payload
+        .split_at_checked(4)
+        .ok_or_else(|| format!("{} bytes, no CDR header", payload.len()))?;
+    match header[1] {
+        1 => cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(body),
+        0 => cdr_encoding::from_bytes::<T, byteorder::BigEndian>(body),
+        kind => return Err(format!("encapsulation {kind}")),
+    }
+    .map(|(t, _)| t)
+    .map_err(|e| e.to_string())
 }
 
 /// A publisher of `T` on zenoh.

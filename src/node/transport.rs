@@ -230,20 +230,33 @@ impl RosNode {
 
 impl RosNode {
     /// Answers the node's service `~/<service>` of type `rcl_interfaces/srv/<ty>` with
-    /// `answer`, in a task on `executor`; `None` on zenoh, where the node offers no services.
+    /// `answer`: on DDS in a task on `executor`, on zenoh on zenoh's threads for as long as the
+    /// task returned lives.
     pub fn service<Req, Resp>(
         &mut self,
         service: &str,
         ty: &str,
         executor: &smol::Executor<'static>,
-        answer: impl Fn(Req) -> Resp + Send + 'static,
+        answer: impl Fn(Req) -> Resp + Send + Sync + 'static,
     ) -> Result<Option<smol::Task<()>>, NodeError>
     where
         Req: ros2_client::Message + Clone + Send + Sync + 'static,
         Resp: ros2_client::Message + Send + Sync + 'static,
     {
-        let Inner::Dds { node, name, .. } = &mut self.inner else {
-            return Ok(None);
+        let (node, name) = match &mut self.inner {
+            Inner::Dds { node, name, .. } => (node, name),
+            Inner::Zenoh(z) => {
+                let full = format!("{}/{service}", z.node_path());
+                let hash = super::parameters::service_hash(ty).ok_or_else(|| {
+                    NodeError::Transport(format!("rcl_interfaces/srv/{ty}: no type hash"))
+                })?;
+                let server = z.service(&full, ty, hash, answer)?;
+                // The server answers on zenoh's threads; the task keeps it until cancelled.
+                return Ok(Some(executor.spawn(async move {
+                    let _server = server;
+                    futures::future::pending::<()>().await
+                })));
+            }
         };
         let full = format!("{}/{service}", name.fully_qualified_name());
         // rclcpp's services: reliable, volatile, the last 10.

@@ -111,12 +111,16 @@ def spin(name):
     node = rclpy.create_node(name)
     executor = MultiThreadedExecutor()
     executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    executor.spinner = threading.Thread(target=executor.spin, daemon=True)
+    executor.spinner.start()
     return node, executor
 
 
 def shut(node, executor):
+    """Stops the spinning thread before rclpy goes (a thread still in rclpy's wait when the
+    interpreter exits aborts the process)."""
     executor.shutdown()
+    executor.spinner.join()
     node.destroy_node()
     rclpy.shutdown()
 
@@ -391,15 +395,17 @@ def answers(node_name, topic, message_file, info_file):
     wait_for = waiter(lock)
 
     out = {"answered": wait_for(lambda: len(seen["min_distance"]) >= 10, 60)}
-    # The node in the graph, its outputs with their types.
-    out["nodes"] = [f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()]
-    out["topics"] = {t: types for t, types in node.get_topic_names_and_types()
-                     if t.startswith(node_name + "/") or t == "/diagnostics"}
-    time.sleep(0.3)
+    # A measured picture (markers drawn, no fault), taken at once: a late frame of this
+    # publisher (a slow machine) would turn the cell to ERROR for a moment, as it should.
+    wait_for(lambda: seen["markers"] and seen["level"] in (0, 1), 10)
     with lock:
         out.update(min_distance=seen["min_distance"][-1] if seen["min_distance"] else None,
                    markers=seen["markers"], level=seen["level"], link=seen["link"],
                    distance_m=seen["distance_m"])
+    # The node in the graph, its outputs with their types.
+    out["nodes"] = [f"{ns.rstrip('/')}/{n}" for n, ns in node.get_node_names_and_namespaces()]
+    out["topics"] = {t: types for t, types in node.get_topic_names_and_types()
+                     if t.startswith(node_name + "/") or t == "/diagnostics"}
     running["on"] = False
     out["error_after_last"] = wait_for(lambda: seen["level"] == 2, 10)
     out["error_message"] = seen["message"]

@@ -19,7 +19,9 @@ TYPE is the DDS type name (`sensor_msgs::msg::dds_::Image_`). Prints, as JSON:
 "attachments": [[length, sequence number], ...] of the distances, "lower_m": {status name:
 the last `lower_m` value of that status in /diagnostics}, "liveliness": [the keys of
 the liveliness tokens under @ros2_lv/0/**], "speed_scaling": [the factors in the node's
-`~/speed_scaling` cache that a late-joining rmw_zenoh subscriber receives]}.
+`~/speed_scaling` cache that a late-joining rmw_zenoh subscriber receives], "parameters": [the
+names `/ist_monitor/list_parameters` answers, asked as an rmw_zenoh client asks],
+"parameters_reply_sequence": the sequence number of that reply's attachment}.
 
 Zenoh may scout by multicast: run it only inside ../shared/tools/netns-run (only loopback). It
 refuses to start anywhere else.
@@ -93,6 +95,20 @@ def parse_diagnostics(payload):
             values[k] = string()
         statuses.append((name, values))
     return statuses
+
+
+def parse_strings(payload):
+    """The first string sequence of a CDR payload (ListParameters_Response: result.names)."""
+    little = payload[1] == 1
+    b = payload[4:]
+    (n,) = struct.unpack_from("<I" if little else ">I", b, 0)
+    pos, out = 4, []
+    for _ in range(n):
+        pos += (-pos) % 4
+        (length,) = struct.unpack_from("<I" if little else ">I", b, pos)
+        out.append(b[pos + 4:pos + 4 + length - 1].decode())
+        pos += 4 + length
+    return out
 
 
 def main():
@@ -221,6 +237,20 @@ def main():
         history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
     )
     time.sleep(1.0)
+    # `ros2 param list` over rmw_zenoh: a query on the node's list_parameters service with a
+    # CDR ListParameters_Request (no prefixes; depth 0: all) and the client's attachment; the
+    # reply's attachment carries the request's sequence number back.
+    service = ("0/ist_monitor/list_parameters/rcl_interfaces::srv::dds_::ListParameters_/"
+               "RIHS01_3e6062bfbb27bfb8730d4cef2558221f51a11646d78e7bb30a1e83afac3aad9d")
+    request = bytes([0, 1, 0, 0]) + struct.pack("<I4xQ", 0, 0)
+    parameters, reply_sequence = None, None
+    for reply in session.get(service, payload=request,
+                             attachment=struct.pack("<qq", 41, time.time_ns()) + gid,
+                             timeout=10.0):
+        if reply.ok is not None:
+            parameters = parse_strings(bytes(reply.ok.payload.to_bytes()))
+            if reply.ok.attachment is not None:
+                reply_sequence = struct.unpack("<q", bytes(reply.ok.attachment.to_bytes())[:8])[0]
     late.undeclare()
     sub.undeclare()
     diag.undeclare()
@@ -234,6 +264,8 @@ def main():
                 "liveliness": liveliness,
                 "speed_scaling": speed_scaling,
                 "lower_m": lower_m,
+                "parameters": parameters,
+                "parameters_reply_sequence": reply_sequence,
             }
         )
     )
