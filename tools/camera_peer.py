@@ -122,6 +122,30 @@ def fast_byte_sequences():
     machinery.PlainCdrV2SequenceOfPrimitiveMachine.serialize = serialize
 
 
+def paced(args, publish, lock, sent, handed):
+    """Calls `publish(stamp_ns)` at `args.rate` for `args.duration`, recording in `sent` when
+    each stamp was taken and in `handed` when its publish returned (unless already answered).
+    Returns the count and the publisher's own share of the latency per message, ms: from the
+    stamp until the write/put returned (the message built, serialised and handed over)."""
+    period, count = 1.0 / args.rate, int(args.duration * args.rate)
+    start, publishing = time.monotonic(), []
+    for i in range(count):
+        delay = start + i * period - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        stamp_ns = time.time_ns()
+        t0 = time.monotonic()
+        with lock:
+            sent[stamp_ns] = t0
+        publish(stamp_ns)
+        t1 = time.monotonic()
+        with lock:
+            if stamp_ns in sent:  # not answered yet
+                handed[stamp_ns] = t1
+        publishing.append((t1 - t0) * 1000.0)
+    return count, publishing
+
+
 def node_usage(pid):
     """(CPU seconds, peak resident MiB) of process `pid`."""
     with open(f"/proc/{pid}/stat") as f:
@@ -197,21 +221,14 @@ def run_rclpy(args):
     spinner.start()
     time.sleep(args.wait)
     usage0 = node_usage(args.node_pid) if args.node_pid else None
-    period, count = 1.0 / args.rate, int(args.duration * args.rate)
-    start, publishing = time.monotonic(), []
-    for i in range(count):
-        delay = start + i * period - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        stamp_ns = time.time_ns()
-        t0 = time.monotonic()
-        with lock:
-            sent[stamp_ns] = t0
+    def publish(stamp_ns):
         for pub, raw in pubs:
             # The header's stamp follows the 4-byte encapsulation: sec int32, nanosec uint32.
             struct.pack_into("<iI", raw, 4, stamp_ns // 10**9, stamp_ns % 10**9)
             pub.publish(bytes(raw))
-        publishing.append((time.monotonic() - t0) * 1e3)
+
+    start = time.monotonic()
+    count, publishing = paced(args, publish, lock, sent, {})
     elapsed = time.monotonic() - start
     time.sleep(1.0)
     if usage0:
@@ -446,27 +463,7 @@ def main():
     listener = threading.Thread(target=listen)
     listener.start()
     time.sleep(args.wait)
-    period = 1.0 / args.rate
-    count = int(args.duration * args.rate)
-    start = time.monotonic()
-    # The publisher's own share of the latency: from the stamp until the write/put returned
-    # (the message built, serialised and handed to the middleware).
-    publishing = []
-    for i in range(count):
-        due = start + i * period
-        delay = due - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        stamp_ns = time.time_ns()
-        t0 = time.monotonic()
-        with lock:
-            sent[stamp_ns] = t0
-        publish(stamp_ns)
-        t1 = time.monotonic()
-        with lock:
-            if stamp_ns in sent:  # not answered yet
-                handed[stamp_ns] = t1
-        publishing.append((t1 - t0) * 1000.0)
+    count, publishing = paced(args, publish, lock, sent, handed)
     time.sleep(1.0)
     done.set()
     listener.join()

@@ -84,6 +84,11 @@ fn sections(path: &Path, text: &str) -> Result<Vec<(String, Yaml)>, ConfigError>
     Ok(out)
 }
 
+/// The first section of a parameters file, `(key, ros__parameters)`: what `--config` takes.
+pub(super) fn first_section(path: &Path, text: &str) -> Result<(String, Yaml), ConfigError> {
+    Ok(sections(path, text)?.swap_remove(0))
+}
+
 /// Whether parameter `name` (a declared name, or `<entry>.x` of a listed entry) holds a path.
 fn is_path(name: &str) -> bool {
     PARAMETERS.iter().any(|d| {
@@ -155,7 +160,7 @@ impl Config {
         let (mut namespace, mut node) = ("/".to_owned(), "ist_monitor".to_owned());
         let mut base = PathBuf::from(".");
         if let Some(path) = &sources.config {
-            let (key, section) = sections(path, &read(path)?)?.remove(0);
+            let (key, section) = first_section(path, &read(path)?)?;
             (namespace, node) = key_name(&key);
             flatten("", &section, &mut values);
             base = path.parent().unwrap_or(Path::new(".")).to_owned();
@@ -304,19 +309,17 @@ mod tests {
             "bad.yaml",
             "/**:\n  ros__parameters:\n    warn_distanse: 1\n",
         );
-        let e = Config::from_sources(&ParameterSources {
-            params_files: vec![bad],
-            ..Default::default()
-        })
-        .unwrap_err()
-        .to_string();
+        let error = |file: PathBuf| {
+            Config::from_sources(&ParameterSources {
+                params_files: vec![file],
+                ..Default::default()
+            })
+            .unwrap_err()
+            .to_string()
+        };
+        let e = error(bad);
         assert!(e.contains("warn_distanse"), "{e}");
-        let e = Config::from_sources(&ParameterSources {
-            params_files: vec![dir.path().join("missing.yaml")],
-            ..Default::default()
-        })
-        .unwrap_err()
-        .to_string();
+        let e = error(dir.path().join("missing.yaml"));
         assert!(e.contains("missing.yaml"), "{e}");
     }
 }

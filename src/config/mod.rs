@@ -15,7 +15,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use yaml_rust2::{Yaml, YamlLoader};
+use yaml_rust2::Yaml;
 
 use crate::cloud::exclusion::ExclusionVolume;
 use crate::ist::BuildOptions;
@@ -182,7 +182,8 @@ pub fn parse_override(s: &str) -> Result<(String, String), String> {
 }
 
 impl Config {
-    /// Reads a parameters file, then applies `overrides` (`name`, YAML value).
+    /// Reads a parameters file (its first section, whatever its key, which names the node),
+    /// then applies `overrides` (`name`, YAML value).
     pub fn load(path: &Path, overrides: &[(String, String)]) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
             path: path.to_owned(),
@@ -197,24 +198,10 @@ impl Config {
         path: &Path,
         overrides: &[(String, String)],
     ) -> Result<Self, ConfigError> {
-        let docs = YamlLoader::load_from_str(text).map_err(|e| ConfigError::Yaml {
-            path: path.to_owned(),
-            message: e.to_string(),
-        })?;
-        let no_params = || ConfigError::NoParameters {
-            path: path.to_owned(),
-        };
-        let top = docs
-            .first()
-            .and_then(|d| d.as_hash())
-            .ok_or_else(no_params)?;
-        let (key, section) = top
-            .iter()
-            .find(|(_, v)| !v["ros__parameters"].is_badvalue())
-            .ok_or_else(no_params)?;
-        let (namespace, node_name) = files::key_name(key.as_str().unwrap_or("ist_monitor"));
+        let (key, section) = files::first_section(path, text)?;
+        let (namespace, node_name) = files::key_name(&key);
         let mut values = BTreeMap::new();
-        flatten("", &section["ros__parameters"], &mut values);
+        flatten("", &section, &mut values);
         for (name, value) in overrides {
             values.insert(name.clone(), scalar_yaml(value));
         }
