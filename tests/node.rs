@@ -822,6 +822,7 @@ fn zenoh_transport_serves_the_node() {
     let peer = Command::new(&python)
         .arg(script)
         .arg("tcp/localhost:7447")
+        .args(["--set", "hysteresis=0.03"])
         .args(&plan)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -966,6 +967,22 @@ fn zenoh_transport_serves_the_node() {
         )),
         "no list_parameters service token: {tokens:#?}"
     );
+    // `ros2 param set` over zenoh: taken, and announced on /parameter_events (with ROS 2's
+    // type hash in the key) as the one parameter changed, stamped now.
+    assert_eq!(peer["set"], serde_json::json!([[true, ""]]), "{peer}");
+    let events = peer["parameter_events"].as_array().unwrap();
+    assert_eq!(events.len(), 1, "{peer}");
+    let event = &events[0];
+    assert_eq!(event["node"], "/ist_monitor", "{event}");
+    assert_eq!(
+        event["changed"],
+        serde_json::json!([["hysteresis", 3, 0.03]]),
+        "{event}"
+    );
+    assert_eq!(event["new"], serde_json::json!([]), "{event}");
+    assert_eq!(event["deleted"], serde_json::json!([]), "{event}");
+    let age_ns = ist_monitor::msg::Time::now_nanos() - event["stamp_ns"].as_i64().unwrap();
+    assert!((0..60_000_000_000).contains(&age_ns), "{event}");
     // The demo bag over zenoh, twice, recorded over zenoh.
     let record = dir.path().join("outputs.mcap");
     let mut recorder = ist_monitor();

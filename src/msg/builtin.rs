@@ -1,4 +1,5 @@
-//! `builtin_interfaces`, `std_msgs`, `rosgraph_msgs/Clock` and `rcl_interfaces/Log`.
+//! `builtin_interfaces`, `std_msgs`, `rosgraph_msgs/Clock` and the `rcl_interfaces` messages
+//! a node publishes (`Log`, `ParameterEvent`).
 
 use serde::{Deserialize, Serialize};
 
@@ -102,6 +103,57 @@ impl Log {
     pub const WARN: u8 = 30;
     pub const ERROR: u8 = 40;
 }
+
+/// `rcl_interfaces/msg/ParameterValue`: one value; `kind` (the field `type`) says which field
+/// holds it, as `rcl_interfaces/msg/ParameterType` numbers them (0 not set, 1 bool, 2 integer,
+/// 3 double, 4 string, 5 bytes, 6–9 the bool, integer, double and string arrays).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ParameterValue {
+    #[serde(rename = "type")]
+    pub kind: u8,
+    pub bool_value: bool,
+    pub integer_value: i64,
+    pub double_value: f64,
+    pub string_value: String,
+    pub byte_array_value: Vec<u8>,
+    pub bool_array_value: Vec<bool>,
+    pub integer_array_value: Vec<i64>,
+    pub double_array_value: Vec<f64>,
+    pub string_array_value: Vec<String>,
+}
+ros_message!(
+    ParameterValue,
+    "rcl_interfaces/msg/ParameterValue",
+    "uint8 type\nbool bool_value\nint64 integer_value\nfloat64 double_value\nstring string_value\nbyte[] byte_array_value\nbool[] bool_array_value\nint64[] integer_array_value\nfloat64[] double_array_value\nstring[] string_array_value\n"
+);
+
+/// `rcl_interfaces/msg/Parameter`: a named value.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Parameter {
+    pub name: String,
+    pub value: ParameterValue,
+}
+ros_message!(
+    Parameter,
+    "rcl_interfaces/msg/Parameter",
+    "string name\nParameterValue value\n"
+);
+
+/// `rcl_interfaces/msg/ParameterEvent`: what one change did to node `node`'s parameters
+/// (`/parameter_events`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ParameterEvent {
+    pub stamp: Time,
+    pub node: String,
+    pub new_parameters: Vec<Parameter>,
+    pub changed_parameters: Vec<Parameter>,
+    pub deleted_parameters: Vec<Parameter>,
+}
+ros_message!(
+    ParameterEvent,
+    "rcl_interfaces/msg/ParameterEvent",
+    "builtin_interfaces/Time stamp\nstring node\nParameter[] new_parameters\nParameter[] changed_parameters\nParameter[] deleted_parameters\n"
+);
 
 /// `std_msgs/msg/String` (`/robot_description`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

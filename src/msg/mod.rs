@@ -120,6 +120,9 @@ const OWN_DEFINITIONS: &[(&str, &str)] = &[
     (StringMessage::TYPE, StringMessage::OWN_DEFINITION),
     (Clock::TYPE, Clock::OWN_DEFINITION),
     (Log::TYPE, Log::OWN_DEFINITION),
+    (ParameterValue::TYPE, ParameterValue::OWN_DEFINITION),
+    (Parameter::TYPE, Parameter::OWN_DEFINITION),
+    (ParameterEvent::TYPE, ParameterEvent::OWN_DEFINITION),
     (Bool::TYPE, Bool::OWN_DEFINITION),
     (ColorRgba::TYPE, ColorRgba::OWN_DEFINITION),
     (Vector3::TYPE, Vector3::OWN_DEFINITION),
@@ -269,7 +272,8 @@ owned_as_is!(
     StringMessage,
     Range,
     Clock,
-    Log
+    Log,
+    ParameterEvent
 );
 
 /// `data` copied out of the sample.

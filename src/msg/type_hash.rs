@@ -202,6 +202,18 @@ mod tests {
             "RIHS01_e28ce254ca8abc06abf92773b74602cdbf116ed34fbaf294fb9f81da9f318eac",
         ),
         (
+            "rcl_interfaces/msg/ParameterValue",
+            "RIHS01_115fc089a387e23c7ecd3525c9189c379109119d6ab82e8dfbde0fdf6a7f9b68",
+        ),
+        (
+            "rcl_interfaces/msg/Parameter",
+            "RIHS01_ddfe6442cffc462317adb5c92536a7b6dd55858c5c3e1e328165a6b73c2831af",
+        ),
+        (
+            "rcl_interfaces/msg/ParameterEvent",
+            "RIHS01_043e627780fcad87a22d225bc2a037361dba713fca6a6b9f4b869a5aa0393204",
+        ),
+        (
             "rosgraph_msgs/msg/Clock",
             "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
         ),

@@ -430,27 +430,28 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
     } else {
         None
     };
+    // The clock, `/clock`'s with use_sim_time: subscribed from the start, so that the stamps of
+    // the "not monitoring" reports during the build (and of parameter events) are simulated
+    // time too.
+    let clock = Arc::new(if config.use_sim_time {
+        NodeClock::simulated()
+    } else {
+        NodeClock::system()
+    });
     // The parameters are on the graph from the start; a change taken during the build waits in
     // the channel for the processing thread.
     let safety = Arc::new(Safety::raised());
     let (apply_tx, apply_rx) = std::sync::mpsc::channel::<Config>();
-    let events = node.parameter_events()?;
+    let events = (node.parameter_events()?, clock.clone());
     let robot_links: parameters::RobotLinks = Arc::new(Mutex::new(None));
     let params = Arc::new(Parameters::new(
         config.clone(),
         safety.clone(),
         robot_links.clone(),
         apply_tx,
-        events,
+        Some(events),
     ));
     let param_tasks = parameters::serve(&mut node, &executor, &params)?;
-    // The clock, `/clock`'s with use_sim_time: subscribed from the start, so that the stamps of
-    // the "not monitoring" reports during the build are simulated time too.
-    let clock = Arc::new(if config.use_sim_time {
-        NodeClock::simulated()
-    } else {
-        NodeClock::system()
-    });
     let clock_task = if config.use_sim_time {
         let ticks = clock.clone();
         let topic = input_topic(&config, "/clock");

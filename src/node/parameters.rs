@@ -20,8 +20,9 @@
 //! (`Monitor::reconfigure`), and published on `/parameter_events` (new, changed and deleted
 //! parameters, as rclcpp reports them).
 //!
-//! The services run on DDS and on zenoh (as rmw_zenoh offers services: `rmw_zenoh`);
-//! `/parameter_events` is published on DDS only.
+//! The services run on DDS and on zenoh (as rmw_zenoh offers services: `rmw_zenoh`), and so
+//! does `/parameter_events` (`rcl_interfaces/msg/ParameterEvent`, stamped by the node's clock:
+//! simulated time with `use_sim_time`, as rclcpp stamps it).
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -33,8 +34,11 @@ use ros2_client::rcl_interfaces as srv;
 use ros2_client::ParameterValue;
 use yaml_rust2::Yaml;
 
+use super::clock::NodeClock;
+use super::transport::Pub;
 use super::{lock, NodeError, RosNode};
 use crate::config::{Config, ParamKind, Parameter};
+use crate::msg;
 
 /// What the processing thread last saw of the cell's safety: a run-time change is checked
 /// against it.
@@ -69,8 +73,8 @@ pub struct Parameters {
     safety: Arc<Safety>,
     robot_links: RobotLinks,
     apply: Mutex<Sender<Config>>,
-    /// `/parameter_events` (DDS only).
-    events: Option<ros2_client::Publisher<raw::ParameterEvent>>,
+    /// `/parameter_events`, and the clock that stamps its messages.
+    events: Option<(Pub<msg::ParameterEvent>, Arc<NodeClock>)>,
 }
 
 impl Parameters {
@@ -79,7 +83,7 @@ impl Parameters {
         safety: Arc<Safety>,
         robot_links: RobotLinks,
         apply: Sender<Config>,
-        events: Option<ros2_client::Publisher<raw::ParameterEvent>>,
+        events: Option<(Pub<msg::ParameterEvent>, Arc<NodeClock>)>,
     ) -> Self {
         Self {
             config: Mutex::new(config),
@@ -222,12 +226,13 @@ impl Parameters {
                 ));
             }
         }
-        let event = event(&config, &params, &new);
+        let mut event = event(&config, &params, &new);
         lock(&self.apply)
             .send(new.clone())
             .map_err(|_| "the node is shutting down".to_string())?;
         *config = new;
-        if let Some(events) = &self.events {
+        if let Some((events, clock)) = &self.events {
+            event.stamp = msg::Time::from_nanos(clock.now_ns());
             if let Err(e) = events.publish(event) {
                 log::warn!("/parameter_events: {e:?}");
             }
@@ -244,20 +249,18 @@ impl Parameters {
     }
 }
 
-/// The parameter event of the change from `old` (whose parameters are `before`) to `new`.
-fn event(old: &Config, before: &[Parameter], new: &Config) -> raw::ParameterEvent {
-    let raw_of = |p: &Parameter| raw::Parameter {
+/// The parameter event of the change from `old` (whose parameters are `before`) to `new`
+/// (stamped 0: the publisher stamps it).
+fn event(old: &Config, before: &[Parameter], new: &Config) -> msg::ParameterEvent {
+    let raw_of = |p: &Parameter| msg::Parameter {
         name: p.name.clone(),
-        value: ros_value(p).into(),
+        value: wire_value(ros_value(p)),
     };
     let before: BTreeMap<&str, &Parameter> = before.iter().map(|p| (p.name.as_str(), p)).collect();
     let after = new.parameters();
-    let mut e = raw::ParameterEvent {
-        stamp: ros2_client::builtin_interfaces::Time::now(),
+    let mut e = msg::ParameterEvent {
         node: old.node_path(),
-        new_parameters: Vec::new(),
-        changed_parameters: Vec::new(),
-        deleted_parameters: Vec::new(),
+        ..Default::default()
     };
     for p in &after {
         match before.get(p.name.as_str()) {
@@ -272,6 +275,24 @@ fn event(old: &Config, before: &[Parameter], new: &Config) -> raw::ParameterEven
         }
     }
     e
+}
+
+/// `v` as `rcl_interfaces/msg/ParameterValue` carries it (through ros2-client's wire form, which
+/// the services answer with).
+fn wire_value(v: ParameterValue) -> msg::ParameterValue {
+    let r = raw::ParameterValue::from(v);
+    msg::ParameterValue {
+        kind: r.ptype,
+        bool_value: r.boolean_value,
+        integer_value: r.int_value,
+        double_value: r.double_value,
+        string_value: r.string_value,
+        byte_array_value: r.byte_array,
+        bool_array_value: r.bool_array,
+        integer_array_value: r.int_array,
+        double_array_value: r.double_array,
+        string_array_value: r.string_array,
+    }
 }
 
 /// A parameter's type: the declared one; for one without a default, a quantity is a double
@@ -731,7 +752,7 @@ mod tests {
         .collect();
         let new = c.with_changes(&changes).unwrap();
         let e = event(&c, &before, &new);
-        let names = |ps: &[raw::Parameter]| ps.iter().map(|p| p.name.clone()).collect::<Vec<_>>();
+        let names = |ps: &[msg::Parameter]| ps.iter().map(|p| p.name.clone()).collect::<Vec<_>>();
         assert!(names(&e.new_parameters).contains(&"t.radius".into()));
         assert_eq!(
             names(&e.changed_parameters),

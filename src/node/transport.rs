@@ -6,7 +6,7 @@
 
 use futures::StreamExt;
 use ros2_client::dds::{Publisher, Server, ServiceMapping, Subscription};
-use ros2_client::{MessageInfo, MessageTypeName, NodeName, NodeOptions, ServiceTypeName};
+use ros2_client::{MessageInfo, NodeName, NodeOptions, ServiceTypeName};
 use serde::Serialize;
 
 use super::rmw_zenoh::{ZenohNode, ZenohPub};
@@ -287,27 +287,12 @@ impl RosNode {
         })))
     }
 
-    /// The publisher of `/parameter_events` (reliable, volatile, the last 1000, as rclcpp's);
-    /// `None` on zenoh.
-    pub fn parameter_events(
-        &mut self,
-    ) -> Result<Option<Publisher<ros2_client::parameters::raw::ParameterEvent>>, NodeError> {
-        let Inner::Dds { node, .. } = &mut self.inner else {
-            return Ok(None);
-        };
+    /// The publisher of `/parameter_events` (reliable, volatile, the last 1000, as rclcpp's).
+    pub fn parameter_events(&mut self) -> Result<Pub<crate::msg::ParameterEvent>, NodeError> {
         let qos = QosProfile::publisher_default()
             .reliability_reliable(WhenFull::DEFAULT)
             .history(History::KeepLast { depth: 1000 });
-        let topic = node
-            .create_topic(
-                &super::topic_name("/parameter_events")?,
-                MessageTypeName::new("rcl_interfaces", "ParameterEvent"),
-                &qos,
-            )
-            .map_err(|e| entity("topic", "/parameter_events", e))?;
-        node.create_publisher(&topic, Some(qos))
-            .map(Some)
-            .map_err(|e| entity("publisher", "/parameter_events", e))
+        self.publisher("/parameter_events", qos)
     }
 }
 

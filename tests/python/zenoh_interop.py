@@ -4,7 +4,8 @@ with each type's REP-2016 hash as ROS 2 Jazzy computes it (the table below, copi
 code ROS 2 generates, not from ist_monitor), CDR payloads with their encapsulation header, and
 the rmw_zenoh attachment (sequence number, source timestamp, source gid).
 
-    zenoh_interop.py ENDPOINT [--latched TOPIC=FILE,TYPE] [--delay S] [--together] TOPIC=FILE,TYPE ...
+    zenoh_interop.py ENDPOINT [--latched TOPIC=FILE,TYPE] [--delay S] [--together]
+                     [--set NAME=DOUBLE] TOPIC=FILE,TYPE ...
 
 Connects to ENDPOINT (a router, tcp/localhost:7447). `--latched` publishes that message once, at
 once, as rmw_zenoh publishes a transient-local topic (`/tf_static`): from a cache that
@@ -21,7 +22,10 @@ the last `lower_m` value of that status in /diagnostics}, "liveliness": [the key
 the liveliness tokens under @ros2_lv/0/**], "speed_scaling": [the factors in the node's
 `~/speed_scaling` cache that a late-joining rmw_zenoh subscriber receives], "parameters": [the
 names `/ist_monitor/list_parameters` answers, asked as an rmw_zenoh client asks],
-"parameters_reply_sequence": the sequence number of that reply's attachment}.
+"parameters_reply_sequence": the sequence number of that reply's attachment, "set": [successful,
+reason] of `/ist_monitor/set_parameters` setting NAME to DOUBLE (`--set`; null without it),
+"parameter_events": [each `/parameter_events` message heard since the start, as {"node", "stamp_ns",
+"new", "changed", "deleted"}, each parameter [name, type, double value]]}.
 
 Zenoh may scout by multicast: run it only inside ../shared/tools/netns-run (only loopback). It
 refuses to start anywhere else.
@@ -57,6 +61,12 @@ ROS_2_HASH = {
         "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
     "control_msgs::msg::dds_::SpeedScalingFactor_":
         "RIHS01_0c240f349f2b74e33e8741f83e0f196ddeb6585923663876ed3c1f51f0566037",
+    "rcl_interfaces::msg::dds_::ParameterEvent_":
+        "RIHS01_043e627780fcad87a22d225bc2a037361dba713fca6a6b9f4b869a5aa0393204",
+    "rcl_interfaces::srv::dds_::ListParameters_":
+        "RIHS01_3e6062bfbb27bfb8730d4cef2558221f51a11646d78e7bb30a1e83afac3aad9d",
+    "rcl_interfaces::srv::dds_::SetParameters_":
+        "RIHS01_56eed9a67e169f9cb6c1f987bc88f868c14a8fc9f743a263bc734c154015d7e0",
 }
 
 
@@ -64,51 +74,130 @@ def key(topic, dds_type):
     return f"0/{topic.strip('/')}/{dds_type}/{ROS_2_HASH[dds_type]}"
 
 
-def parse_diagnostics(payload):
-    """The (name, {key: value}) of each status of a CDR diagnostic_msgs/DiagnosticArray."""
-    little = payload[1] == 1
-    b = payload[4:]
-    pos = 0
+class Cdr:
+    """A reader of a CDR payload (encapsulation header, then either byte order)."""
 
-    def u32():
-        nonlocal pos
-        pos += (-pos) % 4
-        (v,) = struct.unpack_from("<I" if little else ">I", b, pos)
-        pos += 4
+    def __init__(self, payload):
+        self.little = payload[1] == 1
+        self.b = payload[4:]
+        self.pos = 0
+
+    def take(self, fmt, size):
+        self.pos += (-self.pos) % size
+        (v,) = struct.unpack_from(("<" if self.little else ">") + fmt, self.b, self.pos)
+        self.pos += size
         return v
 
-    def string():
-        nonlocal pos
-        n = u32()
-        s = b[pos:pos + n - 1].decode()
-        pos += n
+    def u8(self):
+        return self.take("B", 1)
+
+    def u32(self):
+        return self.take("I", 4)
+
+    def f64(self):
+        return self.take("d", 8)
+
+    def string(self):
+        n = self.u32()
+        s = self.b[self.pos:self.pos + n - 1].decode()
+        self.pos += n
         return s
 
-    u32(), u32(), string()  # header: stamp, frame_id
+    def parameter_value(self):
+        """rcl_interfaces/ParameterValue as [type, double_value] (the arrays skipped)."""
+        kind = self.u8()
+        self.u8()  # bool_value
+        self.take("q", 8)  # integer_value
+        value = self.f64()
+        self.string()
+        for size in (1, 1, 8, 8):  # byte, bool, int64 and float64 arrays
+            n = self.u32()
+            self.pos += (-self.pos) % size if n else 0
+            self.pos += n * size
+        for _ in range(self.u32()):
+            self.string()
+        return [kind, value]
+
+
+class CdrWriter:
+    """A little-endian CDR payload, with its encapsulation header."""
+
+    def __init__(self):
+        self.b = bytearray()
+
+    def put(self, fmt, size, v):
+        self.b += bytes((-len(self.b)) % size)
+        self.b += struct.pack("<" + fmt, v)
+
+    def string(self, s):
+        data = s.encode() + b"\0"
+        self.put("I", 4, len(data))
+        self.b += data
+
+    def payload(self):
+        return bytes([0, 1, 0, 0]) + bytes(self.b)
+
+
+def parse_diagnostics(payload):
+    """The (name, {key: value}) of each status of a CDR diagnostic_msgs/DiagnosticArray."""
+    c = Cdr(payload)
+    c.u32(), c.u32(), c.string()  # header: stamp, frame_id
     statuses = []
-    for _ in range(u32()):
-        pos += 1  # level
-        name, _message, _hardware_id = string(), string(), string()
+    for _ in range(c.u32()):
+        c.u8()  # level
+        name, _message, _hardware_id = c.string(), c.string(), c.string()
         values = {}
-        for _ in range(u32()):
-            k = string()
-            values[k] = string()
+        for _ in range(c.u32()):
+            k = c.string()
+            values[k] = c.string()
         statuses.append((name, values))
     return statuses
 
 
 def parse_strings(payload):
     """The first string sequence of a CDR payload (ListParameters_Response: result.names)."""
-    little = payload[1] == 1
-    b = payload[4:]
-    (n,) = struct.unpack_from("<I" if little else ">I", b, 0)
-    pos, out = 4, []
-    for _ in range(n):
-        pos += (-pos) % 4
-        (length,) = struct.unpack_from("<I" if little else ">I", b, pos)
-        out.append(b[pos + 4:pos + 4 + length - 1].decode())
-        pos += 4 + length
-    return out
+    c = Cdr(payload)
+    return [c.string() for _ in range(c.u32())]
+
+
+def parse_parameter_event(payload):
+    """A CDR rcl_interfaces/ParameterEvent as {"node", "stamp_ns", "new", "changed", "deleted"}."""
+    c = Cdr(payload)
+    sec = c.take("i", 4)
+    stamp_ns = sec * 10**9 + c.u32()
+    event = {"node": c.string(), "stamp_ns": stamp_ns}
+    for part in ("new", "changed", "deleted"):
+        event[part] = [[c.string()] + c.parameter_value() for _ in range(c.u32())]
+    return event
+
+
+def set_double_request(name, value):
+    """A CDR SetParameters_Request setting `name` to the double `value`."""
+    w = CdrWriter()
+    w.put("I", 4, 1)  # one parameter
+    w.string(name)
+    w.put("B", 1, 3)  # PARAMETER_DOUBLE
+    w.put("B", 1, 0)  # bool_value
+    w.put("q", 8, 0)  # integer_value
+    w.put("d", 8, value)
+    w.string("")
+    for _ in range(5):  # the five arrays, empty
+        w.put("I", 4, 0)
+    return w.payload()
+
+
+def call(session, gid, service, dds_type, request, sequence):
+    """A request to the node's `service` as an rmw_zenoh client makes it: the payload and
+    the client's attachment (the reply's carries `sequence` back). The reply's (payload,
+    sequence number), or (None, None)."""
+    key = f"0/ist_monitor/{service}/{dds_type}/{ROS_2_HASH[dds_type]}"
+    attachment = struct.pack("<qq", sequence, time.time_ns()) + gid
+    for reply in session.get(key, payload=request, attachment=attachment, timeout=10.0):
+        if reply.ok is not None:
+            a = reply.ok.attachment
+            seq = struct.unpack("<q", bytes(a.to_bytes())[:8])[0] if a is not None else None
+            return bytes(reply.ok.payload.to_bytes()), seq
+    return None, None
 
 
 def main():
@@ -121,8 +210,13 @@ def main():
     latched = []
     delay = 0.0
     together = False
+    to_set = None
     args = iter(sys.argv[2:])
     for arg in args:
+        if arg == "--set":
+            name, value = next(args).split("=", 1)
+            to_set = (name, float(value))
+            continue
         if arg == "--together":
             together = True
             continue
@@ -182,6 +276,16 @@ def main():
                 if "lower_m" in values:
                     lower_m[name] = float(values["lower_m"])
 
+    events = []
+
+    def on_event(sample):
+        event = parse_parameter_event(bytes(sample.payload.to_bytes()))
+        with lock:
+            events.append(event)
+
+    event_sub = session.declare_subscriber(
+        key("/parameter_events", "rcl_interfaces::msg::dds_::ParameterEvent_"), on_event
+    )
     sub = session.declare_subscriber(
         key("/ist_monitor/min_distance", "std_msgs::msg::dds_::Float64_"), on_distance
     )
@@ -237,21 +341,27 @@ def main():
         history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
     )
     time.sleep(1.0)
-    # `ros2 param list` over rmw_zenoh: a query on the node's list_parameters service with a
-    # CDR ListParameters_Request (no prefixes; depth 0: all) and the client's attachment; the
-    # reply's attachment carries the request's sequence number back.
-    service = ("0/ist_monitor/list_parameters/rcl_interfaces::srv::dds_::ListParameters_/"
-               "RIHS01_3e6062bfbb27bfb8730d4cef2558221f51a11646d78e7bb30a1e83afac3aad9d")
-    request = bytes([0, 1, 0, 0]) + struct.pack("<I4xQ", 0, 0)
-    parameters, reply_sequence = None, None
-    for reply in session.get(service, payload=request,
-                             attachment=struct.pack("<qq", 41, time.time_ns()) + gid,
-                             timeout=10.0):
-        if reply.ok is not None:
-            parameters = parse_strings(bytes(reply.ok.payload.to_bytes()))
-            if reply.ok.attachment is not None:
-                reply_sequence = struct.unpack("<q", bytes(reply.ok.attachment.to_bytes())[:8])[0]
+    # `ros2 param list` over rmw_zenoh: a ListParameters_Request (no prefixes; depth 0: all).
+    request = CdrWriter()
+    request.put("I", 4, 0)
+    request.put("Q", 8, 0)
+    reply, reply_sequence = call(session, gid, "list_parameters",
+                                 "rcl_interfaces::srv::dds_::ListParameters_",
+                                 request.payload(), 41)
+    parameters = parse_strings(reply) if reply is not None else None
+    # `ros2 param set` over rmw_zenoh: SetParameters_Response is results[] of (successful,
+    # reason); the change is then announced on /parameter_events.
+    set_result = None
+    if to_set is not None:
+        reply, _ = call(session, gid, "set_parameters",
+                        "rcl_interfaces::srv::dds_::SetParameters_",
+                        set_double_request(*to_set), 42)
+        if reply is not None:
+            c = Cdr(reply)
+            set_result = [[c.u8() == 1, c.string()] for _ in range(c.u32())]
+        time.sleep(1.0)
     late.undeclare()
+    event_sub.undeclare()
     sub.undeclare()
     diag.undeclare()
     session.close()
@@ -266,6 +376,8 @@ def main():
                 "lower_m": lower_m,
                 "parameters": parameters,
                 "parameters_reply_sequence": reply_sequence,
+                "set": set_result,
+                "parameter_events": events,
             }
         )
     )
