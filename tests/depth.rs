@@ -10,7 +10,9 @@ use std::path::Path;
 
 use common::{DEMO_CONFIG, DEMO_URDF};
 use ist_monitor::bag::{read_messages, writer::Compression, BagWriter};
-use ist_monitor::cloud::depth::{encode_depth, points_from_depth, DepthEncoding, PinholeCamera};
+use ist_monitor::cloud::depth::{
+    encode_depth, points_from_depth, DepthEncoding, DepthView, PinholeCamera,
+};
 use ist_monitor::cloud::pointcloud2::{encode, Layout};
 use ist_monitor::cloud::RangeLimits;
 use ist_monitor::config::Config;
@@ -163,6 +165,12 @@ proptest! {
             let expected = if kept { p } else { [f32::NAN; 3] };
             prop_assert!(same_point(points[i], expected), "pixel {} with range limits", i);
         }
+        // One pixel at a time (what the host makes of the few points a GPU result names), as
+        // the whole image.
+        let view = DepthView::new(&image, &camera, RangeLimits::new(lo, Some(hi))).unwrap();
+        for (i, p) in points.iter().enumerate() {
+            prop_assert!(same_point(view.point(i), *p), "pixel {} alone", i);
+        }
     }
 }
 
@@ -296,6 +304,76 @@ fn depth_image_bags_measure_as_their_clouds_and_hold_their_truth() {
             assert_eq!(a.lower_m, b.lower_m, "frame {}", a.index);
             assert_eq!(a.link, b.link, "frame {}", a.index);
             assert_eq!(a.level, b.level, "frame {}", a.index);
+        }
+    }
+}
+
+/// The depth source on the GPU (`backend: gpu`; lavapipe in CI): the monitor hands each image
+/// to the engine whole, the GPU makes its points, and every frame answers as on the CPU (the
+/// same link, distances and lower bounds within 1e-5 m, the truth in the interval).
+/// With the stray filter on, the points are made on the host and the answers are again the
+/// CPU's with the filter.
+#[test]
+fn depth_images_on_the_gpu_answer_as_on_the_cpu() {
+    let model = demo_model();
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("depth_16UC1");
+    let params = ScenarioParams {
+        frames: 6,
+        depth: Some(DepthEncoding::Millimetres16),
+        ..ScenarioParams::default()
+    };
+    scenario::generate(&model, &params, &bag).unwrap();
+    let with = |extra: &[(&str, &str)]| {
+        let o: Vec<(String, String)> = [
+            ("camera.type", "depth_image"),
+            ("camera.topic", DEPTH_TOPIC),
+        ]
+        .iter()
+        .chain(extra)
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+        Config::load(Path::new(DEMO_CONFIG), &o).unwrap()
+    };
+    for stray in ["1", "3"] {
+        let (cpu, _) = replay_all(
+            with(&[("backend", "cpu"), ("stray_filter.min_points", stray)]),
+            &bag,
+        );
+        let (gpu, summary) = replay_all(
+            with(&[("backend", "gpu"), ("stray_filter.min_points", stray)]),
+            &bag,
+        );
+        assert!(summary.faults.is_empty(), "{:?}", summary.faults);
+        let Some(backend) = gpu[0].backend else {
+            panic!("frame 0: {:?}", gpu[0])
+        };
+        if backend != ist_monitor::query::Backend::Gpu {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI: the depth images ran on {backend:?}"
+            );
+            common::skip("no GPU adapter and CI is not set");
+            return;
+        }
+        assert_eq!(gpu.len(), cpu.len());
+        let close = |a: Option<f64>, b: Option<f64>| (a.unwrap() - b.unwrap()).abs() < 1e-5;
+        for (c, g) in cpu.iter().zip(&gpu) {
+            let what = format!("stray {stray}, frame {}", g.index);
+            assert_eq!(g.backend, Some(ist_monitor::query::Backend::Gpu), "{what}");
+            // (Not the level: a software GPU runs past the latency budget, a WARN.)
+            assert_eq!(c.link, g.link, "{what}");
+            assert!(close(c.distance_m, g.distance_m), "{what}: {c:?} {g:?}");
+            assert!(close(c.lower_m, g.lower_m), "{what}");
+            // (The filter measures the nearest cluster: the truth, the nearest point's, may
+            // lie below its interval.)
+            let truth = g.truth_m.unwrap();
+            assert!(
+                stray != "1"
+                    || (g.lower_m.unwrap() <= truth + 1e-6
+                        && truth <= g.distance_m.unwrap() + 1e-6),
+                "{what}"
+            );
         }
     }
 }

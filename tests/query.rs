@@ -956,3 +956,168 @@ fn gpu_agrees_with_cpu() {
         }
     }
 }
+
+/// A depth image of `width × height` pixels in `encoding` and byte order, each row `pad` bytes
+/// longer than its pixels, with depths around a robot ~1.2 m in front of the camera: every
+/// 13th pixel no return (0; NaN or, every 26th, +∞ in 32FC1).
+fn depth_image(
+    rng: &mut Rng,
+    (width, height): (u32, u32),
+    encoding: ist_monitor::cloud::depth::DepthEncoding,
+    big_endian: bool,
+    pad: usize,
+) -> ist_monitor::msg::Image<'static> {
+    use ist_monitor::cloud::depth::DepthEncoding;
+    let size = encoding.size();
+    let step = width as usize * size + pad;
+    let mut data = vec![0u8; step * height as usize];
+    for v in 0..height as usize {
+        for u in 0..width as usize {
+            let k = v * width as usize + u;
+            let d = rng.range(0.6, 1.9);
+            let at = v * step + u * size;
+            let bytes: Vec<u8> = match encoding {
+                DepthEncoding::Millimetres16 => {
+                    let mm = if k.is_multiple_of(13) { 0 } else { (d * 1000.0) as u16 };
+                    if big_endian {
+                        mm.to_be_bytes().to_vec()
+                    } else {
+                        mm.to_le_bytes().to_vec()
+                    }
+                }
+                DepthEncoding::Metres32 => {
+                    let m = match k % 26 {
+                        0 => f32::INFINITY,
+                        13 => f32::NAN,
+                        _ => d as f32,
+                    };
+                    if big_endian {
+                        m.to_be_bytes().to_vec()
+                    } else {
+                        m.to_le_bytes().to_vec()
+                    }
+                }
+            };
+            data[at..at + size].copy_from_slice(&bytes);
+        }
+    }
+    ist_monitor::msg::Image {
+        header: Default::default(),
+        height,
+        width,
+        encoding: encoding.name().into(),
+        is_bigendian: big_endian as u8,
+        step: step as u32,
+        data: data.into(),
+    }
+}
+
+/// Depth images unprojected on the GPU (lavapipe in CI) against the CPU's `points_from_depth`:
+/// both encodings, both byte orders, rows padded by an odd number of bytes or not, with and
+/// without range limits, an odd image size (its bytes not whole words). The GPU's points are
+/// the CPU's bit for bit (read back), and the query on them answers as the CPU's query on the
+/// CPU's points: the same invalid points, the same distances (1e-5 m), the same nearest point.
+#[test]
+fn gpu_unprojects_depth_images_as_the_cpu_does() {
+    use ist_monitor::cloud::depth::{points_from_depth, DepthEncoding, DepthView, PinholeCamera};
+    use ist_monitor::cloud::RangeLimits;
+    use ist_monitor::query::Backend;
+    let mut rng = Rng(11);
+    let scene = Scene::random(&mut rng, 3, 96);
+    let mut engine = scene.engine();
+    if !common::has_gpu(&mut engine) {
+        return;
+    }
+    let root_from_sensor = Isometry3::translation(0.0, 0.0, -1.2);
+    let mut case = 0;
+    for encoding in [DepthEncoding::Millimetres16, DepthEncoding::Metres32] {
+        for (big_endian, pad, range, size) in [
+            (false, 0, None, (64, 48)),
+            (true, 3, RangeLimits::new(0.8, Some(1.7)), (63, 47)),
+            (false, 1, RangeLimits::new(0.0, Some(1.5)), (65, 33)),
+            (true, 0, None, (31, 1)),
+        ] {
+            case += 1;
+            let image = depth_image(&mut rng, size, encoding, big_endian, pad);
+            let camera = PinholeCamera {
+                width: size.0,
+                height: size.1,
+                fx: rng.range(40.0, 60.0),
+                fy: rng.range(40.0, 60.0),
+                cx: rng.range(28.0, 34.0),
+                cy: rng.range(20.0, 26.0),
+            };
+            let view = DepthView::new(&image, &camera, range).unwrap();
+            let mut cpu_points = Vec::new();
+            points_from_depth(&image, &camera, range, &mut cpu_points).unwrap();
+            for mode in [Mode::Certified, Mode::Exact] {
+                let what = format!("case {case} {encoding:?} big_endian {big_endian} {mode:?}");
+                let options = |backend| QueryOptions {
+                    mode,
+                    per_link: true,
+                    backend,
+                    max_distance_m: 1.0,
+                    self_filter_padding_m: Some(0.01),
+                    ..QueryOptions::default()
+                };
+                let width = (size.1 > 1).then_some(size.0 as usize);
+                let cpu = engine
+                    .query_image(
+                        &cpu_points,
+                        width,
+                        &root_from_sensor,
+                        &scene.link_poses,
+                        &options(Backend::Cpu),
+                    )
+                    .unwrap();
+                let mut left = vec![[1.0f32; 3]];
+                let gpu = engine
+                    .query_depth(
+                        &view,
+                        &mut left,
+                        &root_from_sensor,
+                        &scene.link_poses,
+                        &options(Backend::Gpu),
+                    )
+                    .unwrap();
+                assert_eq!(
+                    (cpu.backend, gpu.backend),
+                    (Backend::Cpu, Backend::Gpu),
+                    "{what}"
+                );
+                // The GPU made the points: none were made on the host.
+                assert!(left.is_empty(), "{what}");
+                let made = engine.gpu().unwrap().read_points(cpu_points.len()).unwrap();
+                for (k, (c, g)) in cpu_points.iter().zip(&made).enumerate() {
+                    let same = c
+                        .iter()
+                        .zip(g)
+                        .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+                    assert!(same, "{what}: pixel {k}: CPU {c:?}, GPU {g:?}");
+                }
+                assert_eq!(cpu.outcome, gpu.outcome, "{what}");
+                let (cc, gc) = (cpu.counts, gpu.counts);
+                assert_eq!(
+                    (cc.total, cc.invalid, cc.outside_roi, cc.self_filtered),
+                    (gc.total, gc.invalid, gc.outside_roi, gc.self_filtered),
+                    "{what}"
+                );
+                assert!(cc.invalid > 0 && cc.evaluated > 0, "{what}: {cc:?}");
+                let (c, g) = (cpu.nearest.as_ref(), gpu.nearest.as_ref());
+                let (c, g) = (c.expect("a nearest point"), g.expect("a nearest point"));
+                assert!(
+                    (c.distance_m - g.distance_m).abs() <= 1e-5,
+                    "{what}: {c:?} {g:?}"
+                );
+                assert_eq!(c.point_sensor, g.point_sensor, "{what}");
+                for (a, b) in cpu.links.iter().zip(&gpu.links) {
+                    let close = match (a.distance_m, b.distance_m) {
+                        (Some(x), Some(y)) => (x - y).abs() <= 1e-5,
+                        (x, y) => x == y,
+                    };
+                    assert!(close, "{what} {}: {a:?} {b:?}", a.link);
+                }
+            }
+        }
+    }
+}

@@ -5,7 +5,8 @@
 //! declares a generated constant itself.
 
 use ist_monitor::query::layout::{
-    shader_source, wgsl_constants, Minima, MINIMA_U32_WGSL, MINIMA_U64_WGSL, MIRRORS, TRAVERSE_WGSL,
+    shader_source, unproject_source, wgsl_constants, Minima, Mirror, MINIMA_U32_WGSL,
+    MINIMA_U64_WGSL, MIRRORS, TRAVERSE_WGSL, UNPROJECT_MIRRORS, UNPROJECT_WGSL,
 };
 use naga::valid::Capabilities;
 
@@ -60,7 +61,16 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
     .validate(&parsed)
     .is_err());
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-    let used = [TRAVERSE_WGSL, MINIMA_U64_WGSL, MINIMA_U32_WGSL];
+    // The depth images' unprojection is a module of its own, with its one pass.
+    let m = module(&unproject_source(), "unproject", Capabilities::empty());
+    let entries: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(entries, ["unproject"]);
+    let used = [
+        TRAVERSE_WGSL,
+        MINIMA_U64_WGSL,
+        MINIMA_U32_WGSL,
+        UNPROJECT_WGSL,
+    ];
     let mut n = 0;
     for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();
@@ -79,9 +89,23 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
 
 #[test]
 fn mirrored_structs_have_the_host_members_at_the_host_offsets() {
-    for (minima, capabilities) in VARIANTS {
-        let module = module(&shader_source(minima), &format!("{minima:?}"), capabilities);
-        for mirror in MIRRORS {
+    let mut modules: Vec<(naga::Module, &[Mirror])> = VARIANTS
+        .iter()
+        .map(|(minima, capabilities)| {
+            let m = module(
+                &shader_source(*minima),
+                &format!("{minima:?}"),
+                *capabilities,
+            );
+            (m, MIRRORS)
+        })
+        .collect();
+    modules.push((
+        module(&unproject_source(), "unproject", Capabilities::empty()),
+        UNPROJECT_MIRRORS,
+    ));
+    for (module, mirrors) in &modules {
+        for mirror in *mirrors {
             let ty = module
                 .types
                 .iter()
@@ -118,6 +142,7 @@ fn no_shader_file_declares_a_generated_constant() {
             ("traverse.wgsl", TRAVERSE_WGSL),
             ("minima_u64.wgsl", MINIMA_U64_WGSL),
             ("minima_u32.wgsl", MINIMA_U32_WGSL),
+            ("unproject.wgsl", UNPROJECT_WGSL),
         ] {
             assert!(
                 !text.contains(&format!("const {name}:")),

@@ -71,7 +71,7 @@ impl DepthEncoding {
     }
 
     /// Metres per stored unit, as `depth_image_proc` computes it (f32).
-    fn unit(self) -> f32 {
+    pub fn unit(self) -> f32 {
         match self {
             Self::Millimetres16 => 0.001,
             Self::Metres32 => 1.0,
@@ -151,6 +151,7 @@ impl PinholeCamera {
 }
 
 /// The checked layout of a depth image.
+#[derive(Debug, Clone, Copy)]
 struct Layout {
     encoding: DepthEncoding,
     big_endian: bool,
@@ -212,6 +213,131 @@ fn layout(image: &Image, camera: &PinholeCamera) -> Result<Layout, CloudError> {
     })
 }
 
+/// A checked depth image with the constants of its unprojection: what both the CPU
+/// ([`DepthView::unproject_into`], [`DepthView::point`]) and the GPU (`query::gpu`, which
+/// reads the image's bytes and these constants) unproject it with.
+#[derive(Debug, Clone, Copy)]
+pub struct DepthView<'a> {
+    data: &'a [u8],
+    layout: Layout,
+    /// The principal point, f32, as `depth_image_proc` takes it.
+    pub cx: f32,
+    pub cy: f32,
+    /// `unit / fx` and `unit / fy`, computed in f64 and rounded to f32.
+    pub kx: f32,
+    pub ky: f32,
+    /// Metres per stored unit (f32).
+    pub unit: f32,
+    pub range: Option<RangeLimits>,
+}
+
+impl<'a> DepthView<'a> {
+    /// `image` seen by `camera`, its points limited to `range`; checked (see the module doc).
+    pub fn new(
+        image: &'a Image,
+        camera: &PinholeCamera,
+        range: Option<RangeLimits>,
+    ) -> Result<Self, CloudError> {
+        let layout = layout(image, camera)?;
+        let unit = layout.encoding.unit();
+        // As depth_image_proc: the principal point in f32, the scales computed in f64 (the f32
+        // unit widened) and rounded to f32.
+        Ok(Self {
+            data: &image.data,
+            layout,
+            cx: camera.cx as f32,
+            cy: camera.cy as f32,
+            kx: (f64::from(unit) / camera.fx) as f32,
+            ky: (f64::from(unit) / camera.fy) as f32,
+            unit,
+            range,
+        })
+    }
+
+    pub fn width(&self) -> usize {
+        self.layout.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.layout.height
+    }
+
+    /// Pixels (points).
+    pub fn len(&self) -> usize {
+        self.layout.width * self.layout.height
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The image's bytes, `step × height`.
+    pub fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
+    /// Bytes from one row to the next.
+    pub fn step(&self) -> usize {
+        self.layout.step
+    }
+
+    pub fn encoding(&self) -> DepthEncoding {
+        self.layout.encoding
+    }
+
+    pub fn big_endian(&self) -> bool {
+        self.layout.big_endian
+    }
+
+    /// The point of pixel `u` in a row whose bytes start at `row` and whose `v − cy` is `dy`:
+    /// NaN for no return or outside the range limits.
+    #[inline]
+    fn point_in_row(&self, row: &[u8], u: usize, dy: f32) -> [f32; 3] {
+        let Some(d) = depth_at(row, u, self.layout.encoding, self.layout.big_endian) else {
+            return [f32::NAN; 3];
+        };
+        let q = [
+            (u as f32 - self.cx) * d * self.kx,
+            dy * d * self.ky,
+            d * self.unit,
+        ];
+        if self.range.is_none_or(|r| r.keeps(q)) {
+            q
+        } else {
+            [f32::NAN; 3]
+        }
+    }
+
+    /// The point of pixel `i` (row-major), exactly as [`DepthView::unproject_into`] makes it.
+    pub fn point(&self, i: usize) -> [f32; 3] {
+        let l = &self.layout;
+        let (v, u) = (i / l.width, i % l.width);
+        let row = &self.data[v * l.step..v * l.step + l.width * l.encoding.size()];
+        self.point_in_row(row, u, v as f32 - self.cy)
+    }
+
+    /// Every point, row by row into `points` (resized to width × height; its allocation is
+    /// kept), in one parallel pass over the rows.
+    pub fn unproject_into(&self, points: &mut Vec<[f32; 3]>) {
+        let l = &self.layout;
+        points.clear();
+        points.resize(l.width * l.height, [f32::NAN; 3]);
+        if l.width == 0 {
+            return;
+        }
+        points
+            .par_chunks_mut(l.width)
+            .enumerate()
+            .for_each(|(v, out)| {
+                let row = &self.data[v * l.step..v * l.step + l.width * l.encoding.size()];
+                let dy = v as f32 - self.cy;
+                for (u, p) in out.iter_mut().enumerate() {
+                    *p = self.point_in_row(row, u, dy);
+                }
+            });
+    }
+}
+
 /// The points of `image` seen by `camera`, row by row into `points` (resized to width ×
 /// height; its allocation is kept). A point outside `range` is NaN, as the monitor drops
 /// out-of-range cloud points.
@@ -221,36 +347,7 @@ pub fn points_from_depth(
     range: Option<RangeLimits>,
     points: &mut Vec<[f32; 3]>,
 ) -> Result<(), CloudError> {
-    let l = layout(image, camera)?;
-    points.clear();
-    points.resize(l.width * l.height, [f32::NAN; 3]);
-    if l.width == 0 {
-        return Ok(());
-    }
-    let unit = l.encoding.unit();
-    // As depth_image_proc: the principal point in f32, the scales computed in f64 (the f32 unit
-    // widened) and rounded to f32.
-    let (cx, cy) = (camera.cx as f32, camera.cy as f32);
-    let (kx, ky) = (
-        (f64::from(unit) / camera.fx) as f32,
-        (f64::from(unit) / camera.fy) as f32,
-    );
-    let data: &[u8] = &image.data;
-    points
-        .par_chunks_mut(l.width)
-        .enumerate()
-        .for_each(|(v, row)| {
-            let bytes = &data[v * l.step..v * l.step + l.width * l.encoding.size()];
-            let dy = v as f32 - cy;
-            for (u, p) in row.iter_mut().enumerate() {
-                let d = depth_at(bytes, u, l.encoding, l.big_endian);
-                let Some(d) = d else { continue };
-                let q = [(u as f32 - cx) * d * kx, dy * d * ky, d * unit];
-                if range.is_none_or(|r| r.keeps(q)) {
-                    *p = q;
-                }
-            }
-        });
+    DepthView::new(image, camera, range)?.unproject_into(points);
     Ok(())
 }
 

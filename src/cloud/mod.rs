@@ -50,6 +50,11 @@ impl RangeLimits {
         })
     }
 
+    /// The squared limits `(min², max²)`, f32, as [`RangeLimits::keeps`] compares them.
+    pub fn squared(&self) -> (f32, f32) {
+        (self.min2, self.max2)
+    }
+
     /// Whether `p` lies within the limits (NaN does not).
     #[inline]
     pub fn keeps(&self, p: [f32; 3]) -> bool {

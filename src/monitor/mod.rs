@@ -90,6 +90,19 @@ pub struct Monitor {
     base: Base,
 }
 
+/// What a source's message gives its query: a cloud's points, or a depth image with the buffer
+/// its points are made into where they are made on the host.
+enum Points<'a, 'b> {
+    Cloud {
+        points: &'a mut [[f32; 3]],
+        width: Option<usize>,
+    },
+    Depth {
+        view: &'a depth::DepthView<'b>,
+        points: &'a mut Vec<[f32; 3]>,
+    },
+}
+
 /// The robot without the config's attached objects.
 enum Base {
     /// `model` itself: the config attaches none.
@@ -525,11 +538,15 @@ impl Monitor {
             }
         }
         let width = (cloud.height > 1).then_some(cloud.width as usize);
-        self.measure(source, stamp_ns, &frame, &mut cloud.points, width, now_ns)
+        let points = Points::Cloud {
+            points: &mut cloud.points,
+            width,
+        };
+        self.measure(source, stamp_ns, &frame, points, now_ns)
     }
 
     /// A depth image: its points made with the source's camera model (`cloud::depth`), then
-    /// measured as a cloud's.
+    /// measured as a cloud's (made on the GPU where the query runs there: `Points::Depth`).
     fn process_depth(
         &mut self,
         source: usize,
@@ -554,11 +571,14 @@ impl Monitor {
         };
         let range = self.range(source);
         let mut points = std::mem::take(&mut self.depth_points);
-        let result = depth::points_from_depth(image, &camera, range, &mut points)
+        let result = depth::DepthView::new(image, &camera, range)
             .map_err(Fault::Decode)
-            .and_then(|()| {
-                let width = (image.height > 1).then_some(image.width as usize);
-                self.measure(source, stamp_ns, &frame, &mut points, width, now_ns)
+            .and_then(|view| {
+                let points = Points::Depth {
+                    view: &view,
+                    points: &mut points,
+                };
+                self.measure(source, stamp_ns, &frame, points, now_ns)
             });
         self.depth_points = points;
         result
@@ -566,14 +586,15 @@ impl Monitor {
 
     /// The query of source `source`'s cloud, its points in `frame` at `stamp_ns` (the
     /// exclusion volumes that apply to it drop theirs first), and the motion the separation
-    /// stage needs.
+    /// stage needs. A depth image goes to the engine whole (`Engine::query_depth`: on the GPU
+    /// its points are made there) unless an exclusion volume or the stray filter needs its
+    /// points here.
     fn measure(
         &mut self,
         source: usize,
         stamp_ns: i64,
         frame: &str,
-        points: &mut [[f32; 3]],
-        width: Option<usize>,
+        points: Points,
         now_ns: Option<i64>,
     ) -> Result<(QueryResult, Motion), Fault> {
         let stamp = Some(stamp_ns);
@@ -591,6 +612,27 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
+        let name = &self.config.sources[source].name;
+        let needs_points = self.config.stray.enabled()
+            || (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));
+        let (points, width) = match points {
+            Points::Depth { view, points } if !needs_points => {
+                let result = self.engine.query_depth(
+                    view,
+                    points,
+                    &root_from_sensor,
+                    &poses,
+                    &self.config.query,
+                )?;
+                return self.finish_measure(result, Vec::new(), poses, stamp_ns, now_ns);
+            }
+            Points::Depth { view, points } => {
+                view.unproject_into(points);
+                let width = (view.height() > 1).then_some(view.width());
+                (points.as_mut_slice(), width)
+            }
+            Points::Cloud { points, width } => (points, width),
+        };
         let excluded = self.exclude(source, points, &root_from_sensor, stamp, &link_pose)?;
         let mut result = self.engine.query_image(
             points,
@@ -609,6 +651,20 @@ impl Monitor {
             };
             result = stray::reject_strays(&mut self.engine, &self.config.stray, input, result)?;
         }
+        self.finish_measure(result, excluded, poses, stamp_ns, now_ns)
+    }
+
+    /// A measured source's result with the counts of its exclusion volumes, and its motion: a
+    /// cloud whose valid points all lay in exclusion volumes has nothing near; one without valid
+    /// points is blind.
+    fn finish_measure(
+        &self,
+        mut result: QueryResult,
+        excluded: Vec<(String, u64)>,
+        poses: Vec<Isometry3<f64>>,
+        stamp_ns: i64,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
         let excluded_any = excluded.iter().any(|(_, n)| *n > 0);
         result.excluded = excluded;
         if result.outcome == Outcome::NoPoints {

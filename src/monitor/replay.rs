@@ -42,6 +42,8 @@ pub struct ReplayFrame {
     /// What `~/min_distance` carries.
     pub min_distance_m: Option<f64>,
     pub link: Option<String>,
+    /// Where the query ran (`None` for a fault).
+    pub backend: Option<crate::query::Backend>,
     pub processing_ms: f64,
     pub fault: Option<String>,
     /// The recorded exact minimum distance, when the bag has one.
@@ -273,6 +275,7 @@ pub fn replay(
             lower_m: nearest.and_then(|n| n.lower_m),
             min_distance_m: o.min_distance.map(|f| f.data),
             link: nearest.map(|n| n.link.clone()),
+            backend: frame.result.as_ref().ok().map(|r| r.backend),
             processing_ms: frame.processing_s * 1e3,
             fault: frame.result.as_ref().err().map(|f| f.to_string()),
             truth_m: truth.get(&m.log_time_ns).copied(),

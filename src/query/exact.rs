@@ -60,7 +60,7 @@ pub(crate) fn refine(
     links: &[QueryLink],
     posed: &[PosedLink],
     candidates: &mut Vec<Candidate>,
-    points: &[[f32; 3]],
+    points: &(dyn Fn(u32) -> [f32; 3] + Sync),
     upper: f32,
     counts: &mut StageCounts,
 ) -> Option<Refined> {
@@ -73,12 +73,11 @@ pub(crate) fn refine(
     // index wins a tie), then index: the order, and the result, do not depend on the order
     // the sweep found the candidates in.
     let key = |c: &Candidate| {
-        let p = points[c.point as usize];
+        let p = points(c.point);
         (c.lower.to_bits(), c.link, p.map(f32::to_bits), c.point)
     };
     candidates.sort_unstable_by_key(key);
-    candidates
-        .dedup_by(|b, a| a.link == b.link && points[a.point as usize] == points[b.point as usize]);
+    candidates.dedup_by(|b, a| a.link == b.link && points(a.point) == points(b.point));
     let best = AtomicU64::new(EMPTY);
     let refined = AtomicU64::new(0);
     let inside = Mutex::new(Vec::new());
@@ -91,7 +90,7 @@ pub(crate) fn refine(
         }
         let bound = load_distance(&best);
         let l = c.link as usize;
-        let q = posed[l].in_link(points[c.point as usize]);
+        let q = posed[l].in_link(points(c.point));
         refined.fetch_add(1, Relaxed);
         if let Some((e, _)) = link_distance(&links[l].solids, q, bound, c.lower == 0.0) {
             if e == 0.0 {
@@ -123,7 +122,7 @@ pub(crate) fn refine(
     let (distance, k) = unpack_minimum(v);
     let c = candidates[k as usize];
     let l = c.link as usize;
-    let q = posed[l].in_link(points[c.point as usize]);
+    let q = posed[l].in_link(points(c.point));
     let (_, robot_point) = link_distance(&links[l].solids, q, f32::INFINITY, true)?;
     Some(Refined {
         distance,

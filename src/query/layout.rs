@@ -309,6 +309,39 @@ pub struct Candidate {
 }
 const _: () = assert!(size_of::<Candidate>() == 16);
 
+/// `DepthParams::encoding` of a 16UC1 image (millimetres).
+pub const DEPTH_MM16: u32 = 1;
+/// `DepthParams::encoding` of a 32FC1 image (metres).
+pub const DEPTH_M32: u32 = 2;
+
+/// A depth image to unproject on the GPU (`shaders/unproject.wgsl`): its layout and the
+/// constants of `cloud::depth::DepthView`, as the CPU uses them. WGSL `DepthParams` (a
+/// uniform).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug)]
+pub struct DepthParams {
+    pub width: u32,
+    pub height: u32,
+    /// Bytes from one row to the next.
+    pub step: u32,
+    /// `DEPTH_MM16` or `DEPTH_M32`.
+    pub encoding: u32,
+    pub big_endian: u32,
+    /// 1 where the source has range limits (`min2`, `max2`: squared, as `RangeLimits`).
+    pub limited: u32,
+    pub min2: f32,
+    pub max2: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub kx: f32,
+    pub ky: f32,
+    pub unit: f32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
+}
+const _: () = assert!(size_of::<DepthParams>() == 64);
+
 /// A host struct mirrored in WGSL: its WGSL name, size, and members with their offsets.
 pub struct Mirror {
     pub wgsl: &'static str,
@@ -397,6 +430,16 @@ pub const MIRRORS: &[Mirror] = &[
     ),
 ];
 
+/// The structs of `shaders/unproject.wgsl`, as [`MIRRORS`] for the traversal.
+pub const UNPROJECT_MIRRORS: &[Mirror] = &[mirror!(
+    "DepthParams",
+    DepthParams,
+    [
+        width, height, step, encoding, big_endian, limited, min2, max2, cx, cy, kx, ky, unit, pad0,
+        pad1, pad2
+    ]
+)];
+
 /// The WGSL declarations of the constants and codes above, generated so that the shader never
 /// repeats a number of the host's.
 pub fn wgsl_constants() -> String {
@@ -431,12 +474,16 @@ pub fn wgsl_constants() -> String {
         u("WORK_ITEMS", Work::Items as u32),
         u("WORK_DESCENTS", Work::Descents as u32),
         u("WORK_NODES", Work::Nodes as u32),
+        u("DEPTH_MM16", DEPTH_MM16),
+        u("DEPTH_M32", DEPTH_M32),
     ]
     .concat()
 }
 
 /// The traversal shader file, embedded.
 pub const TRAVERSE_WGSL: &str = include_str!("../../shaders/traverse.wgsl");
+/// The depth images' unprojection, embedded.
+pub const UNPROJECT_WGSL: &str = include_str!("../../shaders/unproject.wgsl");
 /// The minima in 64-bit atomics ([`Minima::Packed64`]).
 pub const MINIMA_U64_WGSL: &str = include_str!("../../shaders/minima_u64.wgsl");
 /// The minima in 32-bit atomics and the arg-min pass ([`Minima::Split32`]).
@@ -450,4 +497,9 @@ pub fn shader_source(minima: Minima) -> String {
         Minima::Split32 => MINIMA_U32_WGSL,
     };
     format!("{}\n{minima}\n{TRAVERSE_WGSL}", wgsl_constants())
+}
+
+/// The unprojection shader as compiled: the generated constants, then `shaders/unproject.wgsl`.
+pub fn unproject_source() -> String {
+    format!("{}\n{UNPROJECT_WGSL}", wgsl_constants())
 }

@@ -23,8 +23,8 @@ pub(super) fn finish(
     mut counts: StageCounts,
     backend: Backend,
 ) -> QueryResult {
+    let points = |i: u32| input.point(i);
     let Input {
-        points,
         root_from_sensor,
         link_poses,
         options,
@@ -38,14 +38,14 @@ pub(super) fn finish(
             .candidates
             .get_mut()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        exact::refine(links, posed, candidates, points, upper, &mut counts)
+        exact::refine(links, posed, candidates, &points, upper, &mut counts)
     } else {
         None
     };
     assemble(
         links,
         bounds,
-        points,
+        &points,
         root_from_sensor,
         link_poses,
         options,
@@ -59,7 +59,7 @@ pub(super) fn finish(
 fn assemble(
     links: &[QueryLink],
     bounds: &Bounds,
-    points: &[[f32; 3]],
+    points: &dyn Fn(u32) -> [f32; 3],
     root_from_sensor: &Isometry3<f64>,
     link_poses: &[Isometry3<f64>],
     options: &QueryOptions,
@@ -152,7 +152,7 @@ fn assemble(
                     // Both points of the link's minimum (where the separation monitor takes
                     // the link's approach speed).
                     witness: measured.then(|| {
-                        let q = points[p as usize];
+                        let q = points(p);
                         (to_root(q), sphere_point(l, q))
                     }),
                 }
@@ -164,7 +164,7 @@ fn assemble(
     let nearest = match (&refined, nearest_link) {
         (Some(r), _) if within(r.distance) => {
             let link = &links[r.link];
-            let p = points[r.point as usize];
+            let p = points(r.point);
             let q = link_poses[link.pose_index]
                 * Point3::new(
                     r.robot_point[0] as f64,
@@ -184,7 +184,7 @@ fn assemble(
         (None, Some(l)) => {
             let (d, i) = per_link[l];
             let link = &links[l];
-            let p = points[i as usize];
+            let p = points(i);
             Some(Nearest {
                 distance_m: d as f64,
                 lower_m: certified.then_some(global_lower as f64),
@@ -234,7 +234,7 @@ fn assemble(
                 n.link = r.link.clone();
                 if let (Some(i), Some((p, q))) = (r.point_index, r.witness) {
                     n.point_index = i;
-                    n.point_sensor = points[i as usize];
+                    n.point_sensor = points(i);
                     n.point_root = p;
                     n.robot_point_root = q;
                 }

@@ -10,7 +10,8 @@
 //!   and grown with the cloud.
 //! - **Per query**: the links are posed by the code the CPU uses (`Bounds::prepare`: f64,
 //!   rounded once); the posed links, one `layout::QueryParams` uniform and the points are
-//!   written (the points into the staging memory, in parallel). One submission runs the
+//!   written (the points into the staging memory, in parallel; a depth image's bytes instead,
+//!   whose points the first pass makes: `unproject`). One submission runs the
 //!   passes the shader's header describes (`passes::steps`: seeds, cull, blocks, plan, measure,
 //!   tally, and arg-min without 64-bit atomics) with no readback between them; the measure and
 //!   tally passes are dispatched indirectly, sized by the blocks pass. A few words come back: `layout::Counters`,
@@ -29,6 +30,7 @@
 mod passes;
 mod setup;
 mod transfer;
+mod unproject;
 
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
@@ -38,12 +40,12 @@ use bytemuck::Zeroable;
 use super::bounds::{pack_minimum, threshold, Bounds, EMPTY};
 use super::cpu::blocks::Tiling;
 use super::layout::{
-    BoxedBlock, Candidate, Counters, GridHeader, KeptBlock, Minima, QueryParams, RobotBox, Stage,
-    GPU_CANDIDATES, GPU_STACK, SEED_STRIDE,
+    self, BoxedBlock, Candidate, Counters, GridHeader, KeptBlock, Minima, QueryParams, RobotBox,
+    Stage, GPU_CANDIDATES, GPU_STACK, SEED_STRIDE,
 };
 use super::self_grid::SelfGrid;
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
-use passes::{encode, steps, STAMP_BYTES};
+use passes::{encode, groups, steps, Step, STAMP_BYTES};
 use setup::storage;
 use transfer::MAPPED;
 
@@ -86,16 +88,22 @@ impl Default for GpuOptions {
 /// The buffers that grow with the cloud, and the bind group over them.
 struct Sized {
     points: wgpu::Buffer,
-    /// The points' staging memory, mapped for writing between queries, and its state
-    /// (`UNMAPPED`, `MAPPING`, `MAPPED`).
+    /// The points' (or the depth image's) staging memory, mapped for writing between queries,
+    /// and its state (`UNMAPPED`, `MAPPING`, `MAPPED`).
     staging: wgpu::Buffer,
     staging_state: Arc<AtomicU8>,
     /// The kept blocks, the work items and the boxed blocks, which only the shader reads and
     /// writes.
     scratch: [wgpu::Buffer; 3],
+    /// A depth image's bytes, for the unprojection, and the group that binds it with the
+    /// points.
+    image: wgpu::Buffer,
+    image_group: wgpu::BindGroup,
     points_capacity: usize,
     blocks_capacity: usize,
     items_capacity: usize,
+    /// Bytes of the image buffer (and at least of the staging buffer).
+    image_capacity: u64,
     /// Over every buffer; `None` once one of them changed.
     group: Option<wgpu::BindGroup>,
 }
@@ -120,6 +128,7 @@ pub struct GpuEngine {
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Pipelines,
+    unproject: unproject::Unproject,
     /// The adapter, as wgpu describes it.
     pub adapter: wgpu::AdapterInfo,
     /// How the minima are kept on this adapter.
@@ -169,10 +178,19 @@ impl GpuEngine {
     }
 
     /// Grows the cloud's buffers to hold `points` points in `blocks` blocks with `items` work
-    /// items.
-    fn ensure(&mut self, points: usize, blocks: usize, items: usize) -> Result<(), GpuError> {
+    /// items, and a depth image of `image_bytes` (a multiple of four).
+    fn ensure(
+        &mut self,
+        points: usize,
+        blocks: usize,
+        items: usize,
+        image_bytes: u64,
+    ) -> Result<(), GpuError> {
         if self.sized.as_ref().is_some_and(|s| {
-            s.points_capacity >= points && s.blocks_capacity >= blocks && s.items_capacity >= items
+            s.points_capacity >= points
+                && s.blocks_capacity >= blocks
+                && s.items_capacity >= items
+                && s.image_capacity >= image_bytes
         }) {
             return Ok(());
         }
@@ -192,10 +210,23 @@ impl GpuEngine {
                 mapped_at_creation: false,
             }))
         };
-        let point_buffer = buffer("points", 12 * points as u64)?;
+        if 12 * points as u64 > self.max_binding {
+            return Err(GpuError::TooLarge(12 * points as u64));
+        }
+        let point_buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("points"),
+            size: 12 * points as u64,
+            // Read back only by `read_points` (tests, benchmarks).
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let image_capacity = image_bytes.next_power_of_two().max(4096);
+        let image = buffer("depth image", image_capacity)?;
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("points staging"),
-            size: 12 * points as u64,
+            size: (12 * points as u64).max(image_capacity),
             usage: wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: true,
         });
@@ -208,14 +239,18 @@ impl GpuEngine {
             "boxed blocks",
             (std::mem::size_of::<BoxedBlock>() * blocks) as u64,
         )?;
+        let image_group = self.unproject.bind(&self.device, &image, &point_buffer);
         self.sized = Some(Sized {
             points: point_buffer,
             staging,
             staging_state: Arc::new(AtomicU8::new(MAPPED)),
             scratch: [kept, item_buffer, boxed],
+            image,
+            image_group,
             points_capacity: points,
             blocks_capacity: blocks,
             items_capacity: items,
+            image_capacity,
             group: None,
         });
         Ok(())
@@ -303,14 +338,20 @@ impl GpuEngine {
             options,
             ..
         } = input;
-        let n = points.len();
+        let n = input.len();
         let l = links.len();
         let started = std::time::Instant::now();
         // The CPU's blocks: runs, or tiles of an organized cloud (width 0: runs).
         let tiling = Tiling::new(n, width);
         let n_blocks = tiling.blocks();
         let (width, height) = tiling.image().unwrap_or((0, 0));
-        self.ensure(n, n_blocks, n_blocks * l)?;
+        // A depth image crosses as its bytes (whole words), its points made by the first pass.
+        let depth = input
+            .depth
+            .map(|d| Ok::<_, GpuError>((unproject::params(d)?, d.data())))
+            .transpose()?;
+        let image_bytes = depth.map_or(0, |(_, data)| data.len().next_multiple_of(4) as u64);
+        self.ensure(n, n_blocks, n_blocks * l, image_bytes)?;
         if let Some(padding) = options.self_filter_padding_m {
             self.use_grids(padding, grids)?;
         }
@@ -372,17 +413,39 @@ impl GpuEngine {
         if !winners.is_empty() {
             q.write_buffer(&self.winners, 0, bytemuck::cast_slice(&winners));
         }
-        let point_bytes = self.upload_points(points)?;
+        let upload = match depth {
+            Some((params, data)) => {
+                q.write_buffer(&self.unproject.params, 0, bytemuck::bytes_of(&params));
+                self.upload(data)?
+            }
+            None => self.upload(bytemuck::cast_slice(points))?,
+        };
         // Validation errors of this query come back as an error (the caller then runs the
         // CPU), not as wgpu's default panic.
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let steps = steps(&self.pipelines, n, n_blocks, l, params.n_winners);
+        let mut steps = steps(&self.pipelines, n, n_blocks, l, params.n_winners);
+        if depth.is_some() && n > 0 {
+            let unproject = Step {
+                group: Some(&sized.image_group),
+                ..Step::direct(
+                    "unproject",
+                    &self.unproject.pipeline,
+                    groups(n.div_ceil(layout::WORKGROUP as usize)),
+                )
+            };
+            steps.insert(0, unproject);
+        }
         let mut encoder = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        if point_bytes > 0 {
-            encoder.copy_buffer_to_buffer(&sized.staging, 0, &sized.points, 0, point_bytes);
+        if upload > 0 {
+            let target = if depth.is_some() {
+                &sized.image
+            } else {
+                &sized.points
+            };
+            encoder.copy_buffer_to_buffer(&sized.staging, 0, target, 0, upload);
         }
         let last_stamp = encode(
             &mut encoder,

@@ -1,6 +1,7 @@
 //! The dispatches of one GPU query ([`Step`]) and how they are recorded: in three compute passes
 //! (the ones before `plan`, `plan`, the ones after: the dispatch buffer `plan` writes is read as
-//! indirect arguments after it), with a timestamp at each end; or, to profile, each dispatch in a
+//! indirect arguments after it), after a fourth for a depth image's `unproject` (its own bind
+//! group, which writes the points the others read), with a timestamp at each end; or, to profile, each dispatch in a
 //! pass of its own with its own timestamps (`bench gpu --passes`).
 
 use super::Pipelines;
@@ -25,6 +26,8 @@ pub(super) struct Step<'a> {
     pub(super) size: Size,
     /// Binds the dispatch buffer for writing (`plan`): in a pass apart from its readers.
     pub(super) writes_dispatch: bool,
+    /// Its own bind group, instead of the traversal's (`unproject`): in a pass of its own.
+    pub(super) group: Option<&'a wgpu::BindGroup>,
 }
 
 impl<'a> Step<'a> {
@@ -38,6 +41,7 @@ impl<'a> Step<'a> {
             pipeline,
             size: Size::Groups(groups),
             writes_dispatch: false,
+            group: None,
         }
     }
 
@@ -51,11 +55,13 @@ impl<'a> Step<'a> {
             pipeline,
             size: Size::Indirect(offset),
             writes_dispatch: false,
+            group: None,
         }
     }
 }
 
-/// Records `steps` into `encoder`: in three compute passes (before `plan`, `plan`, after it) with
+/// Records `steps` into `encoder`: in compute passes (the unprojection's, the ones before `plan`,
+/// `plan`, the ones after it) with
 /// a timestamp at the start of the first and the end of the last; or, with `profile`, each in a
 /// pass of its own with a timestamp at each end. Returns the index of the last timestamp.
 pub(super) fn encode(
@@ -67,14 +73,15 @@ pub(super) fn encode(
     stamps: Option<&wgpu::QuerySet>,
     profile: bool,
 ) -> u32 {
-    // The passes: runs of steps, cut around the one that writes the dispatch buffer.
+    // The passes: runs of steps, cut around the one that writes the dispatch buffer and those
+    // with a bind group of their own.
     let mut passes: Vec<&[Step]> = Vec::new();
     if profile {
         passes.extend(steps.chunks(1));
     } else {
         let mut start = 0;
         for (k, step) in steps.iter().enumerate() {
-            if step.writes_dispatch {
+            if step.writes_dispatch || step.group.is_some() {
                 passes.extend([&steps[start..k], &steps[k..k + 1]]);
                 start = k + 1;
             }
@@ -101,7 +108,7 @@ pub(super) fn encode(
             label: Some(run[0].name),
             timestamp_writes,
         });
-        pass.set_bind_group(0, group, &[]);
+        pass.set_bind_group(0, run[0].group.unwrap_or(group), &[]);
         for step in *run {
             pass.set_pipeline(step.pipeline);
             if step.writes_dispatch {
@@ -119,7 +126,7 @@ pub(super) fn encode(
 
 /// Workgroups of a dispatch over `n` units of work, each workgroup looping over the rest
 /// (the passes stride by the number of workgroups).
-fn groups(n: usize) -> u32 {
+pub(super) fn groups(n: usize) -> u32 {
     n.min(65_535) as u32
 }
 
@@ -156,6 +163,7 @@ pub(super) fn steps(
         pipeline: &p.plan,
         size: Size::Groups(1),
         writes_dispatch: true,
+        group: None,
     });
     steps.push(Step::indirect("measure", &p.measure, 0));
     steps.push(Step::indirect("tally", &p.tally, 12));

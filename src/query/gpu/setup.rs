@@ -257,6 +257,7 @@ impl GpuEngine {
             minima,
             layout,
             pipelines,
+            unproject: super::unproject::Unproject::new(&device),
             device,
             queue,
             sized: None,

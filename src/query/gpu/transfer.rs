@@ -1,4 +1,4 @@
-//! What crosses between the host and the GPU: the points, through a staging buffer that stays
+//! What crosses between the host and the GPU: the points (or a depth image), through a staging buffer that stays
 //! allocated and is mapped again for writing after each query (filled in parallel); the small
 //! readback, by spinning on the device for a short while before the thread parks; and the
 //! host-to-device bandwidth that `bench gpu` gives each cloud's upload floor by.
@@ -17,18 +17,19 @@ pub(super) const MAPPING: u8 = 1;
 pub(super) const MAPPED: u8 = 2;
 
 impl GpuEngine {
-    /// Writes the points into the staging buffer, mapped since the last query's readback (or
-    /// since its creation), in parallel: one thread's copy of a 5 M-point cloud took 11.5 ms,
-    /// and a staging buffer allocated per query (the queue's `write_buffer`) cost more than the
-    /// copy at 307 k points. Returns the bytes to copy to the points buffer.
-    pub(super) fn upload_points(&self, points: &[[f32; 3]]) -> Result<u64, GpuError> {
+    /// Writes `bytes` (the points, or a depth image) into the staging buffer, mapped since the
+    /// last query's readback (or since its creation), in parallel: one thread's copy of a
+    /// 5 M-point cloud took 11.5 ms, and a staging buffer allocated per query (the queue's
+    /// `write_buffer`) cost more than the copy at 307 k points. Returns the bytes to copy out of
+    /// it: `bytes`' length rounded up to whole words (what follows them there is not read).
+    pub(super) fn upload(&self, bytes: &[u8]) -> Result<u64, GpuError> {
         let Some(sized) = &self.sized else {
             return Err(GpuError::Device("no point buffers".into()));
         };
-        let bytes: &[u8] = bytemuck::cast_slice(points);
         if bytes.is_empty() {
             return Ok(0);
         }
+        let words = bytes.len().next_multiple_of(4);
         // The map asked for after the last readback (done by now, as the GPU is idle), or
         // asked for now after a query that ended early.
         self.remap_staging();
@@ -44,10 +45,10 @@ impl GpuEngine {
             }
         }
         {
-            let slice = sized.staging.slice(..bytes.len() as u64);
+            let slice = sized.staging.slice(..words as u64);
             let mut view = slice.get_mapped_range_mut();
             const CHUNK: usize = 1 << 18;
-            let target: &mut [u8] = &mut view;
+            let target: &mut [u8] = &mut view[..bytes.len()];
             target
                 .par_chunks_mut(CHUNK)
                 .zip(bytes.par_chunks(CHUNK))
@@ -55,7 +56,47 @@ impl GpuEngine {
         }
         sized.staging.unmap();
         sized.staging_state.store(UNMAPPED, Ordering::Release);
-        Ok(bytes.len() as u64)
+        Ok(words as u64)
+    }
+
+    /// The first `n` points of the point buffer as the last query left them (a depth image's
+    /// points as the GPU made them): for tests and benchmarks, which compare them with the
+    /// CPU's.
+    pub fn read_points(&self, n: usize) -> Result<Vec<[f32; 3]>, GpuError> {
+        let Some(sized) = self.sized.as_ref().filter(|s| s.points_capacity >= n) else {
+            return Err(GpuError::Readback(format!("no buffer holds {n} points")));
+        };
+        let bytes = 12 * n as u64;
+        if bytes == 0 {
+            return Ok(Vec::new());
+        }
+        let target = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("points readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        encoder.copy_buffer_to_buffer(&sized.points, 0, &target, 0, bytes);
+        let submission = self.queue.submit([encoder.finish()]);
+        let failed = Arc::new(AtomicBool::new(false));
+        let f = failed.clone();
+        target.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            f.store(r.is_err(), Ordering::Release)
+        });
+        self.device
+            .poll(wgpu::PollType::WaitForSubmissionIndex(submission))
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        self.device
+            .poll(wgpu::PollType::Wait)
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        if failed.load(Ordering::Acquire) {
+            return Err(GpuError::Readback("the points could not be mapped".into()));
+        }
+        let points = bytemuck::pod_collect_to_vec(&target.slice(..).get_mapped_range());
+        Ok(points)
     }
 
     /// Asks for the staging buffer to be mapped for the next query's points (done once this

@@ -2,7 +2,10 @@
 //! for clouds of 307k to 5M points (larger clouds tile the real one with 1 mm offsets): end to
 //! end and kernel time beside the upload floor (the cloud's bytes over the host-to-device
 //! bandwidth measured in the same run), each backend's work counters (blocks culled, items,
-//! descents, nodes), and the crossover that `gpu_min_points` should be set to.
+//! descents, nodes), and the crossover that `gpu_min_points` should be set to. With `--depth`,
+//! the clouds are 16UC1 depth images instead (the Kinect cloud's depths, in millimetres, seen by
+//! the Kinect's nominal intrinsics): the CPU makes their points and measures them, the GPU
+//! takes the image and makes them itself (`Engine::query_depth`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -10,7 +13,9 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use serde::Serialize;
 
+use ist_monitor::cloud::depth::{DepthView, PinholeCamera};
 use ist_monitor::ist::BuildOptions;
+use ist_monitor::msg::Image;
 use ist_monitor::query::gpu::GpuOptions;
 use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions, WorkCounts};
 use ist_monitor::stats::Spread;
@@ -50,6 +55,74 @@ pub struct BenchGpuArgs {
     /// adds a little to the end-to-end time) and the host's steps, and print the medians.
     #[arg(long)]
     passes: bool,
+    /// Depth images (16UC1) instead of clouds, sizes rounded to whole rows of 640 pixels: the
+    /// Kinect cloud's depths, each further copy 1 mm farther; the upload floor is the image's.
+    #[arg(long)]
+    depth: bool,
+}
+
+/// A query's input in the bench: a cloud, or a depth image.
+#[derive(Clone, Copy)]
+enum Input<'a> {
+    Cloud(&'a [[f32; 3]]),
+    Depth(&'a DepthView<'a>),
+}
+
+impl Input<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Input::Cloud(p) => p.len(),
+            Input::Depth(d) => d.len(),
+        }
+    }
+
+    /// Bytes that cross to the device.
+    fn bytes(&self) -> usize {
+        match self {
+            Input::Cloud(p) => 12 * p.len(),
+            Input::Depth(d) => d.data().len(),
+        }
+    }
+}
+
+/// The Kinect's nominal intrinsics (fx = fy = 525 px, principal point at the centre of a
+/// 640 × 480 image), for a depth image of `rows` rows.
+fn kinect_camera(rows: usize) -> PinholeCamera {
+    PinholeCamera {
+        width: 640,
+        height: rows as u32,
+        fx: 525.0,
+        fy: 525.0,
+        cx: 319.5,
+        cy: 239.5,
+    }
+}
+
+/// A 16UC1 image of `n / 640` rows: the depths (z, mm) of the organized cloud `base`, row after
+/// row, each further copy of it 1 mm farther; no return where the cloud has none.
+fn depth_image(base: &[[f32; 3]], n: usize) -> Image<'static> {
+    let rows = (n / 640).max(1);
+    let data: Vec<u8> = (0..rows * 640)
+        .flat_map(|i| {
+            let z = base[i % base.len()][2];
+            let copy = (i / base.len()) as f32;
+            let mm = if z.is_finite() && z > 0.0 {
+                (z * 1000.0 + copy).round().min(65535.0) as u16
+            } else {
+                0
+            };
+            mm.to_le_bytes()
+        })
+        .collect();
+    Image {
+        header: Default::default(),
+        height: rows as u32,
+        width: 640,
+        encoding: "16UC1".into(),
+        is_bigendian: 0,
+        step: 1280,
+        data: data.into(),
+    }
 }
 
 #[derive(Serialize)]
@@ -128,19 +201,30 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     // The Kinect cloud is organized (640 wide): a size that is whole rows is queried as one, in
     // tiles on both backends.
     let width = case.width.filter(|&w| w > 0);
-    let mut time = |points: &[[f32; 3]], backend: Backend| -> Result<Timed> {
+    if args.depth && width != Some(640) {
+        bail!("--depth: the Kinect cloud is not 640 points wide");
+    }
+    let mut made = Vec::new();
+    let mut query = |engine: &mut Engine, input: Input, options: &QueryOptions| match input {
+        Input::Cloud(points) => {
+            let width = width.filter(|w| points.len().is_multiple_of(*w));
+            engine.query_image(points, width, &sensor, poses, options)
+        }
+        // The CPU makes the points (and then measures them); the GPU takes the image.
+        Input::Depth(depth) => engine.query_depth(depth, &mut made, &sensor, poses, options),
+    };
+    let mut time = |input: Input, backend: Backend| -> Result<Timed> {
         let options = QueryOptions {
             mode: args.mode,
             backend,
             ..QueryOptions::default()
         };
-        let width = width.filter(|w| points.len().is_multiple_of(*w));
+        let n = input.len();
         // One untimed query: shader compilation, buffer growth, caches.
-        let first = engine.query_image(points, width, &sensor, poses, &options)?;
+        let first = query(&mut engine, input, &options)?;
         if first.backend != backend {
             bail!(
-                "{} points: the {backend:?} query ran on {:?} (RUST_LOG=debug says why)",
-                points.len(),
+                "{n} points: the {backend:?} query ran on {:?} (RUST_LOG=debug says why)",
                 first.backend
             );
         }
@@ -149,7 +233,7 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
         for _ in 0..args.runs {
             let start = Instant::now();
-            let r = engine.query_image(points, width, &sensor, poses, &options)?;
+            let r = query(&mut engine, input, &options)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             if backend == Backend::Gpu {
                 if let Some(g) = engine.gpu() {
@@ -200,10 +284,24 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             w.blocks_culled, w.blocks, w.items, w.descents, w.nodes
         )
     };
+    let input = |n: usize, points: &mut Vec<[f32; 3]>, image: &mut Option<Image<'static>>| {
+        if args.depth {
+            *image = Some(depth_image(base, n));
+        } else {
+            *points = cloud(n);
+        }
+    };
+    let (mut points, mut image) = (Vec::new(), None);
     for &n in &args.sizes {
-        let points = cloud(n);
-        let cpu = time(&points, Backend::Cpu)?;
-        let gpu = time(&points, Backend::Gpu)?;
+        input(n, &mut points, &mut image);
+        let view = match &image {
+            Some(i) => Some(DepthView::new(i, &kinect_camera(i.height as usize), None)?),
+            None => None,
+        };
+        let input = view.as_ref().map_or(Input::Cloud(&points), Input::Depth);
+        let (n, bytes) = (input.len(), input.bytes());
+        let cpu = time(input, Backend::Cpu)?;
+        let gpu = time(input, Backend::Gpu)?;
         let (dc, cpu_work) = (cpu.distance, cpu.work);
         let (dg, gpu_work, kernel, passes) = (gpu.distance, gpu.work, gpu.kernel, gpu.steps);
         let (cpu, gpu) = (cpu.wall, gpu.wall);
@@ -213,7 +311,7 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             cpu_ms,
             gpu_end_to_end_ms,
             gpu_kernel_ms: (!kernel.is_empty()).then(|| Spread::of(kernel)),
-            upload_floor_ms: 12.0 * n as f64 / bandwidth * 1e3,
+            upload_floor_ms: bytes as f64 / bandwidth * 1e3,
             cpu_over_gpu: cpu_ms.median / gpu_end_to_end_ms.median,
             max_difference_m: (dc - dg).abs(),
             cpu_work,
@@ -242,9 +340,15 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     }
     let mut crossover = None;
     for &n in &args.crossover {
-        let points = cloud(n);
-        let cpu = time(&points, Backend::Cpu)?.wall;
-        let gpu = time(&points, Backend::Gpu)?.wall;
+        input(n, &mut points, &mut image);
+        let view = match &image {
+            Some(i) => Some(DepthView::new(i, &kinect_camera(i.height as usize), None)?),
+            None => None,
+        };
+        let input = view.as_ref().map_or(Input::Cloud(&points), Input::Depth);
+        let n = input.len();
+        let cpu = time(input, Backend::Cpu)?.wall;
+        let gpu = time(input, Backend::Gpu)?.wall;
         let (c, g) = (Spread::of(cpu).median, Spread::of(gpu).median);
         println!("crossover sweep: {n:>9} points: CPU {c:.3} ms, GPU {g:.3} ms");
         if g < c && crossover.is_none() {
