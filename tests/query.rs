@@ -889,9 +889,20 @@ fn gpu_agrees_with_cpu() {
         }
         let root_from_sensor = rng.pose(1.0);
         let points = cloud(&mut rng, 3000, &root_from_sensor);
-        for int64_atomics in [true, false] {
-            let gpu = engine.gpu_with(GpuOptions { int64_atomics }).unwrap();
-            let minima = gpu.minima;
+        // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups).
+        for (int64_atomics, subgroups) in [(true, true), (false, false)] {
+            let gpu = engine
+                .gpu_with(GpuOptions {
+                    int64_atomics,
+                    subgroups,
+                })
+                .unwrap();
+            let (minima, reduce) = (gpu.minima, gpu.reduce);
+            // CI's lavapipe has both fast paths: they are what is tested there.
+            if int64_atomics && subgroups && std::env::var_os("CI").is_some() {
+                use ist_monitor::query::layout::{Minima, Reduce};
+                assert_eq!((minima, reduce), (Minima::Packed64, Reduce::Subgroups));
+            }
             for (mode, per_link, width) in [Mode::Fast, Mode::Certified, Mode::Exact]
                 .into_iter()
                 .flat_map(|m| [(m, false), (m, true)])
@@ -915,7 +926,7 @@ fn gpu_agrees_with_cpu() {
                 let (cpu, cpu_work) = query(Backend::Cpu);
                 let (gpu, gpu_work) = query(Backend::Gpu);
                 let what =
-                    format!("case {case} {mode:?} per_link {per_link} width {width:?} {minima:?}");
+                    format!("case {case} {mode:?} per_link {per_link} width {width:?} {minima:?} {reduce:?}");
                 assert_eq!((cpu.backend, gpu.backend), (Backend::Cpu, Backend::Gpu));
                 assert_eq!(cpu.outcome, gpu.outcome, "{what}");
                 let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
@@ -978,7 +989,11 @@ fn depth_image(
             let at = v * step + u * size;
             let bytes: Vec<u8> = match encoding {
                 DepthEncoding::Millimetres16 => {
-                    let mm = if k.is_multiple_of(13) { 0 } else { (d * 1000.0) as u16 };
+                    let mm = if k.is_multiple_of(13) {
+                        0
+                    } else {
+                        (d * 1000.0) as u16
+                    };
                     if big_endian {
                         mm.to_be_bytes().to_vec()
                     } else {

@@ -150,12 +150,16 @@ fn kinect_panda_reference_distances() {
     if !common::has_gpu(&mut engine) {
         return;
     }
-    for int64_atomics in [true, false] {
+    // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups).
+    for (int64_atomics, subgroups) in [(true, true), (false, false)] {
         use ist_monitor::query::layout::Minima;
-        let minima = engine
-            .gpu_with(ist_monitor::query::gpu::GpuOptions { int64_atomics })
-            .unwrap()
-            .minima;
+        let gpu = engine
+            .gpu_with(ist_monitor::query::gpu::GpuOptions {
+                int64_atomics,
+                subgroups,
+            })
+            .unwrap();
+        let (minima, reduce) = (gpu.minima, gpu.reduce);
         for (joints, options) in [(&ready, &certified), (&reach, &exact), (&reach, &global)] {
             for width in [None, Some(640)] {
                 let on = |backend| QueryOptions {
@@ -170,7 +174,7 @@ fn kinect_panda_reference_distances() {
                     .query_image(&points, width, &sensor, joints, &on(Backend::Gpu))
                     .unwrap();
                 let gw = engine.last_work();
-                let what = format!("{:?} width {width:?} {minima:?}", options.mode);
+                let what = format!("{:?} width {width:?} {minima:?} {reduce:?}", options.mode);
                 assert_eq!(g.backend, Backend::Gpu);
                 let (cn, gn) = (c.nearest.unwrap(), g.nearest.unwrap());
                 assert!(
@@ -264,13 +268,14 @@ fn query_command_on_the_bag() {
 }
 
 /// `ist_monitor query --backend gpu` on the real Kinect scene equals `--backend cpu` on every
-/// vector width lavapipe runs the shader at (`LP_NATIVE_VECTOR_WIDTH` 128, 256, 512: four, eight
-/// and sixteen lanes to a SIMD group), with the minima in 64-bit atomics and on the portable
-/// path (`IST_MONITOR_GPU_NO_INT64`), certified with per-link minima (the node's defaults, every
+/// vector width lavapipe runs the shader at (`LP_NATIVE_VECTOR_WIDTH` 128, 256, 512: subgroups
+/// of four, eight and sixteen), with the minima in 64-bit atomics and the reductions by subgroup,
+/// and on the portable path without either (`IST_MONITOR_GPU_NO_INT64`,
+/// `IST_MONITOR_GPU_NO_SUBGROUPS`), certified with per-link minima (the node's defaults, every
 /// link measured): the same nearest link and point, distances within 1e-5 m, the same counts
 /// that do not depend on the bounds' history. On a hardware GPU the width changes nothing.
 #[test]
-fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_without_int64() {
+fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_on_the_portable_path() {
     let Some(shared) = common::shared() else {
         return;
     };
@@ -281,13 +286,14 @@ fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_without_int64() 
     };
     let cpu = query("cpu", &[]);
     for width in ["128", "256", "512"] {
-        for no_int64 in ["0", "1"] {
+        for portable in ["0", "1"] {
             let env = [
                 ("LP_NATIVE_VECTOR_WIDTH", width),
-                ("IST_MONITOR_GPU_NO_INT64", no_int64),
+                ("IST_MONITOR_GPU_NO_INT64", portable),
+                ("IST_MONITOR_GPU_NO_SUBGROUPS", portable),
             ];
             let gpu = query("gpu", &env);
-            let what = format!("width {width}, no int64 {no_int64}");
+            let what = format!("width {width}, portable {portable}");
             if gpu["backend"] != "gpu" {
                 if std::env::var_os("CI").is_some() {
                     panic!("{what}: the query ran on {} in CI", gpu["backend"]);

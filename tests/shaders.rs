@@ -1,28 +1,46 @@
 //! CPU-only checks of the WGSL shaders: the shader as the host composes it, both ways it keeps
-//! the minima (`Minima`), parses and validates with naga with the capabilities the host asks for
+//! the minima (`Minima`) and both ways it reduces in a workgroup (`Reduce`), parses and validates with naga with the capabilities the host asks for
 //! (after the constants it generates), every file in `shaders/` is part of it, every struct the
 //! host mirrors has the host's size and the host's members at the host's offsets, and no file
 //! declares a generated constant itself.
 
 use ist_monitor::query::layout::{
-    shader_source, unproject_source, wgsl_constants, Minima, Mirror, MINIMA_U32_WGSL,
-    MINIMA_U64_WGSL, MIRRORS, TRAVERSE_WGSL, UNPROJECT_MIRRORS, UNPROJECT_WGSL,
+    shader_source, unproject_source, wgsl_constants, Minima, Mirror, Reduce, MINIMA_U32_WGSL,
+    MINIMA_U64_WGSL, MIRRORS, REDUCE_SHARED_WGSL, REDUCE_SUBGROUPS_WGSL, TRAVERSE_WGSL,
+    UNPROJECT_MIRRORS, UNPROJECT_WGSL,
 };
-use naga::valid::Capabilities;
+use naga::valid::{Capabilities, ShaderStages, SubgroupOperationSet};
 
-/// Each way of keeping the minima, with the capabilities the host requests for it.
-const VARIANTS: [(Minima, Capabilities); 2] = [
-    (
-        Minima::Packed64,
-        Capabilities::SHADER_INT64.union(Capabilities::SHADER_INT64_ATOMIC_MIN_MAX),
-    ),
-    (Minima::Split32, Capabilities::empty()),
-];
+/// Each way of keeping the minima and of reducing in a workgroup, with the capabilities the
+/// host requests for it.
+const VARIANTS: [(Minima, Reduce, Capabilities); 4] = {
+    const INT64: Capabilities =
+        Capabilities::SHADER_INT64.union(Capabilities::SHADER_INT64_ATOMIC_MIN_MAX);
+    [
+        (
+            Minima::Packed64,
+            Reduce::Subgroups,
+            INT64.union(Capabilities::SUBGROUP),
+        ),
+        (Minima::Packed64, Reduce::Shared, INT64),
+        (Minima::Split32, Reduce::Subgroups, Capabilities::SUBGROUP),
+        (Minima::Split32, Reduce::Shared, Capabilities::empty()),
+    ]
+};
 
+/// `source` parsed and validated with `capabilities` (subgroup operations in compute shaders
+/// where they include `SUBGROUP`, as wgpu's `SUBGROUP` feature gives them).
 fn module(source: &str, name: &str, capabilities: Capabilities) -> naga::Module {
     let module = naga::front::wgsl::parse_str(source)
         .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities)
+    let mut validator =
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities);
+    if capabilities.contains(Capabilities::SUBGROUP) {
+        validator
+            .subgroup_stages(ShaderStages::COMPUTE)
+            .subgroup_operations(SubgroupOperationSet::all());
+    }
+    validator
         .validate(&module)
         .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(source)));
     module
@@ -30,9 +48,9 @@ fn module(source: &str, name: &str, capabilities: Capabilities) -> naga::Module 
 
 #[test]
 fn the_composed_shader_validates_both_ways_and_uses_every_file() {
-    for (minima, capabilities) in VARIANTS {
-        let source = shader_source(minima);
-        let m = module(&source, &format!("{minima:?}"), capabilities);
+    for (minima, reduce, capabilities) in VARIANTS {
+        let source = shader_source(minima, reduce);
+        let m = module(&source, &format!("{minima:?} {reduce:?}"), capabilities);
         // The passes the host dispatches.
         let mut entries: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
         entries.sort_unstable();
@@ -51,15 +69,21 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
         }
         assert_eq!(entries, expected, "{minima:?}");
     }
-    // The 64-bit variant needs its capabilities: it is never compiled without them.
-    let source = shader_source(Minima::Packed64);
-    let parsed = naga::front::wgsl::parse_str(&source).unwrap();
-    assert!(naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        Capabilities::empty()
-    )
-    .validate(&parsed)
-    .is_err());
+    // The 64-bit and the subgroup variants need their capabilities: they are never compiled
+    // without them.
+    for (minima, reduce) in [
+        (Minima::Packed64, Reduce::Shared),
+        (Minima::Split32, Reduce::Subgroups),
+    ] {
+        let source = shader_source(minima, reduce);
+        let parsed = naga::front::wgsl::parse_str(&source).unwrap();
+        assert!(
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), Capabilities::empty())
+                .validate(&parsed)
+                .is_err(),
+            "{minima:?} {reduce:?}"
+        );
+    }
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
     // The depth images' unprojection is a module of its own, with its one pass.
     let m = module(&unproject_source(), "unproject", Capabilities::empty());
@@ -69,6 +93,8 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
         TRAVERSE_WGSL,
         MINIMA_U64_WGSL,
         MINIMA_U32_WGSL,
+        REDUCE_SUBGROUPS_WGSL,
+        REDUCE_SHARED_WGSL,
         UNPROJECT_WGSL,
     ];
     let mut n = 0;
@@ -91,12 +117,9 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
 fn mirrored_structs_have_the_host_members_at_the_host_offsets() {
     let mut modules: Vec<(naga::Module, &[Mirror])> = VARIANTS
         .iter()
-        .map(|(minima, capabilities)| {
-            let m = module(
-                &shader_source(*minima),
-                &format!("{minima:?}"),
-                *capabilities,
-            );
+        .map(|(minima, reduce, capabilities)| {
+            let name = format!("{minima:?} {reduce:?}");
+            let m = module(&shader_source(*minima, *reduce), &name, *capabilities);
             (m, MIRRORS)
         })
         .collect();
@@ -142,6 +165,8 @@ fn no_shader_file_declares_a_generated_constant() {
             ("traverse.wgsl", TRAVERSE_WGSL),
             ("minima_u64.wgsl", MINIMA_U64_WGSL),
             ("minima_u32.wgsl", MINIMA_U32_WGSL),
+            ("reduce_subgroups.wgsl", REDUCE_SUBGROUPS_WGSL),
+            ("reduce_shared.wgsl", REDUCE_SHARED_WGSL),
             ("unproject.wgsl", UNPROJECT_WGSL),
         ] {
             assert!(

@@ -296,6 +296,16 @@ pub enum Minima {
     Split32,
 }
 
+/// How the GPU reduces within a workgroup: both ways give the same values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reduce {
+    /// Each subgroup first, then one workgroup atomic per subgroup
+    /// (`shaders/reduce_subgroups.wgsl`): needs wgpu's `SUBGROUP`.
+    Subgroups,
+    /// One workgroup atomic per invocation (`shaders/reduce_shared.wgsl`).
+    Shared,
+}
+
 /// An exact-mode candidate: a (point, link) pair whose lower bound may beat the best upper
 /// bound. WGSL `Candidate`.
 #[repr(C)]
@@ -482,6 +492,10 @@ pub fn wgsl_constants() -> String {
 
 /// The traversal shader file, embedded.
 pub const TRAVERSE_WGSL: &str = include_str!("../../shaders/traverse.wgsl");
+/// The workgroup reductions with subgroup operations ([`Reduce::Subgroups`]).
+pub const REDUCE_SUBGROUPS_WGSL: &str = include_str!("../../shaders/reduce_subgroups.wgsl");
+/// The workgroup reductions through workgroup memory ([`Reduce::Shared`]).
+pub const REDUCE_SHARED_WGSL: &str = include_str!("../../shaders/reduce_shared.wgsl");
 /// The depth images' unprojection, embedded.
 pub const UNPROJECT_WGSL: &str = include_str!("../../shaders/unproject.wgsl");
 /// The minima in 64-bit atomics ([`Minima::Packed64`]).
@@ -489,14 +503,18 @@ pub const MINIMA_U64_WGSL: &str = include_str!("../../shaders/minima_u64.wgsl");
 /// The minima in 32-bit atomics and the arg-min pass ([`Minima::Split32`]).
 pub const MINIMA_U32_WGSL: &str = include_str!("../../shaders/minima_u32.wgsl");
 
-/// The shader as compiled: the generated constants, the file of `minima`, then
-/// `shaders/traverse.wgsl`.
-pub fn shader_source(minima: Minima) -> String {
+/// The shader as compiled: the generated constants, the file of `minima`, the file of
+/// `reduce`, then `shaders/traverse.wgsl`.
+pub fn shader_source(minima: Minima, reduce: Reduce) -> String {
     let minima = match minima {
         Minima::Packed64 => MINIMA_U64_WGSL,
         Minima::Split32 => MINIMA_U32_WGSL,
     };
-    format!("{}\n{minima}\n{TRAVERSE_WGSL}", wgsl_constants())
+    let reduce = match reduce {
+        Reduce::Subgroups => REDUCE_SUBGROUPS_WGSL,
+        Reduce::Shared => REDUCE_SHARED_WGSL,
+    };
+    format!("{}\n{minima}\n{reduce}\n{TRAVERSE_WGSL}", wgsl_constants())
 }
 
 /// The unprojection shader as compiled: the generated constants, then `shaders/unproject.wgsl`.

@@ -692,11 +692,12 @@ impl Engine {
         self.gpu = match gpu::GpuEngine::new(&self.links, options) {
             Ok(g) => {
                 log::info!(
-                    "GPU: {} ({:?}, {:?}; minima {:?})",
+                    "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?})",
                     g.adapter.name,
                     g.adapter.device_type,
                     g.adapter.backend,
-                    g.minima
+                    g.minima,
+                    g.reduce
                 );
                 GpuSlot::Ready(Box::new(g))
             }

@@ -3,7 +3,7 @@
 //! shared bounds in storage atomics.
 //!
 //! - **Once per robot**: the device is created (with 64-bit atomics where the adapter has
-//!   them, [`Minima`]), the trees are checked (every child index inside its array: the shader is
+//!   them, [`Minima`], and subgroup operations likewise, [`Reduce`]), the trees are checked (every child index inside its array: the shader is
 //!   compiled without runtime bounds checks) and every link's `IstNode` and `InnerSphere` arrays
 //!   are uploaded as they are, concatenated in link order (the CPU walks the same arrays; each
 //!   posed link carries its offsets into them). Buffers, bind groups and pipelines are made once
@@ -40,8 +40,8 @@ use bytemuck::Zeroable;
 use super::bounds::{pack_minimum, threshold, Bounds, EMPTY};
 use super::cpu::blocks::Tiling;
 use super::layout::{
-    self, BoxedBlock, Candidate, Counters, GridHeader, KeptBlock, Minima, QueryParams, RobotBox,
-    Stage, GPU_CANDIDATES, GPU_STACK, SEED_STRIDE,
+    self, BoxedBlock, Candidate, Counters, GridHeader, KeptBlock, Minima, QueryParams, Reduce,
+    RobotBox, Stage, GPU_CANDIDATES, GPU_STACK, SEED_STRIDE,
 };
 use super::self_grid::SelfGrid;
 use super::{result, Backend, Input, Mode, QueryLink, QueryResult, StageCounts};
@@ -69,18 +69,28 @@ pub enum GpuError {
     Readback(String),
 }
 
+/// Setting this variable (to anything but `0`) keeps the GPU from using subgroup operations
+/// even where the adapter has them: the workgroup-memory reductions ([`Reduce::Shared`]), as on
+/// adapters without.
+pub const NO_SUBGROUPS_ENV: &str = "IST_MONITOR_GPU_NO_SUBGROUPS";
+
 /// How the GPU engine is made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GpuOptions {
     /// Use 64-bit atomics where the adapter has them ([`Minima::Packed64`]).
     pub int64_atomics: bool,
+    /// Use subgroup operations where the adapter has them ([`Reduce::Subgroups`]).
+    pub subgroups: bool,
 }
 
 impl Default for GpuOptions {
-    /// 64-bit atomics where the adapter has them, unless [`NO_INT64_ENV`] is set.
+    /// 64-bit atomics and subgroup operations where the adapter has them, unless
+    /// [`NO_INT64_ENV`] or [`NO_SUBGROUPS_ENV`] is set.
     fn default() -> Self {
+        let off = |var| std::env::var(var).is_ok_and(|v| v != "0");
         Self {
-            int64_atomics: std::env::var(NO_INT64_ENV).map_or(true, |v| v == "0"),
+            int64_atomics: !off(NO_INT64_ENV),
+            subgroups: !off(NO_SUBGROUPS_ENV),
         }
     }
 }
@@ -133,6 +143,8 @@ pub struct GpuEngine {
     pub adapter: wgpu::AdapterInfo,
     /// How the minima are kept on this adapter.
     pub minima: Minima,
+    /// How a workgroup reduces on this adapter.
+    pub reduce: Reduce,
     layout: wgpu::BindGroupLayout,
     nodes: wgpu::Buffer,
     spheres: wgpu::Buffer,

@@ -1,5 +1,5 @@
-//! Making the GPU engine, once per robot: the device (with 64-bit atomics where the adapter has
-//! them and the options allow), the shader module (compiled without runtime bounds checks once
+//! Making the GPU engine, once per robot: the device (with 64-bit atomics and subgroup
+//! operations where the adapter has them and the options allow), the shader module (compiled without runtime bounds checks once
 //! every tree's child indices are checked), the bind group layouts and one pipeline per entry
 //! point, and the trees uploaded as they are.
 
@@ -13,7 +13,7 @@ use crate::ist::IstNode;
 use crate::packing::InnerSphere;
 use crate::query::descent;
 use crate::query::layout::{
-    self, Candidate, Counters, Minima, QueryParams, FRONTIER, GPU_CANDIDATES, GPU_STACK,
+    self, Candidate, Counters, Minima, QueryParams, Reduce, FRONTIER, GPU_CANDIDATES, GPU_STACK,
 };
 use crate::query::QueryLink;
 
@@ -77,9 +77,17 @@ impl GpuEngine {
         } else {
             Minima::Split32
         };
+        let reduce = if options.subgroups && adapter.features().contains(wgpu::Features::SUBGROUP) {
+            Reduce::Subgroups
+        } else {
+            Reduce::Shared
+        };
         let mut features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         if minima == Minima::Packed64 {
             features |= int64;
+        }
+        if reduce == Reduce::Subgroups {
+            features |= wgpu::Features::SUBGROUP;
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("ist_monitor"),
@@ -100,7 +108,9 @@ impl GpuEngine {
             device.create_shader_module_trusted(
                 wgpu::ShaderModuleDescriptor {
                     label: Some("traverse.wgsl"),
-                    source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::shader_source(minima))),
+                    source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::shader_source(
+                        minima, reduce,
+                    ))),
                 },
                 wgpu::ShaderRuntimeChecks::unchecked(),
             )
@@ -255,6 +265,7 @@ impl GpuEngine {
             }),
             adapter: adapter.get_info(),
             minima,
+            reduce,
             layout,
             pipelines,
             unproject: super::unproject::Unproject::new(&device),

@@ -51,6 +51,10 @@ pub struct BenchGpuArgs {
     /// in 32-bit atomics and an arg-min pass).
     #[arg(long)]
     portable: bool,
+    /// The workgroup reductions through workgroup memory even where the adapter has subgroup
+    /// operations (to compare the two).
+    #[arg(long)]
+    no_subgroups: bool,
     /// Also time each GPU dispatch on its own (each then in a compute pass of its own, which
     /// adds a little to the end-to-end time) and the host's steps, and print the medians.
     #[arg(long)]
@@ -167,17 +171,19 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
     let options = GpuOptions {
         int64_atomics: !args.portable,
+        subgroups: !args.no_subgroups,
     };
     let Some(gpu) = engine.gpu_with(options) else {
         bail!("no usable GPU adapter");
     };
     gpu.set_profile(args.passes);
     println!(
-        "GPU: {} ({:?}, {:?}; minima {:?}); CPU: {} threads",
+        "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?}); CPU: {} threads",
         gpu.adapter.name,
         gpu.adapter.device_type,
         gpu.adapter.backend,
         gpu.minima,
+        gpu.reduce,
         rayon::current_num_threads()
     );
     let bandwidth = gpu.upload_bandwidth(64 << 20)?;
