@@ -201,16 +201,32 @@ fn demo_model() -> RobotModel {
 }
 
 fn depth_config(mode: &str) -> Config {
-    let p = |k: &str, v: &str| (k.to_string(), v.to_string());
-    Config::load(
-        Path::new(DEMO_CONFIG),
-        &[
-            p("mode", mode),
-            p("camera.type", "depth_image"),
-            p("camera.topic", DEPTH_TOPIC),
-        ],
-    )
-    .unwrap()
+    depth_config_with(&[("mode", mode)])
+}
+
+/// The demo config with the camera a depth-image source, and `overrides`.
+fn depth_config_with(overrides: &[(&str, &str)]) -> Config {
+    let o: Vec<(String, String)> = [
+        ("camera.type", "depth_image"),
+        ("camera.topic", DEPTH_TOPIC),
+    ]
+    .iter()
+    .chain(overrides)
+    .map(|(k, v)| (k.to_string(), v.to_string()))
+    .collect();
+    Config::load(Path::new(DEMO_CONFIG), &o).unwrap()
+}
+
+/// A generated bag of `frames` 16UC1 depth images of the demo robot, `name` in `dir`.
+fn depth_bag(dir: &Path, name: &str, frames: usize) -> std::path::PathBuf {
+    let bag = dir.join(name);
+    let params = ScenarioParams {
+        frames,
+        depth: Some(DepthEncoding::Millimetres16),
+        ..ScenarioParams::default()
+    };
+    scenario::generate(&demo_model(), &params, &bag).unwrap();
+    bag
 }
 
 fn replay_all(config: Config, bag: &Path) -> (Vec<ReplayFrame>, Summary) {
@@ -315,26 +331,9 @@ fn depth_image_bags_measure_as_their_clouds_and_hold_their_truth() {
 /// CPU's with the filter.
 #[test]
 fn depth_images_on_the_gpu_answer_as_on_the_cpu() {
-    let model = demo_model();
     let dir = tempfile::tempdir().unwrap();
-    let bag = dir.path().join("depth_16UC1");
-    let params = ScenarioParams {
-        frames: 6,
-        depth: Some(DepthEncoding::Millimetres16),
-        ..ScenarioParams::default()
-    };
-    scenario::generate(&model, &params, &bag).unwrap();
-    let with = |extra: &[(&str, &str)]| {
-        let o: Vec<(String, String)> = [
-            ("camera.type", "depth_image"),
-            ("camera.topic", DEPTH_TOPIC),
-        ]
-        .iter()
-        .chain(extra)
-        .map(|(k, v)| (k.to_string(), v.to_string()))
-        .collect();
-        Config::load(Path::new(DEMO_CONFIG), &o).unwrap()
-    };
+    let bag = depth_bag(dir.path(), "depth_16UC1", 6);
+    let with = depth_config_with;
     for stray in ["1", "3"] {
         let (cpu, _) = replay_all(
             with(&[("backend", "cpu"), ("stray_filter.min_points", stray)]),
@@ -383,15 +382,8 @@ fn depth_images_on_the_gpu_answer_as_on_the_cpu() {
 /// comes.
 #[test]
 fn depth_images_that_cannot_be_placed_are_faults() {
-    let model = demo_model();
     let dir = tempfile::tempdir().unwrap();
-    let bag = dir.path().join("depth");
-    let params = ScenarioParams {
-        frames: 12,
-        depth: Some(DepthEncoding::Millimetres16),
-        ..ScenarioParams::default()
-    };
-    scenario::generate(&model, &params, &bag).unwrap();
+    let bag = depth_bag(dir.path(), "depth", 12);
     let messages = read_messages(&bag, &|_, _| true).unwrap();
     let edited = dir.path().join("edited");
     let mut w = BagWriter::create(&edited, Compression::None).unwrap();

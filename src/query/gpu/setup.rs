@@ -27,6 +27,23 @@ pub(super) fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu:
     })
 }
 
+/// A compute shader's buffer binding `binding` of type `ty`.
+pub(super) fn layout_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
 /// Checks that every child index of `link`'s tree lies inside its arrays: the shader reads
 /// them without bounds checks.
 fn check_tree(link: &QueryLink) -> Result<(), GpuError> {
@@ -115,16 +132,7 @@ impl GpuEngine {
                 wgpu::ShaderRuntimeChecks::unchecked(),
             )
         };
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = layout_entry;
         let read = wgpu::BufferBindingType::Storage { read_only: true };
         let write = wgpu::BufferBindingType::Storage { read_only: false };
         let uniform = wgpu::BufferBindingType::Uniform;

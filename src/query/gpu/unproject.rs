@@ -25,16 +25,7 @@ impl Unproject {
             label: Some("unproject.wgsl"),
             source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::unproject_source())),
         });
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = super::setup::layout_entry;
         let group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("unproject"),
             entries: &[
