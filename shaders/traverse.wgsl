@@ -28,7 +28,8 @@
 //     memory; then each point of the block descends from the frontier nodes within its bound,
 //     depth first, nearest child on top, pruned by the link's threshold read from the atomics
 //     (so every item prunes with the best bound any has found). The item's minimum and its
-//     smallest point are recorded once.
+//     smallest point are recorded once. `measure_packets` (the host's choice) descends each
+//     sub-block's points together instead, one stack for the packet, as the CPU's packets do.
 //   * `tally`: per kept block, its points measured (a distance found) and inside an inner
 //     sphere, as the stage counts.
 //   * `argmin` (only without 64-bit atomics, minima_u32.wgsl): with the minima final, each link's
@@ -40,8 +41,8 @@
 // and widening, the self-filter's grids, the frontiers, the pruning rule (a node is skipped when
 // |q − c| − r exceeds the link's threshold), the threshold and recording rules per mode, the
 // seed sample, and the result assembly and exact refinement, which the host runs on what comes
-// back. Not done here: the CPU's sub-blocks and packets (a sub-block's points descending one
-// shared stack); each point of an item descends on its own.
+// back. Not done here: the CPU's sub-blocks (a sub-block's links confirmed by a descent of its
+// centre); an item's sub-blocks descend every link of the item.
 //
 // Work counters (blocks, blocks culled, items, descents, nodes expanded) go through workgroup
 // atomics, as the stage counts do, and are the CPU's (query::WorkCounts) for comparison.
@@ -231,6 +232,17 @@ var<workgroup> wg_cut: u32;
 var<workgroup> wg_cut_n: u32;
 var<workgroup> wg_done: u32;
 var<workgroup> wg_limit: f32;
+// The measure pass's packets (`measure_packets`): per packet of SUB invocations (a sub-block),
+// its lowest invocation with a point to descend (the one whose lower bounds order the stack),
+// the votes of a round (whether to expand the node just popped; which of its children to push),
+// where that invocation's nearest start lies on the stack, its lower bounds of the expanded
+// node's children, and each packet's stack size as the round ended.
+var<workgroup> wg_lead: array<atomic<u32>, PACKETS>;
+var<workgroup> wg_expand: array<atomic<u32>, PACKETS>;
+var<workgroup> wg_kids: array<atomic<u32>, PACKETS>;
+var<workgroup> wg_top: array<u32, PACKETS>;
+var<workgroup> wg_key: array<array<f32, BRANCHING>, PACKETS>;
+var<workgroup> wg_live: array<u32, PACKETS>;
 
 struct Hit {
     d: f32,
@@ -1050,6 +1062,180 @@ fn descend_from_frontier(l: u32, q: vec3<f32>, bound: f32) -> Hit {
     return dfs(l, q, bound, sp);
 }
 
+// `descend_from_frontier` for the whole workgroup at once, a packet of SUB invocations (a
+// sub-block, as the CPU's descent::nearest_packet descends eight points): the packet's points
+// that reach a frontier node within their bound descend one stack together. Every invocation
+// keeps the packet's stack in its private one, the same nodes in the same order, with its own
+// point's lower bounds; a round pops the top node, expands it if it is within the bound of some
+// point of the packet (a vote), and pushes the children within the bound of some point (a vote
+// on a mask), the nearest to the packet's lowest descending point on top. The reads of a round
+// are the same address across the packet, and no invocation waits on another's longer descent
+// in the same round; the packet expands each node once for all its points (counted once per
+// point, as on the CPU). Each point's result is its own nearest sphere within its bound, as
+// `descend_from_frontier` finds it. Called in uniform control flow; `has_point`: the invocation
+// has a point to descend (`q`, link frame).
+fn descend_packet(l: u32, q: vec3<f32>, bound: f32, has_point: bool, lane: u32) -> Hit {
+    let link = links[l];
+    let pk = lane / SUB;
+    let cut = wg_cut;
+    let cut_n = wg_cut_n;
+    // The frontier nodes within this point's bound, a bit each (FRONTIER ≤ 32).
+    var mine = 0u;
+    if has_point {
+        for (var f = 0u; f < cut_n; f++) {
+            let node = nodes[wg_cuts[cut][f]];
+            if reaches(node.center, node.radius, q, bound)
+                && lower_bound(node.center, node.radius, q) <= bound {
+                mine |= 1u << f;
+            }
+        }
+    }
+    if lane < PACKETS {
+        atomicStore(&wg_kids[lane], 0u);
+        atomicStore(&wg_expand[lane], 0u);
+        atomicStore(&wg_lead[lane], BLOCK);
+    }
+    workgroupBarrier();
+    if mine != 0u {
+        atomicOr(&wg_kids[pk], mine);
+        atomicMin(&wg_lead[pk], lane);
+    }
+    workgroupBarrier();
+    let starts = atomicLoad(&wg_kids[pk]);
+    let lead = atomicLoad(&wg_lead[pk]) == lane;
+    // The points that descend: those that reach a start.
+    let member = mine != 0u;
+    var sp = 0u;
+    var top = GPU_STACK;
+    var top_lb = BIG;
+    for (var f = 0u; f < cut_n; f++) {
+        if (starts & (1u << f)) != 0u && sp < GPU_STACK {
+            let index = wg_cuts[cut][f];
+            let node = nodes[index];
+            let lb = lower_bound(node.center, node.radius, q);
+            stack_lb[sp] = lb;
+            stack_node[sp] = index;
+            if lb < top_lb {
+                top_lb = lb;
+                top = sp;
+            }
+            sp += 1u;
+        }
+    }
+    if lead {
+        wg_top[pk] = top;
+    }
+    // (The next barrier is the first round's uniform load.)
+    var best = bound;
+    var found = false;
+    var expanded = 0u;
+    var first = true;
+    loop {
+        // The stack is the same size in every invocation of a packet: its first one says.
+        if lane % SUB == 0u {
+            wg_live[pk] = sp;
+        }
+        let live = workgroupUniformLoad(&wg_live);
+        if first {
+            swap_to_top(wg_top[pk], sp);
+            first = false;
+        }
+        var any_live = 0u;
+        for (var k = 0u; k < PACKETS; k++) {
+            any_live |= live[k];
+        }
+        if any_live == 0u {
+            break;
+        }
+        if lane < PACKETS {
+            atomicStore(&wg_kids[lane], 0u);
+        }
+        // The round's first vote: whether the top node is within some point's bound.
+        let has = sp > 0u;
+        var index = 0u;
+        if has {
+            sp -= 1u;
+            index = stack_node[sp];
+            if member && stack_lb[sp] <= best {
+                atomicOr(&wg_expand[pk], 1u);
+            }
+        }
+        workgroupBarrier();
+        let expand = has && atomicLoad(&wg_expand[pk]) != 0u;
+        var inner = false;
+        if expand {
+            expanded += 1u;
+            let node = nodes[index];
+            if node.children_are_spheres != 0u {
+                for (var k = 0u; k < node.child_count; k++) {
+                    let s = spheres[link.sphere_base + node.first_child + k];
+                    let d = lower_bound(s.center, s.radius, q);
+                    if member && d <= best {
+                        best = d;
+                        found = true;
+                    }
+                }
+            } else {
+                // The children, on the stack for now, and the second vote: which to keep.
+                inner = true;
+                var wanted = 0u;
+                for (var k = 0u; k < node.child_count; k++) {
+                    let slot = sp + k;
+                    let child = link.node_base + node.first_child + k;
+                    let c = nodes[child];
+                    let lb = lower_bound(c.center, c.radius, q);
+                    if slot < GPU_STACK {
+                        stack_lb[slot] = lb;
+                        stack_node[slot] = child;
+                    }
+                    if member && lb <= best {
+                        wanted |= 1u << k;
+                    }
+                    if lead && k < BRANCHING {
+                        wg_key[pk][k] = lb;
+                    }
+                }
+                if wanted != 0u {
+                    atomicOr(&wg_kids[pk], wanted);
+                }
+            }
+        }
+        workgroupBarrier();
+        if inner {
+            let keep = atomicLoad(&wg_kids[pk]);
+            let count = nodes[index].child_count;
+            var kept_top = GPU_STACK;
+            var key = BIG;
+            let pushed = sp;
+            for (var k = 0u; k < count; k++) {
+                let slot = pushed + k;
+                if (keep & (1u << k)) != 0u && slot < GPU_STACK {
+                    stack_lb[sp] = stack_lb[slot];
+                    stack_node[sp] = stack_node[slot];
+                    let lead_lb = wg_key[pk][min(k, BRANCHING - 1u)];
+                    if lead_lb < key {
+                        key = lead_lb;
+                        kept_top = sp;
+                    }
+                    sp += 1u;
+                }
+            }
+            swap_to_top(kept_top, sp);
+        }
+        // Every invocation has read this round's first vote (before the last barrier).
+        if lane < PACKETS {
+            atomicStore(&wg_expand[lane], 0u);
+        }
+    }
+    if !member {
+        return Hit(bound, false);
+    }
+    count_work(WORK_DESCENTS, 1u);
+    count_work(WORK_NODES, expanded);
+    // Clamped at +0 (a -0 would pack above every positive distance).
+    return Hit(select(best, 0.0, best <= 0.0), found);
+}
+
 // The work items appended (at most the room for them), the same for the whole workgroup. Called
 // in uniform control flow.
 fn item_count(lane: u32) -> u32 {
@@ -1065,9 +1251,25 @@ fn measure(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lane: u32,
 ) {
+    measure_items(wid.x, nwg.x, lane, false);
+}
+
+// `measure` with each sub-block's points descending as a packet (`descend_packet`).
+@compute @workgroup_size(BLOCK)
+fn measure_packets(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    measure_items(wid.x, nwg.x, lane, true);
+}
+
+// The measure pass over the items, workgroup `wid` of `nwg`; `packets`: each sub-block's points
+// descend together (`descend_packet`), else each on its own (`descend_from_frontier`).
+fn measure_items(wid: u32, nwg: u32, lane: u32, packets: bool) {
     clear_counts(lane);
     let n = item_count(lane);
-    for (var k = wid.x; k < n; k += nwg.x) {
+    for (var k = wid; k < n; k += nwg) {
         let s = items[k] >> 7u;
         let l = items[k] & 127u;
         if lane == 0u {
@@ -1081,7 +1283,15 @@ fn measure(
         let bit = 1u << lane;
         var i = NO_POINT;
         var hit = Hit(BIG, false);
-        if (kept[s].todo & bit) != 0u {
+        let has_point = (kept[s].todo & bit) != 0u;
+        if packets {
+            var q = vec3<f32>(0.0);
+            if has_point {
+                i = block_point(kept[s].block, lane);
+                q = in_link(l, point_at(i));
+            }
+            hit = descend_packet(l, q, threshold(l), has_point, lane);
+        } else if has_point {
             i = block_point(kept[s].block, lane);
             hit = descend_from_frontier(l, in_link(l, point_at(i)), threshold(l));
         }

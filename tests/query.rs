@@ -7,13 +7,16 @@ mod common;
 use ist_monitor::geometry::{distance_point_mesh, winding_number};
 use ist_monitor::ist::{build_link, BuildOptions, LinkTree};
 use ist_monitor::packing::{InnerSphere, PackingParams};
+use ist_monitor::query::gpu::GpuOptions;
 use ist_monitor::query::{
-    root_from_sensor_via_map, Engine, Mode, Outcome, QueryLink, QueryOptions, QueryResult,
+    root_from_sensor_via_map, Backend, Engine, Mode, Outcome, QueryLink, QueryOptions, QueryResult,
 };
 use ist_monitor::robot::mesh::{tessellate_box, tessellate_capsule, ClosedMesh};
 use ist_monitor::robot::{CollisionElement, LinkGeometry};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+use std::sync::Once;
 
 /// A small deterministic generator (xorshift64*), so that a proptest seed gives a whole scene.
 struct Rng(u64);
@@ -140,7 +143,9 @@ impl Scene {
             .enumerate()
             .map(|(i, (t, g))| QueryLink::from_tree(t, Some(g), i))
             .collect();
-        Engine::from_links(links, self.trees.len()).expect("engine")
+        let mut engine = Engine::from_links(links, self.trees.len()).expect("engine");
+        attach_gpu(&mut engine);
+        engine
     }
 
     /// Brute force in f64: (exact distance to the meshes, distance to the union of the inner
@@ -221,9 +226,130 @@ fn run(
     poses: &[Isometry3<f64>],
     options: &QueryOptions,
 ) -> QueryResult {
-    engine
-        .query(points, root_from_sensor, poses, options)
-        .expect("query")
+    query_both(engine, points, None, root_from_sensor, poses, options).expect("query")
+}
+
+/// The GPU's paths the tests' engines take in turn, one per engine: both fast paths (64-bit
+/// atomics, subgroups) with each point descending on its own, the portable path (neither), and
+/// the fast paths with the sub-blocks' points descending in packets.
+const GPU_PATHS: [GpuOptions; 3] = [
+    GpuOptions {
+        int64_atomics: true,
+        subgroups: true,
+        packets: false,
+    },
+    GpuOptions {
+        int64_atomics: false,
+        subgroups: false,
+        packets: false,
+    },
+    GpuOptions {
+        int64_atomics: true,
+        subgroups: true,
+        packets: true,
+    },
+];
+
+/// Gives `engine` the next of [`GPU_PATHS`] where there is a GPU adapter (lavapipe in CI, where
+/// one must be): every query of the tests then runs on both backends ([`query_both`]).
+fn attach_gpu(engine: &mut Engine) {
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    static SAID: Once = Once::new();
+    let path = GPU_PATHS[NEXT.fetch_add(1, Relaxed) % GPU_PATHS.len()];
+    if engine.gpu_with(path).is_none() {
+        if std::env::var_os("CI").is_some() {
+            panic!("CI is set but no GPU adapter (lavapipe: mesa-vulkan-drivers) was found");
+        }
+        SAID.call_once(|| common::skip("no GPU adapter: the queries are checked on the CPU only"));
+    }
+}
+
+/// `query_image` on the CPU and, where the engine has a GPU, on the GPU, which must answer as the
+/// CPU does ([`assert_gpu_agrees`]; or fail with the same error); the CPU's answer.
+fn query_both(
+    engine: &mut Engine,
+    points: &[[f32; 3]],
+    width: Option<usize>,
+    root_from_sensor: &Isometry3<f64>,
+    poses: &[Isometry3<f64>],
+    options: &QueryOptions,
+) -> Result<QueryResult, ist_monitor::query::QueryError> {
+    let on = |backend| QueryOptions {
+        backend,
+        ..options.clone()
+    };
+    let cpu = engine.query_image(points, width, root_from_sensor, poses, &on(Backend::Cpu));
+    let Some(gpu) = engine.gpu() else {
+        return cpu;
+    };
+    let path = format!("{:?} {:?} packets {}", gpu.minima, gpu.reduce, gpu.packets);
+    let gpu = engine.query_image(points, width, root_from_sensor, poses, &on(Backend::Gpu));
+    let what = format!(
+        "{:?} per_link {} width {width:?} {path}",
+        options.mode, options.per_link
+    );
+    match (&cpu, &gpu) {
+        (Ok(c), Ok(g)) => assert_gpu_agrees(&what, c, g),
+        (Err(c), Err(g)) => assert_eq!(c.to_string(), g.to_string(), "{what}"),
+        (c, g) => panic!("{what}: CPU {c:?}, GPU {g:?}"),
+    }
+    cpu
+}
+
+/// The GPU's answer is the CPU's: the same outcome, distances and bounds within 1e-5 m (the two
+/// walk the same posed arrays; only the rounding of the square root differs, a few ulps), the
+/// same nearest link, the counts that do not depend on the bounds' history equal, and every
+/// point in one stage.
+fn assert_gpu_agrees(what: &str, cpu: &QueryResult, gpu: &QueryResult) {
+    assert_eq!(
+        (cpu.backend, gpu.backend),
+        (Backend::Cpu, Backend::Gpu),
+        "{what}"
+    );
+    assert_eq!(cpu.outcome, gpu.outcome, "{what}");
+    // (Equal also where both are +∞: a link with nothing measured.)
+    let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
+        (Some(a), Some(b)) => a == b || (a - b).abs() <= 1e-5,
+        (a, b) => a == b,
+    };
+    let (c, g) = (cpu.nearest.as_ref(), gpu.nearest.as_ref());
+    assert!(
+        close(c.map(|n| n.distance_m), g.map(|n| n.distance_m)),
+        "{what}: {c:?} {g:?}"
+    );
+    assert!(
+        close(c.and_then(|n| n.lower_m), g.and_then(|n| n.lower_m)),
+        "{what}: {c:?} {g:?}"
+    );
+    assert_eq!(cpu.links.len(), gpu.links.len(), "{what}");
+    for (a, b) in cpu.links.iter().zip(&gpu.links) {
+        assert!(
+            close(a.distance_m, b.distance_m),
+            "{what} {}: {a:?} {b:?}",
+            a.link
+        );
+        assert!(
+            close(a.lower_m, b.lower_m),
+            "{what} {}: {a:?} {b:?}",
+            a.link
+        );
+        assert!(
+            close(a.exact_m, b.exact_m),
+            "{what} {}: {a:?} {b:?}",
+            a.link
+        );
+    }
+    let (cc, gc) = (cpu.counts, gpu.counts);
+    assert_eq!(
+        (cc.total, cc.invalid, cc.outside_roi, cc.self_filtered),
+        (gc.total, gc.invalid, gc.outside_roi, gc.self_filtered),
+        "{what}"
+    );
+    assert_eq!(
+        gc.pruned + gc.evaluated + gc.invalid + gc.outside_roi + gc.self_filtered,
+        gc.total,
+        "{what}"
+    );
 }
 
 fn distance(r: &QueryResult) -> f64 {
@@ -326,8 +452,8 @@ proptest! {
         for mode in [Mode::Fast, Mode::Certified, Mode::Exact] {
             let options = QueryOptions { mode, per_link, self_filter_padding_m: Some(0.01), ..all_points() };
             let id = Isometry3::identity();
-            let tiles = engine.query_image(&points, Some(width), &id, &scene.link_poses, &options).unwrap();
-            let runs = engine.query(&points, &id, &scene.link_poses, &options).unwrap();
+            let tiles = query_both(&mut engine, &points, Some(width), &id, &scene.link_poses, &options).unwrap();
+            let runs = query_both(&mut engine, &points, None, &id, &scene.link_poses, &options).unwrap();
             let (t, r) = (tiles.nearest.as_ref(), runs.nearest.as_ref());
             prop_assert_eq!(t.map(|n| n.distance_m), r.map(|n| n.distance_m));
             prop_assert_eq!(t.map(|n| n.point_index), r.map(|n| n.point_index));
@@ -538,7 +664,7 @@ proptest! {
         let (exact, _) = scene.brute_force(&points, &root_from_sensor);
         for mode in [Mode::Certified, Mode::Exact] {
             let options = QueryOptions { mode, per_link, ..all_points() };
-            match engine.query(&points, &root_from_sensor, &scene.link_poses, &options) {
+            match query_both(&mut engine, &points, None, &root_from_sensor, &scene.link_poses, &options) {
                 Ok(r) => {
                     prop_assert!(r.point_spacing_m <= 0.01, "answered with points {} m apart", r.point_spacing_m);
                     let n = r.nearest.as_ref().expect("a nearest point");
@@ -878,8 +1004,6 @@ fn huge_cloud() {
 /// depend on the bounds' history agree exactly, and both cut the cloud into the same blocks.
 #[test]
 fn gpu_agrees_with_cpu() {
-    use ist_monitor::query::gpu::GpuOptions;
-    use ist_monitor::query::Backend;
     let mut rng = Rng(7);
     for case in 0..6 {
         let scene = Scene::random(&mut rng, 1 + case % 3, 96);
@@ -889,15 +1013,23 @@ fn gpu_agrees_with_cpu() {
         }
         let root_from_sensor = rng.pose(1.0);
         let points = cloud(&mut rng, 3000, &root_from_sensor);
-        // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups).
-        for (int64_atomics, subgroups) in [(true, true), (false, false)] {
+        // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups), each
+        // point descending on its own; then both ways with the sub-blocks' points in packets.
+        for (int64_atomics, subgroups, packets) in [
+            (true, true, false),
+            (false, false, false),
+            (true, true, true),
+            (false, false, true),
+        ] {
             let gpu = engine
                 .gpu_with(GpuOptions {
                     int64_atomics,
                     subgroups,
+                    packets,
                 })
                 .unwrap();
             let (minima, reduce) = (gpu.minima, gpu.reduce);
+            assert_eq!(gpu.packets, packets);
             // CI's lavapipe has both fast paths: they are what is tested there.
             if int64_atomics && subgroups && std::env::var_os("CI").is_some() {
                 use ist_monitor::query::layout::{Minima, Reduce};
@@ -925,42 +1057,10 @@ fn gpu_agrees_with_cpu() {
                 };
                 let (cpu, cpu_work) = query(Backend::Cpu);
                 let (gpu, gpu_work) = query(Backend::Gpu);
-                let what =
-                    format!("case {case} {mode:?} per_link {per_link} width {width:?} {minima:?} {reduce:?}");
-                assert_eq!((cpu.backend, gpu.backend), (Backend::Cpu, Backend::Gpu));
-                assert_eq!(cpu.outcome, gpu.outcome, "{what}");
-                let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
-                    (Some(a), Some(b)) => (a - b).abs() <= 1e-5,
-                    (a, b) => a == b,
-                };
-                let (c, g) = (cpu.nearest.as_ref(), gpu.nearest.as_ref());
-                assert!(
-                    close(c.map(|n| n.distance_m), g.map(|n| n.distance_m)),
-                    "{what}: {c:?} {g:?}"
+                let what = format!(
+                    "case {case} {mode:?} per_link {per_link} width {width:?} {minima:?} {reduce:?} packets {packets}"
                 );
-                assert!(
-                    close(c.and_then(|n| n.lower_m), g.and_then(|n| n.lower_m)),
-                    "{what}"
-                );
-                for (a, b) in cpu.links.iter().zip(&gpu.links) {
-                    assert!(
-                        close(a.distance_m, b.distance_m),
-                        "{what} {}: {a:?} {b:?}",
-                        a.link
-                    );
-                    assert!(close(a.lower_m, b.lower_m), "{what} {}", a.link);
-                    assert!(close(a.exact_m, b.exact_m), "{what} {}", a.link);
-                }
-                let (cc, gc) = (cpu.counts, gpu.counts);
-                assert_eq!(
-                    (cc.total, cc.invalid, cc.outside_roi, cc.self_filtered),
-                    (gc.total, gc.invalid, gc.outside_roi, gc.self_filtered),
-                    "{what}"
-                );
-                assert_eq!(
-                    gc.pruned + gc.evaluated + gc.invalid + gc.outside_roi + gc.self_filtered,
-                    gc.total
-                );
+                assert_gpu_agrees(&what, &cpu, &gpu);
                 assert_eq!(cpu_work.blocks, gpu_work.blocks, "{what}");
                 assert!(gpu_work.descents > 0 && cpu_work.descents > 0, "{what}");
             }

@@ -150,13 +150,19 @@ fn kinect_panda_reference_distances() {
     if !common::has_gpu(&mut engine) {
         return;
     }
-    // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups).
-    for (int64_atomics, subgroups) in [(true, true), (false, false)] {
+    // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups), each point
+    // descending on its own; then the fast paths with the sub-blocks' points in packets.
+    for (int64_atomics, subgroups, packets) in [
+        (true, true, false),
+        (false, false, false),
+        (true, true, true),
+    ] {
         use ist_monitor::query::layout::Minima;
         let gpu = engine
             .gpu_with(ist_monitor::query::gpu::GpuOptions {
                 int64_atomics,
                 subgroups,
+                packets,
             })
             .unwrap();
         let (minima, reduce) = (gpu.minima, gpu.reduce);
@@ -174,7 +180,10 @@ fn kinect_panda_reference_distances() {
                     .query_image(&points, width, &sensor, joints, &on(Backend::Gpu))
                     .unwrap();
                 let gw = engine.last_work();
-                let what = format!("{:?} width {width:?} {minima:?} {reduce:?}", options.mode);
+                let what = format!(
+                    "{:?} width {width:?} {minima:?} {reduce:?} packets {packets}",
+                    options.mode
+                );
                 assert_eq!(g.backend, Backend::Gpu);
                 let (cn, gn) = (c.nearest.unwrap(), g.nearest.unwrap());
                 assert!(
@@ -271,7 +280,8 @@ fn query_command_on_the_bag() {
 /// vector width lavapipe runs the shader at (`LP_NATIVE_VECTOR_WIDTH` 128, 256, 512: subgroups
 /// of four, eight and sixteen), with the minima in 64-bit atomics and the reductions by subgroup,
 /// and on the portable path without either (`IST_MONITOR_GPU_NO_INT64`,
-/// `IST_MONITOR_GPU_NO_SUBGROUPS`), certified with per-link minima (the node's defaults, every
+/// `IST_MONITOR_GPU_NO_SUBGROUPS`), and with the measure pass's packets
+/// (`IST_MONITOR_GPU_PACKETS`), certified with per-link minima (the node's defaults, every
 /// link measured): the same nearest link and point, distances within 1e-5 m, the same counts
 /// that do not depend on the bounds' history. On a hardware GPU the width changes nothing.
 #[test]
@@ -286,14 +296,15 @@ fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_on_the_portable_
     };
     let cpu = query("cpu", &[]);
     for width in ["128", "256", "512"] {
-        for portable in ["0", "1"] {
+        for (portable, packets) in [("0", "0"), ("1", "0"), ("0", "1")] {
             let env = [
                 ("LP_NATIVE_VECTOR_WIDTH", width),
                 ("IST_MONITOR_GPU_NO_INT64", portable),
                 ("IST_MONITOR_GPU_NO_SUBGROUPS", portable),
+                ("IST_MONITOR_GPU_PACKETS", packets),
             ];
             let gpu = query("gpu", &env);
-            let what = format!("width {width}, portable {portable}");
+            let what = format!("width {width}, portable {portable}, packets {packets}");
             if gpu["backend"] != "gpu" {
                 if std::env::var_os("CI").is_some() {
                     panic!("{what}: the query ran on {} in CI", gpu["backend"]);

@@ -460,6 +460,8 @@ pub fn wgsl_constants() -> String {
         u("BLOCK", BLOCK as u32),
         u("SUB", SUB as u32),
         u("TILE_ROWS", (BLOCK / SUB) as u32),
+        u("PACKETS", (BLOCK / SUB) as u32),
+        u("BRANCHING", crate::ist::build::BRANCHING as u32),
         u("MASK_WORDS", (super::MAX_LINKS / 32) as u32),
         u("FRONTIER", FRONTIER as u32),
         u("GPU_STACK", GPU_STACK as u32),

@@ -693,12 +693,13 @@ impl Engine {
         self.gpu = match gpu::GpuEngine::new(&self.links, options) {
             Ok(g) => {
                 log::info!(
-                    "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?})",
+                    "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?}, descents {})",
                     g.adapter.name,
                     g.adapter.device_type,
                     g.adapter.backend,
                     g.minima,
-                    g.reduce
+                    g.reduce,
+                    if g.packets { "in packets" } else { "per point" }
                 );
                 GpuSlot::Ready(Box::new(g))
             }

@@ -74,6 +74,12 @@ pub enum GpuError {
 /// adapters without.
 pub const NO_SUBGROUPS_ENV: &str = "IST_MONITOR_GPU_NO_SUBGROUPS";
 
+/// Setting this variable (to anything but `0`) makes the measure pass descend each sub-block's
+/// points as a packet (`measure_packets`: one stack for the eight points, as the CPU's
+/// `descent::nearest_packet`) instead of each point on its own. Off by default until a hardware
+/// GPU's figures say which is faster (`bench gpu --packets`).
+pub const PACKETS_ENV: &str = "IST_MONITOR_GPU_PACKETS";
+
 /// How the GPU engine is made.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GpuOptions {
@@ -81,16 +87,19 @@ pub struct GpuOptions {
     pub int64_atomics: bool,
     /// Use subgroup operations where the adapter has them ([`Reduce::Subgroups`]).
     pub subgroups: bool,
+    /// Descend each sub-block's points as a packet in the measure pass ([`PACKETS_ENV`]).
+    pub packets: bool,
 }
 
 impl Default for GpuOptions {
     /// 64-bit atomics and subgroup operations where the adapter has them, unless
-    /// [`NO_INT64_ENV`] or [`NO_SUBGROUPS_ENV`] is set.
+    /// [`NO_INT64_ENV`] or [`NO_SUBGROUPS_ENV`] is set; packets where [`PACKETS_ENV`] is set.
     fn default() -> Self {
-        let off = |var| std::env::var(var).is_ok_and(|v| v != "0");
+        let set = |var| std::env::var(var).is_ok_and(|v| v != "0");
         Self {
-            int64_atomics: !off(NO_INT64_ENV),
-            subgroups: !off(NO_SUBGROUPS_ENV),
+            int64_atomics: !set(NO_INT64_ENV),
+            subgroups: !set(NO_SUBGROUPS_ENV),
+            packets: set(PACKETS_ENV),
         }
     }
 }
@@ -145,6 +154,8 @@ pub struct GpuEngine {
     pub minima: Minima,
     /// How a workgroup reduces on this adapter.
     pub reduce: Reduce,
+    /// Whether the measure pass descends packets ([`GpuOptions::packets`]).
+    pub packets: bool,
     layout: wgpu::BindGroupLayout,
     nodes: wgpu::Buffer,
     spheres: wgpu::Buffer,

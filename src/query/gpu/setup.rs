@@ -179,7 +179,11 @@ impl GpuEngine {
             cull: pipeline("cull", &common),
             blocks: pipeline("blocks", &common),
             plan: pipeline("plan", &with_dispatch),
-            measure: pipeline("measure", &common),
+            measure: if options.packets {
+                pipeline("measure_packets", &common)
+            } else {
+                pipeline("measure", &common)
+            },
             tally: pipeline("tally", &common),
             argmin: (minima == Minima::Split32).then(|| pipeline("argmin", &common)),
         };
@@ -274,6 +278,7 @@ impl GpuEngine {
             adapter: adapter.get_info(),
             minima,
             reduce,
+            packets: options.packets,
             layout,
             pipelines,
             unproject: super::unproject::Unproject::new(&device),

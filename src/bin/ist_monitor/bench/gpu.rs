@@ -55,6 +55,10 @@ pub struct BenchGpuArgs {
     /// operations (to compare the two).
     #[arg(long)]
     no_subgroups: bool,
+    /// The measure pass descends each sub-block's eight points as a packet, one stack for the
+    /// eight (as the CPU does), instead of each point on its own (to compare the two).
+    #[arg(long)]
+    packets: bool,
     /// Also time each GPU dispatch on its own (each then in a compute pass of its own, which
     /// adds a little to the end-to-end time) and the host's steps, and print the medians.
     #[arg(long)]
@@ -172,18 +176,24 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     let options = GpuOptions {
         int64_atomics: !args.portable,
         subgroups: !args.no_subgroups,
+        packets: args.packets,
     };
     let Some(gpu) = engine.gpu_with(options) else {
         bail!("no usable GPU adapter");
     };
     gpu.set_profile(args.passes);
     println!(
-        "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?}); CPU: {} threads",
+        "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?}, descents {}); CPU: {} threads",
         gpu.adapter.name,
         gpu.adapter.device_type,
         gpu.adapter.backend,
         gpu.minima,
         gpu.reduce,
+        if gpu.packets {
+            "in packets"
+        } else {
+            "per point"
+        },
         rayon::current_num_threads()
     );
     let bandwidth = gpu.upload_bandwidth(64 << 20)?;
