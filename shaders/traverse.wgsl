@@ -28,8 +28,8 @@
 //     memory; then each point of the block descends from the frontier nodes within its bound,
 //     depth first, nearest child on top, pruned by the link's threshold read from the atomics
 //     (so every item prunes with the best bound any has found). The item's minimum and its
-//     smallest point are recorded once. `measure_packets` (the host's choice) descends each
-//     sub-block's points together instead, one stack for the packet, as the CPU's packets do.
+//     smallest point are recorded once. With DESCEND_PACKETS (the host's choice) each sub-block's
+//     points descend together instead, one stack for the packet, as the CPU's packets do.
 //   * `tally`: per kept block, its points measured (a distance found) and inside an inner
 //     sphere, as the stage counts.
 //   * `argmin` (only without 64-bit atomics, minima_u32.wgsl): with the minima final, each link's
@@ -232,7 +232,7 @@ var<workgroup> wg_cut: u32;
 var<workgroup> wg_cut_n: u32;
 var<workgroup> wg_done: u32;
 var<workgroup> wg_limit: f32;
-// The measure pass's packets (`measure_packets`): per packet of SUB invocations (a sub-block),
+// The measure pass's packets (DESCEND_PACKETS): per packet of SUB invocations (a sub-block),
 // its lowest invocation with a point to descend (the one whose lower bounds order the stack),
 // the votes of a round (whether to expand the node just popped; which of its children to push),
 // where that invocation's nearest start lies on the stack, its lower bounds of the expanded
@@ -360,28 +360,44 @@ fn dfs(l: u32, q: vec3<f32>, bound: f32, start: u32) -> Hit {
                 }
             }
         } else {
-            var top = GPU_STACK;
-            var top_lb = BIG;
+            var pushes = Pushes(sp, GPU_STACK, BIG);
             for (var k = 0u; k < node.child_count; k++) {
                 let index = link.node_base + node.first_child + k;
                 let c = nodes[index];
                 let lb = lower_bound(c.center, c.radius, q);
-                if lb <= best && sp < GPU_STACK {
-                    stack_lb[sp] = lb;
-                    stack_node[sp] = index;
-                    if lb < top_lb {
-                        top_lb = lb;
-                        top = sp;
-                    }
-                    sp += 1u;
+                if lb <= best {
+                    push(&pushes, index, lb);
                 }
             }
-            swap_to_top(top, sp);
+            sp = pushes.sp;
+            swap_to_top(pushes.top, sp);
         }
     }
     count_work(WORK_NODES, expanded);
     // Clamped at +0 (a -0 would pack above every positive distance).
     return Hit(select(best, 0.0, best <= 0.0), found);
+}
+
+// Entries pushed onto the stack: its size, and the entry with the smallest lower bound pushed
+// (GPU_STACK: none yet), which goes on top once they are all pushed.
+struct Pushes {
+    sp: u32,
+    top: u32,
+    top_lb: f32,
+}
+
+// Pushes node `index` with lower bound `lb` (while the stack has room).
+fn push(p: ptr<function, Pushes>, index: u32, lb: f32) {
+    let sp = (*p).sp;
+    if sp < GPU_STACK {
+        stack_lb[sp] = lb;
+        stack_node[sp] = index;
+        if lb < (*p).top_lb {
+            (*p).top_lb = lb;
+            (*p).top = sp;
+        }
+        (*p).sp = sp + 1u;
+    }
 }
 
 // Moves stack entry `top` (GPU_STACK: none) to the top of a stack of `sp` entries.
@@ -1035,31 +1051,23 @@ fn frontier(l: u32, c: vec3<f32>, r: f32, lane: u32, minimum: bool) {
 // Not found, and no descent counted, when no frontier node is within the bound (cpu reaches).
 fn descend_from_frontier(l: u32, q: vec3<f32>, bound: f32) -> Hit {
     let cut = wg_cut;
-    var sp = 0u;
-    var top = GPU_STACK;
-    var top_lb = BIG;
+    var pushes = Pushes(0u, GPU_STACK, BIG);
     for (var f = 0u; f < wg_cut_n; f++) {
         let index = wg_cuts[cut][f];
         let node = nodes[index];
         if reaches(node.center, node.radius, q, bound) {
             let lb = lower_bound(node.center, node.radius, q);
-            if lb <= bound && sp < GPU_STACK {
-                stack_lb[sp] = lb;
-                stack_node[sp] = index;
-                if lb < top_lb {
-                    top_lb = lb;
-                    top = sp;
-                }
-                sp += 1u;
+            if lb <= bound {
+                push(&pushes, index, lb);
             }
         }
     }
-    if sp == 0u {
+    if pushes.sp == 0u {
         return Hit(bound, false);
     }
-    swap_to_top(top, sp);
+    swap_to_top(pushes.top, pushes.sp);
     count_work(WORK_DESCENTS, 1u);
-    return dfs(l, q, bound, sp);
+    return dfs(l, q, bound, pushes.sp);
 }
 
 // `descend_from_frontier` for the whole workgroup at once, a packet of SUB invocations (a
@@ -1105,25 +1113,17 @@ fn descend_packet(l: u32, q: vec3<f32>, bound: f32, has_point: bool, lane: u32) 
     let lead = atomicLoad(&wg_lead[pk]) == lane;
     // The points that descend: those that reach a start.
     let member = mine != 0u;
-    var sp = 0u;
-    var top = GPU_STACK;
-    var top_lb = BIG;
+    var pushes = Pushes(0u, GPU_STACK, BIG);
     for (var f = 0u; f < cut_n; f++) {
-        if (starts & (1u << f)) != 0u && sp < GPU_STACK {
+        if (starts & (1u << f)) != 0u {
             let index = wg_cuts[cut][f];
             let node = nodes[index];
-            let lb = lower_bound(node.center, node.radius, q);
-            stack_lb[sp] = lb;
-            stack_node[sp] = index;
-            if lb < top_lb {
-                top_lb = lb;
-                top = sp;
-            }
-            sp += 1u;
+            push(&pushes, index, lower_bound(node.center, node.radius, q));
         }
     }
+    var sp = pushes.sp;
     if lead {
-        wg_top[pk] = top;
+        wg_top[pk] = pushes.top;
     }
     // (The next barrier is the first round's uniform load.)
     var best = bound;
@@ -1245,31 +1245,19 @@ fn item_count(lane: u32) -> u32 {
     return workgroupUniformLoad(&wg_items);
 }
 
+// Set by the host for the measure pipeline: each sub-block's points descend together
+// (`descend_packet`), else each on its own (`descend_from_frontier`).
+override DESCEND_PACKETS: bool = false;
+
 @compute @workgroup_size(BLOCK)
 fn measure(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lane: u32,
 ) {
-    measure_items(wid.x, nwg.x, lane, false);
-}
-
-// `measure` with each sub-block's points descending as a packet (`descend_packet`).
-@compute @workgroup_size(BLOCK)
-fn measure_packets(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-    @builtin(local_invocation_index) lane: u32,
-) {
-    measure_items(wid.x, nwg.x, lane, true);
-}
-
-// The measure pass over the items, workgroup `wid` of `nwg`; `packets`: each sub-block's points
-// descend together (`descend_packet`), else each on its own (`descend_from_frontier`).
-fn measure_items(wid: u32, nwg: u32, lane: u32, packets: bool) {
     clear_counts(lane);
     let n = item_count(lane);
-    for (var k = wid; k < n; k += nwg) {
+    for (var k = wid.x; k < n; k += nwg.x) {
         let s = items[k] >> 7u;
         let l = items[k] & 127u;
         if lane == 0u {
@@ -1284,7 +1272,7 @@ fn measure_items(wid: u32, nwg: u32, lane: u32, packets: bool) {
         var i = NO_POINT;
         var hit = Hit(BIG, false);
         let has_point = (kept[s].todo & bit) != 0u;
-        if packets {
+        if DESCEND_PACKETS {
             var q = vec3<f32>(0.0);
             if has_point {
                 i = block_point(kept[s].block, lane);

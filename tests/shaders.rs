@@ -58,7 +58,6 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
             "blocks",
             "cull",
             "measure",
-            "measure_packets",
             "plan",
             "seed",
             "seed_scan",

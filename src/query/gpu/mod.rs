@@ -75,7 +75,7 @@ pub enum GpuError {
 pub const NO_SUBGROUPS_ENV: &str = "IST_MONITOR_GPU_NO_SUBGROUPS";
 
 /// Setting this variable (to anything but `0`) makes the measure pass descend each sub-block's
-/// points as a packet (`measure_packets`: one stack for the eight points, as the CPU's
+/// points as a packet (the shader's `DESCEND_PACKETS`: one stack for the eight points, as the CPU's
 /// `descent::nearest_packet`) instead of each point on its own. Off by default until a hardware
 /// GPU's figures say which is faster (`bench gpu --packets`).
 pub const PACKETS_ENV: &str = "IST_MONITOR_GPU_PACKETS";

@@ -158,7 +158,9 @@ impl GpuEngine {
         };
         let common = pipeline_layout(&[&layout]);
         let with_dispatch = pipeline_layout(&[&layout, &dispatch_layout]);
-        let pipeline = |name: &str, layout: &wgpu::PipelineLayout| {
+        // The shader's overridable constants: whether the measure pass descends packets.
+        let constants = [("DESCEND_PACKETS", if options.packets { 1.0 } else { 0.0 })];
+        let pipeline_with = |name: &str, layout: &wgpu::PipelineLayout, constants: &[_]| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(name),
                 layout: Some(layout),
@@ -166,12 +168,13 @@ impl GpuEngine {
                 entry_point: Some(name),
                 // Every workgroup variable is written before it is read.
                 compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
                     zero_initialize_workgroup_memory: false,
-                    ..Default::default()
                 },
                 cache: None,
             })
         };
+        let pipeline = |name: &str, layout: &wgpu::PipelineLayout| pipeline_with(name, layout, &[]);
         let pipelines = Pipelines {
             seed_scan: pipeline("seed_scan", &common),
             seed_pick: (minima == Minima::Split32).then(|| pipeline("seed_pick", &common)),
@@ -179,11 +182,7 @@ impl GpuEngine {
             cull: pipeline("cull", &common),
             blocks: pipeline("blocks", &common),
             plan: pipeline("plan", &with_dispatch),
-            measure: if options.packets {
-                pipeline("measure_packets", &common)
-            } else {
-                pipeline("measure", &common)
-            },
+            measure: pipeline_with("measure", &common, &constants),
             tally: pipeline("tally", &common),
             argmin: (minima == Minima::Split32).then(|| pipeline("argmin", &common)),
         };
