@@ -145,7 +145,8 @@ fn kinect_panda_reference_distances() {
     // pruning; as runs and as the organized image (tiles), with the minima in 64-bit atomics
     // (where the adapter has them) and in the portable path. Its pruning is the CPU's: the same
     // blocks culled within 2×, and with 64-bit atomics no more than 2.5× the CPU's nodes
-    // expanded (measured 0.9–1.95× here, every link measured to any range; the portable path's
+    // expanded (measured 0.9–1.95× here, every link measured to any range; 1.0–2.15× with
+    // packets, which expand a node for all eight points of a packet; the portable path's
     // arg-min pass descends again, about 1.6× more).
     if !common::has_gpu(&mut engine) {
         return;
