@@ -1068,6 +1068,41 @@ fn gpu_agrees_with_cpu() {
     }
 }
 
+/// The GPU's answers at the other two vector widths lavapipe runs its shaders at
+/// (`LP_NATIVE_VECTOR_WIDTH` 128 and 512: subgroups of four and sixteen; this file runs at
+/// lavapipe's own, 256: eight): this file's GPU test (random scenes in every mode, as runs and as
+/// tiles, on every path) and its property test of every mode against brute force, run again by
+/// this test binary with the width set, must pass there too. On a hardware
+/// GPU the width changes nothing, and they are not run again.
+#[test]
+fn gpu_agrees_with_cpu_at_every_lavapipe_width() {
+    const WIDTH: &str = "LP_NATIVE_VECTOR_WIDTH";
+    let mut engine = box_scene().engine();
+    let Some(gpu) = engine.gpu() else {
+        return;
+    };
+    if !gpu.is_software() || std::env::var_os(WIDTH).is_some() {
+        return;
+    }
+    let tests = ["gpu_agrees_with_cpu", "modes_against_brute_force"];
+    for width in ["128", "512"] {
+        let out = std::process::Command::new(std::env::current_exe().unwrap())
+            .arg("--exact")
+            .args(tests)
+            .env(WIDTH, width)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let report = || format!("{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+        assert!(out.status.success(), "{WIDTH}={width}:\n{}", report());
+        assert!(
+            stdout.contains(&format!("test result: ok. {} passed", tests.len())),
+            "{WIDTH}={width}:\n{}",
+            report()
+        );
+    }
+}
+
 /// A depth image of `width × height` pixels in `encoding` and byte order, each row `pad` bytes
 /// longer than its pixels, with depths around a robot ~1.2 m in front of the camera: every
 /// 13th pixel no return (0; NaN or, every 26th, +∞ in 32FC1).
