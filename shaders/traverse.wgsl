@@ -402,7 +402,9 @@ fn push(p: ptr<function, Pushes>, index: u32, lb: f32) {
 
 // Moves stack entry `top` (GPU_STACK: none) to the top of a stack of `sp` entries.
 fn swap_to_top(top: u32, sp: u32) {
-    if top != GPU_STACK {
+    // (top < sp ≤ GPU_STACK: a packet with no point to descend swaps nothing, whatever its
+    // unwritten wg_top holds.)
+    if top < sp {
         let last = sp - 1u;
         let lb = stack_lb[top];
         let n = stack_node[top];
@@ -1137,6 +1139,7 @@ fn descend_packet(l: u32, q: vec3<f32>, bound: f32, has_point: bool, lane: u32) 
         }
         let live = workgroupUniformLoad(&wg_live);
         if first {
+            // The lowest descending point's nearest start on top (none in a packet without one).
             swap_to_top(wg_top[pk], sp);
             first = false;
         }
