@@ -5,7 +5,7 @@
 mod common;
 
 use ist_monitor::geometry::{distance_point_mesh, winding_number};
-use ist_monitor::ist::{build_link, BuildOptions, LinkTree};
+use ist_monitor::ist::{build_link, BuildOptions, IstNode, LinkTree};
 use ist_monitor::packing::{InnerSphere, PackingParams};
 use ist_monitor::query::gpu::GpuOptions;
 use ist_monitor::query::{
@@ -1064,6 +1064,53 @@ fn gpu_agrees_with_cpu() {
                 assert_eq!(cpu_work.blocks, gpu_work.blocks, "{what}");
                 assert!(gpu_work.descents > 0 && cpu_work.descents > 0, "{what}");
             }
+        }
+    }
+}
+
+/// Both engines refuse a tree whose node points past its arrays, has more children than the
+/// builder makes (a GPU packet votes on at most BRANCHING children) or has a child before it (a
+/// cycle: no descent would end), naming the link (and on the GPU the node), never a panic; the
+/// GPU engine before it looks for an adapter (its shader reads the trees without bounds checks).
+#[test]
+fn both_engines_refuse_a_tree_they_cannot_walk_safely() {
+    use ist_monitor::query::gpu::{GpuEngine, GpuError};
+    use ist_monitor::query::QueryError;
+    let scene = box_scene();
+    let link = || QueryLink::from_tree(&scene.trees[0], Some(&scene.geometry[0]), 0);
+    let good = link();
+    // The last inner node: not the root, so that a child index of 0 comes before it.
+    let inner = good
+        .nodes
+        .iter()
+        .rposition(|n| n.children_are_spheres == 0)
+        .expect("an inner node");
+    assert!(inner > 0, "a tree of more than one level");
+    let too_many = ist_monitor::ist::build::BRANCHING as u32 + 1;
+    let past = good.nodes.len() as u32;
+    type Edit = fn(&mut IstNode, u32);
+    let edits: [(&str, Edit, u32); 3] = [
+        ("too many children", |n, v| n.child_count = v, too_many),
+        ("past the arrays", |n, v| n.first_child = v, past),
+        ("a cycle", |n, v| n.first_child = v, 0),
+    ];
+    for (what, edit, value) in edits {
+        let bad = || {
+            let mut l = link();
+            edit(&mut l.nodes[inner], value);
+            l
+        };
+        match GpuEngine::new(&[bad()], GpuOptions::default()) {
+            Err(GpuError::BadTree { link, node }) => {
+                assert_eq!((link.as_str(), node), ("box", inner), "{what}")
+            }
+            Err(e) => panic!("{what}: {e}"),
+            Ok(_) => panic!("{what}: the GPU engine took the tree"),
+        }
+        match Engine::from_links(vec![bad()], 1) {
+            Err(QueryError::BadTree(link)) => assert_eq!(link, "box", "{what}"),
+            Err(e) => panic!("{what}: {e}"),
+            Ok(_) => panic!("{what}: the engine took the tree"),
         }
     }
 }

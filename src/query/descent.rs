@@ -345,7 +345,26 @@ pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f
     None
 }
 
-/// Depth of a tree (root = 1), for `layout::max_tree_depth`.
+/// The first node of a tree whose children lie outside `nodes` (or, for a node of spheres,
+/// outside the `spheres` spheres), number more than the builder's `BRANCHING`, or come before it
+/// in `nodes` (which is what makes every descent, and [`tree_depth`], end); `None` for a tree
+/// both backends can walk without bounds checks.
+pub fn bad_node(nodes: &[IstNode], spheres: usize) -> Option<usize> {
+    nodes.iter().enumerate().position(|(i, n)| {
+        let (first, count) = (n.first_child as usize, n.child_count as usize);
+        let len = if n.children_are_spheres != 0 {
+            spheres
+        } else {
+            nodes.len()
+        };
+        count > crate::ist::build::BRANCHING
+            || first + count > len
+            || (n.children_are_spheres == 0 && count > 0 && first <= i)
+    })
+}
+
+/// Depth of a tree (root = 1), for `layout::max_tree_depth`; the tree must have no
+/// [`bad_node`].
 pub fn tree_depth(nodes: &[IstNode]) -> usize {
     fn depth(nodes: &[IstNode], i: usize) -> usize {
         let n = &nodes[i];

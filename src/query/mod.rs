@@ -420,11 +420,7 @@ impl Engine {
         }
         let max = layout::max_tree_depth(layout::STACK, layout::FRONTIER);
         for link in &links {
-            if link.nodes.is_empty()
-                || link
-                    .nodes
-                    .iter()
-                    .any(|n| n.child_count as usize > crate::ist::build::BRANCHING)
+            if link.nodes.is_empty() || descent::bad_node(&link.nodes, link.spheres.len()).is_some()
             {
                 return Err(QueryError::BadTree(link.name.clone()));
             }

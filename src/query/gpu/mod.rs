@@ -61,7 +61,7 @@ pub enum GpuError {
     Device(String),
     #[error("link {link}: tree depth needs more than the shader's stack of {GPU_STACK}")]
     TooDeep { link: String },
-    #[error("link {link}: node {node} points past the link's arrays")]
+    #[error("link {link}: node {node} points past the link's arrays or has too many children")]
     BadTree { link: String, node: usize },
     #[error("{0} bytes exceed the device's storage buffer limit")]
     TooLarge(u64),

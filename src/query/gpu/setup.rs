@@ -44,24 +44,21 @@ pub(super) fn layout_entry(
     }
 }
 
-/// Checks that every child index of `link`'s tree lies inside its arrays: the shader reads
-/// them without bounds checks.
+/// Checks that every child index of `link`'s tree lies inside its arrays, after its parent, and
+/// that no node has more than BRANCHING children (the packets' votes and keys hold that many):
+/// the shader reads them without bounds checks (`descent::bad_node`).
 fn check_tree(link: &QueryLink) -> Result<(), GpuError> {
-    for (k, n) in link.nodes.iter().enumerate() {
-        let end = n.first_child as usize + n.child_count as usize;
-        let len = if n.children_are_spheres != 0 {
-            link.spheres.len()
-        } else {
-            link.nodes.len()
-        };
-        if end > len {
-            return Err(GpuError::BadTree {
-                link: link.name.clone(),
-                node: k,
-            });
-        }
+    let bad = match link.nodes.is_empty() {
+        true => Some(0),
+        false => descent::bad_node(&link.nodes, link.spheres.len()),
+    };
+    match bad {
+        Some(node) => Err(GpuError::BadTree {
+            link: link.name.clone(),
+            node,
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 impl GpuEngine {
@@ -69,12 +66,12 @@ impl GpuEngine {
     /// uploads the trees of `links`.
     pub fn new(links: &[QueryLink], options: GpuOptions) -> Result<Self, GpuError> {
         for link in links {
+            check_tree(link)?;
             if descent::tree_depth(&link.nodes) > layout::max_tree_depth(GPU_STACK, FRONTIER) {
                 return Err(GpuError::TooDeep {
                     link: link.name.clone(),
                 });
             }
-            check_tree(link)?;
         }
         // Vulkan, Metal or DX12 unless WGPU_BACKEND says otherwise: compute needs no GL, and
         // probing it prints EGL noise on headless machines.
@@ -116,11 +113,14 @@ impl GpuEngine {
         .map_err(|e| GpuError::Device(e.to_string()))?;
         device.on_uncaptured_error(Box::new(|e| log::error!("GPU: {e}")));
         // SAFETY: the shader indexes its arrays only with indices in range — the trees' child
-        // indices (checked above), the stack (bounded by GPU_STACK at each push), the points
+        // indices and counts (checked above, `check_tree`; children after their parent, so
+        // every descent ends), the stack
+        // (bounded by GPU_STACK at each push, and swapped only below its size), the points
         // (below `n_points`, the buffer's size), the kept blocks (below the block count, the
         // buffer's capacity), the items and candidates (below their capacities, checked at each
-        // append), the links (below `n_links`) — and every loop ends: descents pop what they
-        // push, and the passes stride over bounded counts.
+        // append), the links (below `n_links`), the packets' workgroup arrays (by lane / SUB) —
+        // and every loop ends: descents pop what they push, and the passes stride over bounded
+        // counts.
         let module = unsafe {
             device.create_shader_module_trusted(
                 wgpu::ShaderModuleDescriptor {
