@@ -223,7 +223,7 @@ pub enum QueryError {
         depth: usize,
         max: usize,
     },
-    #[error("link {0}: empty tree, or a node with more children than the tree's branching")]
+    #[error("link {0}: a tree no descent can walk (empty, a node with more children than the tree's branching, or a child outside its arrays or before its parent)")]
     BadTree(String),
     #[error("no link selected")]
     NoLinks,
