@@ -1079,9 +1079,9 @@ fn descend_from_frontier(l: u32, q: vec3<f32>, bound: f32) -> Hit {
 // point's lower bounds; a round pops the top node, expands it if it is within the bound of some
 // point of the packet (a vote), and pushes the children within the bound of some point (a vote
 // on a mask), the nearest to the packet's lowest descending point on top. The reads of a round
-// are the same address across the packet, and no invocation waits on another's longer descent
-// in the same round; the packet expands each node once for all its points (counted once per
-// point, as on the CPU). Each point's result is its own nearest sphere within its bound, as
+// are the same address across the packet and its invocations take the same branches; the
+// packet expands each node once for all its points (counted once per point, as on the CPU),
+// also where only some of them need it. Each point's result is its own nearest sphere within its bound, as
 // `descend_from_frontier` finds it. Called in uniform control flow; `has_point`: the invocation
 // has a point to descend (`q`, link frame).
 fn descend_packet(l: u32, q: vec3<f32>, bound: f32, has_point: bool, lane: u32) -> Hit {
