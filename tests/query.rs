@@ -229,10 +229,10 @@ fn run(
     query_both(engine, points, None, root_from_sensor, poses, options).expect("query")
 }
 
-/// The GPU's paths the tests' engines take in turn, one per engine: both fast paths (64-bit
-/// atomics, subgroups) with each point descending on its own, the portable path (neither), and
-/// the fast paths with the sub-blocks' points descending in packets.
-const GPU_PATHS: [GpuOptions; 3] = [
+/// The GPU's paths, which the tests' engines take in turn, one per engine: both fast paths
+/// (64-bit atomics, subgroups) and the portable path (neither), each point descending on its
+/// own, then both with the sub-blocks' points descending in packets.
+const GPU_PATHS: [GpuOptions; 4] = [
     GpuOptions {
         int64_atomics: true,
         subgroups: true,
@@ -246,6 +246,11 @@ const GPU_PATHS: [GpuOptions; 3] = [
     GpuOptions {
         int64_atomics: true,
         subgroups: true,
+        packets: true,
+    },
+    GpuOptions {
+        int64_atomics: false,
+        subgroups: false,
         packets: true,
     },
 ];
@@ -1013,21 +1018,13 @@ fn gpu_agrees_with_cpu() {
         }
         let root_from_sensor = rng.pose(1.0);
         let points = cloud(&mut rng, 3000, &root_from_sensor);
-        // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups), each
-        // point descending on its own; then both ways with the sub-blocks' points in packets.
-        for (int64_atomics, subgroups, packets) in [
-            (true, true, false),
-            (false, false, false),
-            (true, true, true),
-            (false, false, true),
-        ] {
-            let gpu = engine
-                .gpu_with(GpuOptions {
-                    int64_atomics,
-                    subgroups,
-                    packets,
-                })
-                .unwrap();
+        for path in GPU_PATHS {
+            let GpuOptions {
+                int64_atomics,
+                subgroups,
+                packets,
+            } = path;
+            let gpu = engine.gpu_with(path).unwrap();
             let (minima, reduce) = (gpu.minima, gpu.reduce);
             assert_eq!(gpu.packets, packets);
             // CI's lavapipe has both fast paths: they are what is tested there.

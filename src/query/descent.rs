@@ -347,9 +347,12 @@ pub(super) fn any_within(link: &QueryLink, p: [f32; 3], starts: &[u32], bound: f
 
 /// The first node of a tree whose children lie outside `nodes` (or, for a node of spheres,
 /// outside the `spheres` spheres), number more than the builder's `BRANCHING`, or come before it
-/// in `nodes` (which is what makes every descent, and [`tree_depth`], end); `None` for a tree
-/// both backends can walk without bounds checks.
+/// in `nodes` (which is what makes every descent, and [`tree_depth`], end), and node 0 of an
+/// empty tree; `None` for a tree both backends can walk without bounds checks.
 pub fn bad_node(nodes: &[IstNode], spheres: usize) -> Option<usize> {
+    if nodes.is_empty() {
+        return Some(0);
+    }
     nodes.iter().enumerate().position(|(i, n)| {
         let (first, count) = (n.first_child as usize, n.child_count as usize);
         let len = if n.children_are_spheres != 0 {

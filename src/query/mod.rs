@@ -420,8 +420,7 @@ impl Engine {
         }
         let max = layout::max_tree_depth(layout::STACK, layout::FRONTIER);
         for link in &links {
-            if link.nodes.is_empty() || descent::bad_node(&link.nodes, link.spheres.len()).is_some()
-            {
+            if descent::bad_node(&link.nodes, link.spheres.len()).is_some() {
                 return Err(QueryError::BadTree(link.name.clone()));
             }
             let depth = descent::tree_depth(&link.nodes);
@@ -688,15 +687,7 @@ impl Engine {
     pub fn gpu_with(&mut self, options: gpu::GpuOptions) -> Option<&mut gpu::GpuEngine> {
         self.gpu = match gpu::GpuEngine::new(&self.links, options) {
             Ok(g) => {
-                log::info!(
-                    "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?}, descents {})",
-                    g.adapter.name,
-                    g.adapter.device_type,
-                    g.adapter.backend,
-                    g.minima,
-                    g.reduce,
-                    if g.packets { "in packets" } else { "per point" }
-                );
+                log::info!("GPU: {}", g.describe());
                 GpuSlot::Ready(Box::new(g))
             }
             Err(e) => {

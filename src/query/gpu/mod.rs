@@ -194,6 +194,24 @@ impl GpuEngine {
         self.profile = on;
     }
 
+    /// The adapter and the paths taken on it: "name (type, backend; minima …, reductions …,
+    /// descents per point | in packets)".
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?}; minima {:?}, reductions {:?}, descents {})",
+            self.adapter.name,
+            self.adapter.device_type,
+            self.adapter.backend,
+            self.minima,
+            self.reduce,
+            if self.packets {
+                "in packets"
+            } else {
+                "per point"
+            }
+        )
+    }
+
     /// Whether the adapter is a software rasterizer (lavapipe, WARP, SwiftShader): correct, but
     /// never faster than the CPU backend.
     pub fn is_software(&self) -> bool {

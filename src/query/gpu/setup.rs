@@ -48,11 +48,7 @@ pub(super) fn layout_entry(
 /// that no node has more than BRANCHING children (the packets' votes and keys hold that many):
 /// the shader reads them without bounds checks (`descent::bad_node`).
 fn check_tree(link: &QueryLink) -> Result<(), GpuError> {
-    let bad = match link.nodes.is_empty() {
-        true => Some(0),
-        false => descent::bad_node(&link.nodes, link.spheres.len()),
-    };
-    match bad {
+    match descent::bad_node(&link.nodes, link.spheres.len()) {
         Some(node) => Err(GpuError::BadTree {
             link: link.name.clone(),
             node,

@@ -183,17 +183,8 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     };
     gpu.set_profile(args.passes);
     println!(
-        "GPU: {} ({:?}, {:?}; minima {:?}, reductions {:?}, descents {}); CPU: {} threads",
-        gpu.adapter.name,
-        gpu.adapter.device_type,
-        gpu.adapter.backend,
-        gpu.minima,
-        gpu.reduce,
-        if gpu.packets {
-            "in packets"
-        } else {
-            "per point"
-        },
+        "GPU: {}; CPU: {} threads",
+        gpu.describe(),
         rayon::current_num_threads()
     );
     let bandwidth = gpu.upload_bandwidth(64 << 20)?;
