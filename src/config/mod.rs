@@ -321,13 +321,8 @@ impl Config {
                     ))
                 }
             },
-            gpu_min_points: {
-                let n = v.distance("gpu_min_points", "gpu_min_points")?;
-                if n.fract() != 0.0 {
-                    return Err(Values::bad("gpu_min_points", "must be a whole number"));
-                }
-                n as usize
-            },
+            gpu_min_points: v.whole("gpu_min_points")?,
+            gpu_min_depth_pixels: v.whole("gpu_min_depth_pixels")?,
         };
         let mut build = BuildOptions::default();
         build.packing.max_spheres = v.count("max_spheres")?;
@@ -702,6 +697,29 @@ mod tests {
     }
 
     #[test]
+    fn auto_takes_each_input_kind_at_its_own_crossover() {
+        let o = |n: &str, v: &str| (n.to_owned(), v.to_owned());
+        let c = Config::from_overrides(&[
+            o("gpu_min_points", "1000000"),
+            o("gpu_min_depth_pixels", "1000"),
+        ])
+        .unwrap();
+        let q = &c.query;
+        assert_eq!(
+            (q.gpu_min_points, q.gpu_min_depth_pixels),
+            (1_000_000, 1_000)
+        );
+        // A 640 × 480 depth image goes to the GPU, a cloud of as many points does not.
+        assert!(q.wants_gpu_for_depth(307_200) && !q.wants_gpu(307_200));
+        assert!(!q.wants_gpu_for_depth(999) && q.wants_gpu(1_000_000));
+        for (backend, both) in [("cpu", false), ("gpu", true)] {
+            let c = Config::from_overrides(&[o("backend", backend)]).unwrap();
+            assert_eq!(c.query.wants_gpu(1), both);
+            assert_eq!(c.query.wants_gpu_for_depth(usize::MAX), both);
+        }
+    }
+
+    #[test]
     fn no_robot_description_is_an_error_naming_it() {
         let e = Config::default().robot_urdf().unwrap_err().to_string();
         assert!(e.contains("robot_description"), "{e}");
@@ -721,6 +739,8 @@ mod tests {
             ("    fixed_joint_state:\n      names: [a, b]\n      positions: [1.0]\n", "fixed_joint_state.positions"),
             ("    stop_distance: 0.5\n", "stop_distance"),
             ("    per_link: 3\n", "per_link"),
+            ("    gpu_min_points: 1.5\n", "gpu_min_points"),
+            ("    gpu_min_depth_pixels: -640\n", "gpu_min_depth_pixels"),
             ("    speed_scaling:\n      stopping:\n        times: [0.3, 0.1]\n", "speed_scaling.stopping.times"),
             ("    speed_scaling.stopping.speeds: [0.5, 1.0]\n", "speed_scaling.stopping.speeds"),
             ("    speed_scaling.hysteresis: 2\n", "speed_scaling.hysteresis"),

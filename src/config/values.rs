@@ -83,6 +83,14 @@ impl Values {
         }
         Ok(v)
     }
+    /// A whole number ≥ 0 (a size in points or pixels).
+    pub(super) fn whole(&self, name: &str) -> Result<usize, ConfigError> {
+        let n = self.distance(name, name)?;
+        if n.fract() != 0.0 || n > u64::MAX as f64 {
+            return Err(Self::bad(name, "must be a whole number"));
+        }
+        Ok(n as usize)
+    }
     /// A whole number ≥ 1.
     pub(super) fn count(&self, name: &str) -> Result<u32, ConfigError> {
         let n = self.distance(name, name)?;

@@ -94,12 +94,20 @@ use crate::robot::{LinkGeometry, RobotModel};
 /// Most links with collision geometry one engine handles (a bit mask per point).
 pub const MAX_LINKS: usize = 128;
 
-/// Default crossover of `Backend::Auto`, in points: a 640 × 480 cloud. On the one hardware GPU
-/// measured (an H100 beside 16 CPU cores, docs/gpu.md) the GPU first wins end to end at 307,200
-/// points, and from there on the two are within about 10 % of each other; below it the CPU
-/// wins. `ist_monitor bench gpu` measures it on a machine; set `gpu_min_points` (or
-/// `backend: cpu`) from its figure.
+/// Default crossover of `Backend::Auto` for a cloud, in points: a 640 × 480 cloud. On the H200
+/// machines measured, each beside 16 CPU cores (docs/gpu.md), the two backends are level from
+/// 307,200 to 2,000,000 points on the quiet ones (the GPU at most 12 % behind) and the GPU ahead
+/// at 5,000,000; on a busier one the GPU is 1.2–2.1× ahead from 100,000 on; below 307,200 the
+/// CPU wins on a quiet one. `ist_monitor bench gpu` measures it on a machine; set
+/// `gpu_min_points` (or `backend: cpu`) from its figure.
 pub const DEFAULT_GPU_MIN_POINTS: usize = 307_200;
+
+/// Default crossover of `Backend::Auto` for a depth image that the GPU unprojects itself, in
+/// pixels: only the image's bytes cross to the device (a sixth of its points'), and the CPU must
+/// also make the points. On every H200 measured the GPU wins from the sweep's 99,840 pixels on (156 rows
+/// of 640; 1.5–2.1× the CPU there, 2.6–4.7× at 640 × 480) and the CPU at 9,600
+/// (`ist_monitor bench gpu --depth`).
+pub const DEFAULT_GPU_MIN_DEPTH_PIXELS: usize = 99_840;
 
 /// What the query computes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -141,8 +149,11 @@ pub struct QueryOptions {
     /// ([`LinkDistance::farther_than_m`]), which costs far less. Infinity measures every link.
     pub per_link_range_m: f32,
     pub backend: Backend,
-    /// `Backend::Auto` uses the GPU from this many points on.
+    /// `Backend::Auto` uses the GPU for a cloud from this many points on.
     pub gpu_min_points: usize,
+    /// `Backend::Auto` uses the GPU for a depth image it can unproject itself (no working frame)
+    /// from this many pixels on.
+    pub gpu_min_depth_pixels: usize,
 }
 
 /// Where a query runs.
@@ -151,7 +162,8 @@ pub struct QueryOptions {
 pub enum Backend {
     Cpu,
     Gpu,
-    /// The GPU for clouds of at least `gpu_min_points` on a hardware GPU, else the CPU.
+    /// The GPU for clouds of at least `gpu_min_points` and depth images of at least
+    /// `gpu_min_depth_pixels` on a hardware GPU, else the CPU.
     Auto,
 }
 
@@ -159,10 +171,20 @@ impl QueryOptions {
     /// Whether a cloud of `points` points asks for the GPU: always with `gpu`, from
     /// `gpu_min_points` on with `auto` (which still stays on the CPU on a software adapter).
     pub fn wants_gpu(&self, points: usize) -> bool {
+        self.wants_gpu_from(points, self.gpu_min_points)
+    }
+
+    /// Whether a depth image of `pixels` pixels asks for the GPU: as [`Self::wants_gpu`], from
+    /// `gpu_min_depth_pixels` on with `auto`.
+    pub fn wants_gpu_for_depth(&self, pixels: usize) -> bool {
+        self.wants_gpu_from(pixels, self.gpu_min_depth_pixels)
+    }
+
+    fn wants_gpu_from(&self, n: usize, crossover: usize) -> bool {
         match self.backend {
             Backend::Cpu => false,
             Backend::Gpu => true,
-            Backend::Auto => points >= self.gpu_min_points,
+            Backend::Auto => n >= crossover,
         }
     }
 
@@ -203,6 +225,7 @@ impl Default for QueryOptions {
             per_link_range_m: 0.32,
             backend: Backend::Auto,
             gpu_min_points: DEFAULT_GPU_MIN_POINTS,
+            gpu_min_depth_pixels: DEFAULT_GPU_MIN_DEPTH_PIXELS,
         }
     }
 }
@@ -511,7 +534,7 @@ impl Engine {
         options: &QueryOptions,
     ) -> Result<QueryResult, QueryError> {
         let width = (depth.height() > 1).then_some(depth.width());
-        if options.wants_gpu(depth.len()) {
+        if options.wants_gpu_for_depth(depth.len()) {
             let (origin, spacing) =
                 self.check(depth.len(), root_from_sensor, link_poses, options)?;
             if origin.is_none() {

@@ -76,8 +76,9 @@ pub const NO_SUBGROUPS_ENV: &str = "IST_MONITOR_GPU_NO_SUBGROUPS";
 
 /// Setting this variable (to anything but `0`) makes the measure pass descend each sub-block's
 /// points as a packet (the shader's `DESCEND_PACKETS`: one stack for the eight points, as the CPU's
-/// `descent::nearest_packet`) instead of each point on its own. Off by default until a hardware
-/// GPU's figures say which is faster (`bench gpu --packets`).
+/// `descent::nearest_packet`) instead of each point on its own. Off by default: on an H200
+/// (docs/gpu.md) packets made the measure pass slower, 92 → 127 µs at 307,200 points, the
+/// kernel 0.207 → 0.242 ms (`bench gpu --packets`).
 pub const PACKETS_ENV: &str = "IST_MONITOR_GPU_PACKETS";
 
 /// How the GPU engine is made.
@@ -178,14 +179,26 @@ pub struct GpuEngine {
     profile: bool,
     /// With `profile`: the last query's dispatches and their GPU time, s.
     pub last_passes: Vec<(&'static str, f64)>,
-    /// The last query's host side, s: writing the inputs (the points among them), from the
-    /// submission to the mapped readback, and reading it back into the result.
-    pub last_host_s: [f64; 3],
+    /// The last query's host side, s, one after the other: the small inputs (sizes, poses,
+    /// counters), the points' (or the image's) copy into the staging memory, encoding the
+    /// passes, the submission (and its error scopes), waiting for the readback to be mapped,
+    /// and reading it back into the result ([`HOST_STEPS`] names them).
+    pub last_host_s: [f64; 6],
     /// Each link's arg-min point of the last query (`u32::MAX`: none): the next one's seeds.
     last_winners: Vec<u32>,
     /// The self-filter's grids (headers, packed cells) and the padding they were built for.
     grids: (wgpu::Buffer, wgpu::Buffer, Option<f32>),
 }
+
+/// The names of [`GpuEngine::last_host_s`]'s steps, in its order.
+pub const HOST_STEPS: [&str; 6] = [
+    "host: inputs",
+    "host: upload",
+    "host: encode",
+    "host: submit",
+    "host: to mapped",
+    "host: result",
+];
 
 impl GpuEngine {
     /// Times each dispatch on its own (`last_passes`; each then in a compute pass of its own,
@@ -454,6 +467,7 @@ impl GpuEngine {
         if !winners.is_empty() {
             q.write_buffer(&self.winners, 0, bytemuck::cast_slice(&winners));
         }
+        let uploading = std::time::Instant::now();
         let upload = match depth {
             Some((params, data)) => {
                 q.write_buffer(&self.unproject.params, 0, bytemuck::bytes_of(&params));
@@ -461,6 +475,7 @@ impl GpuEngine {
             }
             None => self.upload(bytemuck::cast_slice(points))?,
         };
+        let uploaded = std::time::Instant::now();
         // Validation errors of this query come back as an error (the caller then runs the
         // CPU), not as wgpu's default panic.
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -530,8 +545,13 @@ impl GpuEngine {
                 return Err(GpuError::Device(e.to_string()));
             }
         }
-        self.read_back(submission)?;
+        let submitted = std::time::Instant::now();
+        // The staging buffer's map for the next query's points, asked for now: it is done when
+        // this submission is (the copy out of it is its first command), in the same poll that
+        // maps the readback, so that the next upload finds it mapped instead of waiting on the
+        // device once more.
         self.remap_staging();
+        self.read_back(submission)?;
         let mapped = std::time::Instant::now();
         let slice = self.readback.slice(..);
         let (state, minima, candidates) = {
@@ -614,8 +634,11 @@ impl GpuEngine {
         };
         let result = result::finish(links, bounds, input, counts, Backend::Gpu);
         self.last_host_s = [
-            (written - started).as_secs_f64(),
-            (mapped - written).as_secs_f64(),
+            (uploading - started).as_secs_f64(),
+            (uploaded - uploading).as_secs_f64(),
+            (written - uploaded).as_secs_f64(),
+            (submitted - written).as_secs_f64(),
+            (mapped - submitted).as_secs_f64(),
             mapped.elapsed().as_secs_f64(),
         ];
         Ok(Some(result))

@@ -16,7 +16,7 @@ use serde::Serialize;
 use ist_monitor::cloud::depth::{DepthView, PinholeCamera};
 use ist_monitor::ist::BuildOptions;
 use ist_monitor::msg::Image;
-use ist_monitor::query::gpu::GpuOptions;
+use ist_monitor::query::gpu::{GpuOptions, HOST_STEPS};
 use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions, WorkCounts};
 use ist_monitor::stats::Spread;
 
@@ -33,7 +33,8 @@ pub struct BenchGpuArgs {
     /// 1 mm offsets for larger sizes, cut for smaller ones.
     #[arg(long, value_delimiter = ',', default_values_t = [307_200usize, 1_000_000, 5_000_000])]
     sizes: Vec<usize>,
-    /// Sizes of the crossover sweep (the smallest at which the GPU wins end to end is printed).
+    /// Sizes of the crossover sweep (the smallest from which the GPU wins end to end at every
+    /// size of the sweep is printed).
     #[arg(long, value_delimiter = ',', default_values_t = [1_000usize, 10_000, 100_000, 307_200, 1_000_000, 2_000_000, 5_000_000])]
     crossover: Vec<usize>,
     #[arg(long, value_enum, default_value_t = Mode::Certified)]
@@ -220,7 +221,7 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         // The CPU makes the points (and then measures them); the GPU takes the image.
         Input::Depth(depth) => engine.query_depth(depth, &mut made, &sensor, poses, options),
     };
-    let mut time = |input: Input, backend: Backend| -> Result<Timed> {
+    let mut time = |input: Input, backend: Backend, runs: usize| -> Result<Timed> {
         let options = QueryOptions {
             mode: args.mode,
             backend,
@@ -238,7 +239,7 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         let work = engine.last_work();
         let (mut wall, mut kernel) = (Vec::new(), Vec::new());
         let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
-        for _ in 0..args.runs {
+        for _ in 0..runs {
             let start = Instant::now();
             let r = query(&mut engine, input, &options)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
@@ -246,7 +247,7 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
                 if let Some(g) = engine.gpu() {
                     kernel.extend(g.last_kernel_s.map(|s| s * 1e3));
                     let host = g.last_host_s;
-                    for (name, s) in ["host: write", "host: submit to mapped", "host: result"]
+                    for (name, s) in HOST_STEPS
                         .into_iter()
                         .zip(host)
                         .chain(g.last_passes.iter().copied())
@@ -307,8 +308,8 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         };
         let input = view.as_ref().map_or(Input::Cloud(&points), Input::Depth);
         let (n, bytes) = (input.len(), input.bytes());
-        let cpu = time(input, Backend::Cpu)?;
-        let gpu = time(input, Backend::Gpu)?;
+        let cpu = time(input, Backend::Cpu, args.runs)?;
+        let gpu = time(input, Backend::Gpu, args.runs)?;
         let (dc, cpu_work) = (cpu.distance, cpu.work);
         let (dg, gpu_work, kernel, passes) = (gpu.distance, gpu.work, gpu.kernel, gpu.steps);
         let (cpu, gpu) = (cpu.wall, gpu.wall);
@@ -345,7 +346,16 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         }
         rows.push(row);
     }
-    let mut crossover = None;
+    // The sweep alternates the two backends in rounds of a quarter of the runs each, so that
+    // the machine's drift falls on both alike; the crossover is the smallest size from which
+    // the GPU wins at every size of the sweep, not only the first it wins at (at parity the
+    // first win is a coin's throw).
+    let (parameter, unit) = if args.depth {
+        ("gpu_min_depth_pixels", "pixels")
+    } else {
+        ("gpu_min_points", "points")
+    };
+    let mut sweep = Vec::new();
     for &n in &args.crossover {
         input(n, &mut points, &mut image);
         let view = match &image {
@@ -354,19 +364,27 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         };
         let input = view.as_ref().map_or(Input::Cloud(&points), Input::Depth);
         let n = input.len();
-        let cpu = time(input, Backend::Cpu)?.wall;
-        let gpu = time(input, Backend::Gpu)?.wall;
+        let (mut cpu, mut gpu) = (Vec::new(), Vec::new());
+        let round = args.runs.div_ceil(4);
+        while cpu.len() < args.runs {
+            cpu.extend(time(input, Backend::Cpu, round)?.wall);
+            gpu.extend(time(input, Backend::Gpu, round)?.wall);
+        }
         let (c, g) = (Spread::of(cpu).median, Spread::of(gpu).median);
-        println!("crossover sweep: {n:>9} points: CPU {c:.3} ms, GPU {g:.3} ms");
-        if g < c && crossover.is_none() {
-            crossover = Some(n);
-        }
+        println!(
+            "crossover sweep: {n:>9} {unit}: CPU {c:.3} ms, GPU {g:.3} ms, CPU/GPU {:.2}",
+            c / g
+        );
+        sweep.push((n, g < c));
     }
+    let crossover = crossover(&sweep);
     match crossover {
-        Some(n) => {
-            println!("the GPU wins end to end from about {n} points: set gpu_min_points to {n}")
-        }
-        None => println!("the GPU never wins end to end here: keep backend auto off this GPU"),
+        Some(n) => println!(
+            "the GPU wins end to end at every size of the sweep from {n} {unit} on: set {parameter} to {n}"
+        ),
+        None => println!(
+            "the GPU does not win at the sweep's largest size: keep backend auto off the GPU here ({parameter} above it)"
+        ),
     }
     if let Some(path) = &args.json {
         std::fs::write(
@@ -377,4 +395,43 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// The smallest size of a sweep (`(size, GPU won)`, in ascending size) from which the GPU wins
+/// at every size, or `None` where it loses at the largest.
+fn crossover(sweep: &[(usize, bool)]) -> Option<usize> {
+    let mut sorted = sweep.to_vec();
+    sorted.sort_by_key(|&(n, _)| n);
+    let losses = sorted.iter().rposition(|&(_, won)| !won);
+    let from = losses.map_or(0, |k| k + 1);
+    sorted.get(from).map(|&(n, _)| n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::crossover;
+
+    #[test]
+    fn the_crossover_is_where_the_gpu_wins_from_on() {
+        let k = 1_000;
+        // A win at parity below a loss is not the crossover.
+        let level = [
+            (k, false),
+            (307 * k, true),
+            (1_000 * k, false),
+            (5_000 * k, true),
+        ];
+        assert_eq!(crossover(&level), Some(5_000 * k));
+        // The sweep's order does not matter.
+        let shuffled = [
+            (5_000 * k, true),
+            (k, false),
+            (100 * k, true),
+            (307 * k, true),
+        ];
+        assert_eq!(crossover(&shuffled), Some(100 * k));
+        assert_eq!(crossover(&[(k, true), (10 * k, true)]), Some(k));
+        assert_eq!(crossover(&[(k, true), (10 * k, false)]), None);
+        assert_eq!(crossover(&[]), None);
+    }
 }

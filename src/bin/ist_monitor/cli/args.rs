@@ -178,12 +178,16 @@ pub struct QueryParams {
     /// distance is then the certified lower bound.
     #[arg(long, value_delimiter = ',')]
     pub convex_hull_links: Vec<String>,
-    /// cpu, gpu, or auto (the GPU from --gpu-min-points points on, on a hardware GPU).
+    /// cpu, gpu, or auto (on a hardware GPU, the GPU for clouds from --gpu-min-points points
+    /// and depth images from --gpu-min-depth-pixels pixels on).
     #[arg(long, value_enum, default_value = param("backend"))]
     pub backend: Backend,
-    /// Crossover of --backend auto, in points.
+    /// Crossover of --backend auto for clouds, in points.
     #[arg(long, default_value = param("gpu_min_points"))]
     pub gpu_min_points: usize,
+    /// Crossover of --backend auto for depth images, in pixels.
+    #[arg(long, default_value = param("gpu_min_depth_pixels"))]
+    pub gpu_min_depth_pixels: usize,
 }
 
 impl QueryParams {
@@ -206,6 +210,10 @@ impl QueryParams {
             ("convex_hull_links", list(&self.convex_hull_links)),
             ("backend", enum_name(&self.backend)),
             ("gpu_min_points", self.gpu_min_points.to_string()),
+            (
+                "gpu_min_depth_pixels",
+                self.gpu_min_depth_pixels.to_string(),
+            ),
         ]
         .into_iter()
         .map(|(k, v)| (k.to_owned(), v))
