@@ -30,7 +30,7 @@
 //     (so every item prunes with the best bound any has found). The item's minimum and its
 //     smallest point are recorded once. With DESCEND_PACKETS (the host's choice) each sub-block's
 //     points descend together instead, one stack for the packet, as the CPU's packets do (off by
-//     default: slower on an H200, docs/gpu.md).
+//     default: slower on an H100 and an H200, docs/gpu.md).
 //   * `tally`: per kept block, its points measured (a distance found) and inside an inner
 //     sphere, as the stage counts.
 //   * `argmin` (only without 64-bit atomics, minima_u32.wgsl): with the minima final, each link's

@@ -59,7 +59,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("per_link", "true", "", "also compute the minimum of every link"),
     p("per_link_range", "~", "m", "per-link minima are measured up to this distance; a link farther away is reported as farther than a certified bound, which costs far less (default: warn_distance + hysteresis; .inf: every link measured)"),
     p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points and depth images of at least gpu_min_depth_pixels on a hardware GPU"),
-    p("gpu_min_points", "307200", "points", "crossover of backend auto for clouds (measure it with `ist_monitor bench gpu`)"),
+    p("gpu_min_points", "5000000", "points", "crossover of backend auto for clouds (measure it with `ist_monitor bench gpu`)"),
     p("gpu_min_depth_pixels", "99840", "pixels", "crossover of backend auto for depth images, which the GPU unprojects itself (measure it with `ist_monitor bench gpu --depth`)"),
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
     p("exclude_links", "[]", "", "leave these links out"),

@@ -118,7 +118,8 @@ impl Monitor {
     /// Loads the GPU driver now when the backend may use it (`gpu`, or `auto`) instead of on
     /// the first cloud that needs it: the live node does this before it goes on the network, so
     /// that no frame's latency carries the probe (about 0.1 s with a software Vulkan driver).
-    /// `replay` leaves it lazy, so that clouds below `gpu_min_points` never load a driver.
+    /// `replay` leaves it lazy, so that clouds below `gpu_min_points` and depth images below
+    /// `gpu_min_depth_pixels` never load a driver.
     pub fn probe_gpu(&mut self) {
         if self.config.query.backend != Backend::Cpu {
             self.engine.gpu();

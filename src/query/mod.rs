@@ -94,18 +94,19 @@ use crate::robot::{LinkGeometry, RobotModel};
 /// Most links with collision geometry one engine handles (a bit mask per point).
 pub const MAX_LINKS: usize = 128;
 
-/// Default crossover of `Backend::Auto` for a cloud, in points: a 640 × 480 cloud. On the H200
-/// machines measured, each beside 16 CPU cores (docs/gpu.md), the two backends are level from
-/// 307,200 to 2,000,000 points on the quiet ones (the GPU at most 12 % behind) and the GPU ahead
-/// at 5,000,000; on a busier one the GPU is 1.2–2.1× ahead from 100,000 on; below 307,200 the
-/// CPU wins on a quiet one. `ist_monitor bench gpu` measures it on a machine; set
-/// `gpu_min_points` (or `backend: cpu`) from its figure.
-pub const DEFAULT_GPU_MIN_POINTS: usize = 307_200;
+/// Default crossover of `Backend::Auto` for a cloud, in points: where `ist_monitor bench gpu`
+/// puts it on an H100 beside 16 CPU cores (docs/gpu.md). There a cloud of 307,200 points is
+/// level on the two backends (CPU / GPU 0.93–1.18), one of 1 M to 2 M is faster on the CPU (the
+/// cloud's upload is then twice the kernel; CPU / GPU 0.65–0.83), and one of 5 M is faster on the
+/// GPU (0.95–1.19, 1.13 in the sweep). On quiet H200s the two were level from 307,200 to 2 M
+/// points and the GPU ahead at 5 M; on one whose CPU was busy the GPU was 1.2–2.1× ahead from
+/// 100,000 points on. Run the bench on the machine and set `gpu_min_points` from its figure.
+pub const DEFAULT_GPU_MIN_POINTS: usize = 5_000_000;
 
 /// Default crossover of `Backend::Auto` for a depth image that the GPU unprojects itself, in
 /// pixels: only the image's bytes cross to the device (a sixth of its points'), and the CPU must
-/// also make the points. On every H200 measured the GPU wins from the sweep's 99,840 pixels on (156 rows
-/// of 640; 1.5–2.1× the CPU there, 2.6–4.7× at 640 × 480) and the CPU at 9,600
+/// also make the points. On the H100 and every H200 measured the GPU wins from the sweep's 99,840
+/// pixels on (156 rows of 640; 1.4–2.1× the CPU there, 2.6–4.7× at 640 × 480) and the CPU at 9,600
 /// (`ist_monitor bench gpu --depth`).
 pub const DEFAULT_GPU_MIN_DEPTH_PIXELS: usize = 99_840;
 

@@ -76,9 +76,9 @@ pub const NO_SUBGROUPS_ENV: &str = "IST_MONITOR_GPU_NO_SUBGROUPS";
 
 /// Setting this variable (to anything but `0`) makes the measure pass descend each sub-block's
 /// points as a packet (the shader's `DESCEND_PACKETS`: one stack for the eight points, as the CPU's
-/// `descent::nearest_packet`) instead of each point on its own. Off by default: on an H200
-/// (docs/gpu.md) packets made the measure pass slower, 92 → 127 µs at 307,200 points, the
-/// kernel 0.207 → 0.242 ms (`bench gpu --packets`).
+/// `descent::nearest_packet`) instead of each point on its own. Off by default: packets made the
+/// kernel slower on an H100, 0.217 → 0.252 ms at 307,200 points (docs/gpu.md; the measure pass
+/// 92 → 127 µs on an H200), as `bench gpu --packets` measures.
 pub const PACKETS_ENV: &str = "IST_MONITOR_GPU_PACKETS";
 
 /// How the GPU engine is made.
