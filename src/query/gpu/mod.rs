@@ -61,7 +61,7 @@ pub enum GpuError {
     Device(String),
     #[error("link {link}: tree depth needs more than the shader's stack of {GPU_STACK}")]
     TooDeep { link: String },
-    #[error("link {link}: node {node} points past the link's arrays or has too many children")]
+    #[error("link {link}: node {node} of a tree no descent can walk (empty, more children than the tree's branching, or a child outside its arrays or before its parent)")]
     BadTree { link: String, node: usize },
     #[error("{0} bytes exceed the device's storage buffer limit")]
     TooLarge(u64),
@@ -183,7 +183,7 @@ pub struct GpuEngine {
     /// counters), the points' (or the image's) copy into the staging memory, encoding the
     /// passes, the submission (and its error scopes), waiting for the readback to be mapped,
     /// and reading it back into the result ([`HOST_STEPS`] names them).
-    pub last_host_s: [f64; 6],
+    pub last_host_s: [f64; HOST_STEPS.len()],
     /// Each link's arg-min point of the last query (`u32::MAX`: none): the next one's seeds.
     last_winners: Vec<u32>,
     /// The self-filter's grids (headers, packed cells) and the padding they were built for.

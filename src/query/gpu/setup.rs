@@ -240,7 +240,7 @@ impl GpuEngine {
             last_kernel_s: None,
             profile: false,
             last_passes: Vec::new(),
-            last_host_s: [0.0; 6],
+            last_host_s: [0.0; super::HOST_STEPS.len()],
             nodes: storage(&device, "nodes", bytemuck::cast_slice(&nodes)),
             spheres: storage(&device, "spheres", bytemuck::cast_slice(&spheres)),
             links: storage(
