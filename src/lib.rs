@@ -41,6 +41,7 @@ pub mod node;
 pub mod packing;
 pub mod query;
 pub mod robot;
+#[cfg(feature = "fixtures")]
 pub mod scenario;
 pub mod separation;
 pub mod stats;

@@ -72,6 +72,7 @@ mod descent;
 pub mod exact;
 pub mod gpu;
 pub mod layout;
+#[cfg(feature = "fixtures")]
 pub mod peers;
 mod pose;
 mod result;
