@@ -31,6 +31,7 @@
 //! (`src/bin/ist_monitor/`); nothing here knows the command line or the checkout.
 
 pub mod bag;
+pub mod choice;
 pub mod cloud;
 pub mod config;
 pub mod geometry;
