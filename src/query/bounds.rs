@@ -14,7 +14,9 @@ use nalgebra::Isometry3;
 use wide::f32x8;
 
 use super::layout::{Candidate, PosedLink, RobotBox, WORK_COUNTERS};
-use super::{pose, Mode, QueryLink, QueryOptions};
+use super::link::QueryLink;
+use super::options::{Mode, QueryOptions};
+use super::pose;
 
 /// An empty per-link minimum.
 pub(crate) const EMPTY: u64 = u64::MAX;

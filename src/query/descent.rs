@@ -22,8 +22,8 @@ use std::mem::MaybeUninit;
 use wide::{f32x4, f32x8, CmpGe, CmpLe};
 
 use super::layout::{FRONTIER, STACK};
+use super::link::{QueryLink, SphereSoa};
 use super::work;
-use super::{QueryLink, SphereSoa};
 use crate::ist::IstNode;
 
 #[inline(always)]

@@ -20,7 +20,8 @@ use rayon::prelude::*;
 
 use super::bounds::{load_distance, pack_minimum, unpack_minimum, EMPTY};
 use super::layout::{Candidate, PosedLink};
-use super::{QueryLink, StageCounts};
+use super::link::QueryLink;
+use super::result::StageCounts;
 use crate::packing::Solid;
 
 /// The exact minimum: distance, link, point and the closest mesh point (link frame).

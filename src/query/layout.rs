@@ -20,6 +20,9 @@
 //! and the way the minima are kept, [`Minima`]). A CPU-only test
 //! (`tests/shaders.rs`) checks every mirrored struct member's name and offset with naga against
 //! [`MIRRORS`].
+//!
+//! Both backends also cut a cloud into the same blocks ([`Tiling`]) and read a self-filter
+//! grid's cells with the same codes ([`Cell`]).
 
 use bytemuck::{Pod, Zeroable};
 use std::mem::{offset_of, size_of};
@@ -27,11 +30,16 @@ use std::mem::{offset_of, size_of};
 use crate::ist::IstNode;
 use crate::packing::InnerSphere;
 
+/// Most links with collision geometry one engine handles (a bit mask per point).
+pub const MAX_LINKS: usize = 128;
+
 /// Points per block of either backend's block pass (one GPU workgroup).
 pub const BLOCK: usize = 32;
 /// Points per sub-block (a row of a tile of an organized cloud: tiles are `SUB` × `BLOCK / SUB`
 /// pixels).
 pub const SUB: usize = 8;
+/// Rows of a tile of an organized cloud.
+pub const TILE_ROWS: usize = BLOCK / SUB;
 /// Stride of the sample that seeds the links' bounds (prime, so that it does not alias with
 /// the rows of an organized cloud); both backends seed from the same points.
 pub const SEED_STRIDE: u32 = 61;
@@ -57,6 +65,88 @@ pub const fn max_tree_depth(capacity: usize, starts: usize) -> usize {
 pub const WORKGROUP: u32 = 256;
 /// Exact-mode candidates the GPU keeps; more sends the query to the CPU.
 pub const GPU_CANDIDATES: u32 = 1 << 16;
+
+/// How the points are grouped into blocks of `BLOCK`: runs of consecutive points, or, for an
+/// organized cloud (a depth image, `width` > 0), tiles of `SUB` × `BLOCK / SUB` pixels, whose
+/// rows are the sub-blocks. A tile's points lie closer together than a run of a row's (its
+/// bounding sphere is about a third as large), so that blocks are culled, and their frontiers
+/// cut, more tightly.
+#[derive(Clone, Copy)]
+pub(in crate::query) struct Tiling {
+    points: usize,
+    /// Width and height of an organized cloud.
+    image: Option<(usize, usize)>,
+}
+
+impl Tiling {
+    /// Tiles for a `width`-wide image of `points` points (runs when the width does not divide
+    /// the point count, or the cloud is one row).
+    pub(in crate::query) fn new(points: usize, width: Option<usize>) -> Self {
+        let image = width
+            .filter(|&w| w > 0 && w < points && points.is_multiple_of(w))
+            .map(|w| (w, points / w));
+        Self { points, image }
+    }
+
+    /// An organized cloud's width and height (blocks are tiles); `None`: runs.
+    pub(in crate::query) fn image(&self) -> Option<(usize, usize)> {
+        self.image
+    }
+
+    pub(in crate::query) fn blocks(&self) -> usize {
+        match self.image {
+            None => self.points.div_ceil(BLOCK),
+            Some((w, h)) => w.div_ceil(SUB) * h.div_ceil(TILE_ROWS),
+        }
+    }
+
+    /// The sub-blocks of block `b`: (first point, length), at most `TILE_ROWS`, the rest
+    /// (0, 0).
+    #[inline]
+    pub(in crate::query) fn subs(&self, b: usize) -> [(usize, usize); TILE_ROWS] {
+        let mut out = [(0, 0); TILE_ROWS];
+        match self.image {
+            None => {
+                for (k, o) in out.iter_mut().enumerate() {
+                    let start = b * BLOCK + k * SUB;
+                    if start < self.points {
+                        *o = (start, SUB.min(self.points - start));
+                    }
+                }
+            }
+            Some((w, h)) => {
+                let per_row = w.div_ceil(SUB);
+                let (row, col) = ((b / per_row) * TILE_ROWS, (b % per_row) * SUB);
+                for (k, o) in out.iter_mut().enumerate() {
+                    if row + k < h {
+                        *o = ((row + k) * w + col, SUB.min(w - col));
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The block that holds point `i`.
+    pub(in crate::query) fn block_of(&self, i: usize) -> usize {
+        match self.image {
+            None => i / BLOCK,
+            Some((w, _)) => (i / w / TILE_ROWS) * w.div_ceil(SUB) + (i % w) / SUB,
+        }
+    }
+}
+
+/// What a cell says about the points in it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum Cell {
+    /// No point of the cell is within the padding.
+    Clear = 0,
+    /// The cell straddles the padding: the point's own descent decides.
+    Shell = 1,
+    /// Every point of the cell is within the padding.
+    SelfPoint = 2,
+}
 
 /// The mode as both backends read it ([`super::Mode`]'s code).
 pub const MODE_FAST: u32 = 0;
@@ -216,13 +306,13 @@ pub struct Counters {
     /// Per [`Work`].
     pub work: [u32; WORK_COUNTERS],
     /// Self-filtered points per link (the first link within the padding).
-    pub self_filtered: [u32; super::MAX_LINKS],
+    pub self_filtered: [u32; MAX_LINKS],
     /// Per link, the seeds' scan: the nearest sample's squared distance to the link's root
     /// centre (f32 bits) and that sample.
-    pub seed_key: [u32; super::MAX_LINKS],
-    pub seed_point: [u32; super::MAX_LINKS],
+    pub seed_key: [u32; MAX_LINKS],
+    pub seed_point: [u32; MAX_LINKS],
 }
-const _: () = assert!(size_of::<Counters>() == 68 + 12 * super::MAX_LINKS);
+const _: () = assert!(size_of::<Counters>() == 68 + 12 * MAX_LINKS);
 
 /// The work counters both backends keep (`query::WorkCounts`), as indices of
 /// [`Counters::work`].
@@ -462,13 +552,13 @@ pub fn wgsl_constants() -> String {
         u("TILE_ROWS", (BLOCK / SUB) as u32),
         u("PACKETS", (BLOCK / SUB) as u32),
         u("BRANCHING", crate::ist::build::BRANCHING as u32),
-        u("MASK_WORDS", (super::MAX_LINKS / 32) as u32),
+        u("MASK_WORDS", (MAX_LINKS / 32) as u32),
         u("FRONTIER", FRONTIER as u32),
         u("GPU_STACK", GPU_STACK as u32),
         u("WORKGROUP", WORKGROUP),
         u("STAGES", STAGES as u32),
         u("WORK_COUNTERS", WORK_COUNTERS as u32),
-        u("MAX_LINKS", super::MAX_LINKS as u32),
+        u("MAX_LINKS", MAX_LINKS as u32),
         u("MODE_FAST", MODE_FAST),
         u("MODE_CERTIFIED", MODE_CERTIFIED),
         u("MODE_EXACT", MODE_EXACT),
@@ -478,9 +568,9 @@ pub fn wgsl_constants() -> String {
         u("STAGE_PRUNED", Stage::Pruned as u32),
         u("STAGE_EVALUATED", Stage::Evaluated as u32),
         u("STAGE_INSIDE", Stage::Inside as u32),
-        u("CELL_CLEAR", super::self_grid::Cell::Clear as u32),
-        u("CELL_SHELL", super::self_grid::Cell::Shell as u32),
-        u("CELL_SELF", super::self_grid::Cell::SelfPoint as u32),
+        u("CELL_CLEAR", Cell::Clear as u32),
+        u("CELL_SHELL", Cell::Shell as u32),
+        u("CELL_SELF", Cell::SelfPoint as u32),
         u("WORK_BLOCKS", Work::Blocks as u32),
         u("WORK_CULLED", Work::Culled as u32),
         u("WORK_ITEMS", Work::Items as u32),

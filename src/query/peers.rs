@@ -15,9 +15,11 @@ use rayon::prelude::*;
 
 use super::bounds::{load_distance, pack_minimum, unpack_minimum, EMPTY};
 use super::descent::valid;
+use super::engine::Engine;
 use super::exact::link_distance;
 use super::layout::PosedLink;
-use super::{pose, Engine, QueryLink};
+use super::link::QueryLink;
+use super::pose;
 use crate::packing::grid::distance;
 
 /// Global minimum of a peer: distance, link index, point index.

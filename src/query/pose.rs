@@ -23,7 +23,8 @@ use nalgebra::{Isometry3, Point3, Translation3};
 use rayon::prelude::*;
 
 use super::layout::{PosedLink, RobotBox};
-use super::{QueryLink, QueryOptions};
+use super::link::QueryLink;
+use super::options::QueryOptions;
 
 /// Widening of the robot box, m: far above the f32 rounding of a transformed point (~1e-6 m).
 const BOX_MARGIN: f32 = 1e-4;
@@ -158,4 +159,13 @@ pub(super) fn robot_box(
         hi,
         padding: options.self_filter_padding_m.unwrap_or(-1.0),
     }
+}
+
+/// `root_from_sensor` from two poses in a common (map) frame, composed in f64 so that large map
+/// coordinates cancel before anything is rounded.
+pub fn root_from_sensor_via_map(
+    map_from_root: &Isometry3<f64>,
+    map_from_sensor: &Isometry3<f64>,
+) -> Isometry3<f64> {
+    map_from_root.inverse() * map_from_sensor
 }

@@ -26,19 +26,9 @@
 use rayon::prelude::*;
 
 use super::descent::any_within;
-use super::QueryLink;
-
-/// What a cell says about the points in it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u8)]
-pub(crate) enum Cell {
-    /// No point of the cell is within the padding.
-    Clear = 0,
-    /// The cell straddles the padding: the point's own descent decides.
-    Shell = 1,
-    /// Every point of the cell is within the padding.
-    SelfPoint = 2,
-}
+use super::layout::{Cell, GridHeader};
+use super::link::QueryLink;
+use super::options::QueryOptions;
 
 /// Most cells of one link's grid.
 const MAX_CELLS: usize = 1 << 20;
@@ -159,14 +149,14 @@ impl SelfGrid {
 
     /// The grid for the GPU: its header, with its cells appended to `words` (2 bits a cell, 16
     /// to a word, in the order `at` indexes them).
-    pub fn pack(&self, words: &mut Vec<u32>) -> super::layout::GridHeader {
+    pub fn pack(&self, words: &mut Vec<u32>) -> GridHeader {
         let base = words.len() as u32;
         words.extend(self.cells.chunks(16).map(|c| {
             c.iter()
                 .enumerate()
                 .fold(0u32, |w, (k, &cell)| w | (cell as u32) << (2 * k))
         }));
-        super::layout::GridHeader {
+        GridHeader {
             origin: self.origin,
             inv_cell: self.inv_cell,
             dims: self.dims.map(|d| d as u32),
@@ -181,6 +171,48 @@ impl SelfGrid {
             n[c as usize] += 1;
         }
         n
+    }
+}
+
+/// The links' grids for one padding, kept from query to query: built on the first query with a
+/// padding (once; 43 ms for the demo arm, 90 ms for the Panda on 2 cores;
+/// `Engine::prepare_self_filter` builds them ahead), for either backend's self-filter.
+#[derive(Default)]
+pub(super) struct SelfGrids(Option<(f32, Vec<SelfGrid>)>);
+
+impl SelfGrids {
+    /// Builds the grids for the padding of `options`, unless they are built already (nothing
+    /// with the self-filter off).
+    pub(super) fn prepare(&mut self, links: &[QueryLink], options: &QueryOptions) {
+        let Some(padding) = options.self_filter_padding_m else {
+            return;
+        };
+        if self.0.as_ref().is_none_or(|(p, _)| *p != padding) {
+            let start = std::time::Instant::now();
+            let grids: Vec<_> = links.iter().map(|l| SelfGrid::new(l, padding)).collect();
+            let cells = grids
+                .iter()
+                .map(|g| g.census())
+                .fold([0; 3], |a, c| [a[0] + c[0], a[1] + c[1], a[2] + c[2]]);
+            log::debug!(
+                "self-filter grids for padding {padding} m: {} cells ({} self, {} shell) in {:.0} ms",
+                cells.iter().sum::<usize>(),
+                cells[2],
+                cells[1],
+                start.elapsed().as_secs_f64() * 1e3
+            );
+            self.0 = Some((padding, grids));
+        }
+    }
+
+    /// The grids a query with `options` filters with, built first where needed: one per link,
+    /// or none with the self-filter off.
+    pub(super) fn for_query(&mut self, links: &[QueryLink], options: &QueryOptions) -> &[SelfGrid] {
+        self.prepare(links, options);
+        match (&self.0, options.self_filter_padding_m) {
+            (Some((_, grids)), Some(_)) => grids.as_slice(),
+            _ => &[],
+        }
     }
 }
 

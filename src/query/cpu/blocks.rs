@@ -1,5 +1,5 @@
 //! The cloud side of the CPU traversal (`cpu`): how the points are cut into blocks of `BLOCK`
-//! (runs of consecutive points, or tiles of an organized cloud: [`Tiling`]), sub-blocks of
+//! (runs of consecutive points, or tiles of an organized cloud: `layout::Tiling`), sub-blocks of
 //! `SUB` and groups of `GROUP` blocks, and each block's valid count and bounding box, read as
 //! the points lie in memory with SIMD ([`accumulate`]); a block's box culls, the sphere around
 //! it is what the links are tested against; the distances of eight blocks' boxes to the
@@ -8,85 +8,14 @@
 use wide::{f32x4, f32x8, CmpEq, CmpLt, CmpNe};
 
 use crate::query::descent::{dist, valid};
-use crate::query::layout::{RobotBox, BLOCK};
+use crate::query::layout::RobotBox;
 
 /// Points per sub-block (`layout::SUB`, the GPU's tile rows too): a block that survives its own
 /// tests is taken in runs of eight, each bounded by its own sphere (computed then, since most
 /// blocks never need them).
 pub(super) use crate::query::layout::SUB;
-
-/// How the points are grouped into blocks of `BLOCK`: runs of consecutive points, or, for an
-/// organized cloud (a depth image, `width` > 0), tiles of `SUB` × `BLOCK / SUB` pixels, whose
-/// rows are the sub-blocks. A tile's points lie closer together than a run of a row's (its
-/// bounding sphere is about a third as large), so that blocks are culled, and their frontiers
-/// cut, more tightly.
-#[derive(Clone, Copy)]
-pub(in crate::query) struct Tiling {
-    points: usize,
-    /// Width and height of an organized cloud.
-    image: Option<(usize, usize)>,
-}
-
 /// Rows of a tile.
-pub(super) const TILE_ROWS: usize = BLOCK / SUB;
-
-impl Tiling {
-    /// Tiles for a `width`-wide image of `points` points (runs when the width does not divide
-    /// the point count, or the cloud is one row).
-    pub(in crate::query) fn new(points: usize, width: Option<usize>) -> Self {
-        let image = width
-            .filter(|&w| w > 0 && w < points && points.is_multiple_of(w))
-            .map(|w| (w, points / w));
-        Self { points, image }
-    }
-
-    /// An organized cloud's width and height (blocks are tiles); `None`: runs.
-    pub(in crate::query) fn image(&self) -> Option<(usize, usize)> {
-        self.image
-    }
-
-    pub(in crate::query) fn blocks(&self) -> usize {
-        match self.image {
-            None => self.points.div_ceil(BLOCK),
-            Some((w, h)) => w.div_ceil(SUB) * h.div_ceil(TILE_ROWS),
-        }
-    }
-
-    /// The sub-blocks of block `b`: (first point, length), at most `TILE_ROWS`, the rest
-    /// (0, 0).
-    #[inline]
-    pub(super) fn subs(&self, b: usize) -> [(usize, usize); TILE_ROWS] {
-        let mut out = [(0, 0); TILE_ROWS];
-        match self.image {
-            None => {
-                for (k, o) in out.iter_mut().enumerate() {
-                    let start = b * BLOCK + k * SUB;
-                    if start < self.points {
-                        *o = (start, SUB.min(self.points - start));
-                    }
-                }
-            }
-            Some((w, h)) => {
-                let per_row = w.div_ceil(SUB);
-                let (row, col) = ((b / per_row) * TILE_ROWS, (b % per_row) * SUB);
-                for (k, o) in out.iter_mut().enumerate() {
-                    if row + k < h {
-                        *o = ((row + k) * w + col, SUB.min(w - col));
-                    }
-                }
-            }
-        }
-        out
-    }
-
-    /// The block that holds point `i`.
-    pub(super) fn block_of(&self, i: usize) -> usize {
-        match self.image {
-            None => i / BLOCK,
-            Some((w, _)) => (i / w / TILE_ROWS) * w.div_ceil(SUB) + (i % w) / SUB,
-        }
-    }
-}
+pub(super) use crate::query::layout::TILE_ROWS;
 
 /// A block of `BLOCK` points: the bounding box of its valid points (the
 /// levels of the cloud-side hierarchy: run of blocks repeating one point, block, sub-block,
@@ -392,6 +321,7 @@ pub(super) fn bound_sub(chunk: &[[f32; 3]]) -> ([f32; 3], f32) {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+    use crate::query::layout::{Tiling, BLOCK};
 
     /// A reproducible xorshift stream for the tests.
     pub(in crate::query::cpu) fn xorshift(mut state: u64) -> impl FnMut() -> u64 {

@@ -26,14 +26,14 @@ use std::sync::atomic::Ordering::Relaxed;
 use wide::f32x8;
 
 use super::blocks::{bound_sub, Block, Sphere, SUB, TILE_ROWS};
-use super::{bits, starts, Pass, PointStage, Slot};
+use super::pass::{bits, starts, Pass, PointStage, Slot};
 use crate::query::descent::{
     any_within, dist, dist2, nearest_from, nearest_packet, valid, within_reach,
 };
-use crate::query::layout::{Work, FRONTIER};
-use crate::query::self_grid::Cell;
+use crate::query::layout::{Cell, Work, FRONTIER, MAX_LINKS};
+use crate::query::link::QueryLink;
+use crate::query::result::StageCounts;
 use crate::query::work;
-use crate::query::{QueryLink, StageCounts, MAX_LINKS};
 
 /// Appends to `out` the frontier of a block (centre `c` in the link frame, radius `r`) in a
 /// tree: a cut of the tree whose nodes' lower bound over the block, `|c − c_n| − r − r_n`, is at

@@ -9,10 +9,10 @@
 use rayon::prelude::*;
 use wide::{f32x8, CmpLt};
 
-use super::blocks::{bound_block, Sphere, Tiling};
-use super::{with_scratch, Pass};
+use super::blocks::{bound_block, Sphere};
+use super::pass::{with_scratch, Pass};
 use crate::query::descent::{nearest_sphere, valid};
-use crate::query::layout::{PosedLink, SEED_COARSE, SEED_STRIDE};
+use crate::query::layout::{PosedLink, Tiling, SEED_COARSE, SEED_STRIDE};
 use crate::query::work::{self, Tally};
 
 /// Sample points read at once by the seeds' scan.

@@ -4,7 +4,7 @@
 //! group, which writes the points the others read), with a timestamp at each end; or, to profile, each dispatch in a
 //! pass of its own with its own timestamps (`bench gpu --passes`).
 
-use super::Pipelines;
+use super::engine::Pipelines;
 use crate::query::layout::{SEED_STRIDE, WORKGROUP};
 
 /// Most dispatches in one query.

@@ -9,7 +9,8 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::{GpuEngine, GpuError};
+use super::engine::GpuEngine;
+use super::error::GpuError;
 
 /// The states of the points' staging buffer.
 pub(super) const UNMAPPED: u8 = 0;

@@ -6,7 +6,8 @@
 
 use std::borrow::Cow;
 
-use super::GpuError;
+use super::bindings::layout_entry;
+use super::error::GpuError;
 use crate::cloud::depth::{DepthEncoding, DepthView};
 use crate::query::layout::{self, DepthParams, DEPTH_M32, DEPTH_MM16};
 
@@ -25,7 +26,7 @@ impl Unproject {
             label: Some("unproject.wgsl"),
             source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::unproject_source())),
         });
-        let entry = super::setup::layout_entry;
+        let entry = layout_entry;
         let group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("unproject"),
             entries: &[
