@@ -27,7 +27,7 @@ pub use control::*;
 pub use diagnostic::*;
 pub use geometry::*;
 pub use sensor::*;
-pub use type_hash::{hashed_description, type_hash};
+pub use type_hash::{hashed_description, service_hash, type_hash};
 pub use visualization::*;
 
 use byteorder::{BigEndian, LittleEndian};

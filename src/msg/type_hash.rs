@@ -18,6 +18,9 @@
 //!
 //! `.msg` basic types map through the IDL: `byte` is an octet (`BYTE`), `char` a `uint8`.
 //! Tests compare every hash with the one ROS 2 Jazzy's generated code carries.
+//!
+//! The node's parameter services (`rcl_interfaces/srv/…`) are not messages of this module:
+//! their hashes are ROS 2 Jazzy's, carried as they are ([`service_hash`]).
 
 use sha2::{Digest, Sha256};
 
@@ -166,6 +169,44 @@ pub fn type_hash(ty: &str) -> Option<String> {
         out.push_str(&format!("{b:02x}"));
     }
     Some(out)
+}
+
+/// The REP-2016 hashes of the six parameter services, as ROS 2 Jazzy's generated code carries
+/// them (`rcl_interfaces/srv/detail/<service>__description.c`; a test reads them there): an
+/// rmw_zenoh service is announced with its type's hash.
+const SERVICE_HASHES: &[(&str, &str)] = &[
+    (
+        "ListParameters",
+        "RIHS01_3e6062bfbb27bfb8730d4cef2558221f51a11646d78e7bb30a1e83afac3aad9d",
+    ),
+    (
+        "GetParameters",
+        "RIHS01_bf9803d5c74cf989a5de3e0c2e99444599a627c7ff75f97b8c05b01003675cbc",
+    ),
+    (
+        "GetParameterTypes",
+        "RIHS01_da199c878688b3e530bdfe3ca8f74cb9fa0c303101e980a9e8f260e25e1c80ca",
+    ),
+    (
+        "DescribeParameters",
+        "RIHS01_845b484d71eb0673dae682f2e3ba3c4851a65a3dcfb97bddd82c5b57e91e4cff",
+    ),
+    (
+        "SetParameters",
+        "RIHS01_56eed9a67e169f9cb6c1f987bc88f868c14a8fc9f743a263bc734c154015d7e0",
+    ),
+    (
+        "SetParametersAtomically",
+        "RIHS01_0e192ef259c07fc3c07a13191d27002222e65e00ccec653ca05e856f79285fcd",
+    ),
+];
+
+/// The REP-2016 hash of parameter service `rcl_interfaces/srv/<ty>`.
+pub fn service_hash(ty: &str) -> Option<&'static str> {
+    SERVICE_HASHES
+        .iter()
+        .find(|(t, _)| *t == ty)
+        .map(|(_, h)| *h)
 }
 
 #[cfg(test)]
@@ -368,5 +409,48 @@ mod tests {
         assert_eq!(field_type("byte", "p").unwrap().type_id, 16);
         assert!(field_type("float64[x]", "p").is_none());
         assert!(type_hash("no_msgs/msg/Nothing").is_none());
+    }
+
+    /// The service hashes are ROS 2 Jazzy's: read from the generated code in the venv of the
+    /// interop tests (`.ci/run` makes it; outside CI the check is left out where it is absent).
+    #[test]
+    fn service_hashes_are_ros_2s() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(".venv/include/rcl_interfaces/rcl_interfaces/srv/detail");
+        if !dir.is_dir() {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI: {} missing",
+                dir.display()
+            );
+            eprintln!(
+                "SKIPPED service_hashes_are_ros_2s: {} is absent",
+                dir.display()
+            );
+            return;
+        }
+        for (ty, hash) in SERVICE_HASHES {
+            let snake: String = ty
+                .chars()
+                .enumerate()
+                .flat_map(|(i, c)| {
+                    let sep = (i > 0 && c.is_ascii_uppercase()).then_some('_');
+                    sep.into_iter().chain([c.to_ascii_lowercase()])
+                })
+                .collect();
+            let text =
+                std::fs::read_to_string(dir.join(format!("{snake}__description.c"))).unwrap();
+            // The service's own hash: the first array after `rcl_interfaces__srv__<Ty>__get_type_hash`.
+            let from = text
+                .find(&format!("rcl_interfaces__srv__{ty}__get_type_hash("))
+                .unwrap();
+            let bytes: String = text[from..]
+                .split("0x")
+                .skip(1)
+                .take(32)
+                .map(|b| &b[..2])
+                .collect();
+            assert_eq!(*hash, format!("RIHS01_{bytes}"), "{ty}");
+        }
     }
 }

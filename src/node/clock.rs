@@ -18,7 +18,7 @@ use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use super::lock;
+use super::error::lock;
 use crate::msg::Time;
 
 /// The node's clock (see the module doc).

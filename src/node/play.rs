@@ -14,8 +14,12 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use super::{History, NodeError, Pub, QosProfile, RosNode, Transport, RELIABLE_QOS, TF_STATIC_QOS};
-use crate::bag::read_messages;
+use ros2_client::qos::{History, QosProfile};
+
+use super::error::{lock, NodeError};
+use super::qos::{RELIABLE_QOS, TF_STATIC_QOS};
+use super::transport::{Pub, RosNode, Transport};
+use crate::bag::{read_messages, BagMessage};
 use crate::msg::{self, CameraInfo, Image, JointState, PointCloud2, RosMessage, TfMessage, Time};
 
 #[derive(Debug, Clone)]
@@ -71,6 +75,14 @@ fn shift(t: &mut Time, r: Retime) {
     *t = Time::from_nanos(r.now_ns + since.round() as i64);
 }
 
+/// Published clouds (and depth images) by stamp, and the latencies (ms) of the outputs that
+/// answer them.
+#[derive(Default)]
+struct Answers {
+    sent: Mutex<HashMap<i64, Instant>>,
+    latencies: Mutex<Vec<f64>>,
+}
+
 /// Plays `bag`; returns what was published and, with `measure`, what came back.
 pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError> {
     let known = [
@@ -81,17 +93,62 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
         TfMessage::TYPE,
     ];
     let messages = read_messages(bag, &|_, schema| known.contains(&schema))?;
-    let first = messages
-        .first()
-        .ok_or_else(|| NodeError::NothingToPlay(bag.to_owned()))?;
-    let (t0, t1) = (
-        first.log_time_ns,
-        messages.last().map_or(0, |m| m.log_time_ns),
-    );
+    if messages.is_empty() {
+        return Err(NodeError::NothingToPlay(bag.to_owned()));
+    }
     let executor = Arc::new(smol::Executor::new());
     let mut node = RosNode::tool(options.transport, "ist_monitor_play", &executor)?;
+    let outs = open_publishers(&mut node, &messages)?;
+    let answers: Arc<Answers> = Arc::default();
+    let measuring = match &options.measure {
+        Some(topic) => Some(measure(&mut node, &executor, topic, answers.clone())?),
+        None => None,
+    };
+    let ex = executor.clone();
+    let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let done_ex = done.clone();
+    let spin = std::thread::spawn(move || {
+        smol::block_on(ex.run(async {
+            while !done_ex.load(std::sync::atomic::Ordering::Relaxed) {
+                smol::Timer::after(Duration::from_millis(20)).await;
+            }
+        }))
+    });
+    std::thread::sleep(Duration::from_secs_f64(options.wait_s));
+    let mut summary = PlaySummary::default();
+    let started = Instant::now();
+    for _ in 0..options.loops.max(1) {
+        play_loop(&messages, &outs, options.rate, &answers, &mut summary)?;
+    }
+    let played = started.elapsed().as_secs_f64();
+    std::thread::sleep(Duration::from_secs_f64(options.linger_s));
+    if let Some(task) = measuring {
+        smol::block_on(task.cancel());
+    }
+    drop(outs);
+    let ctx = node.close();
+    std::thread::sleep(Duration::from_millis(50));
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let _ = spin.join();
+    drop(ctx);
+    let mut l = lock(&answers.latencies).clone();
+    l.sort_by(f64::total_cmp);
+    summary.outputs_received = l.len();
+    summary.output_rate_hz = l.len() as f64 / played.max(1e-9);
+    let q = |f: f64| crate::stats::percentile(&l, f);
+    summary.latency_p50_ms = q(0.5);
+    summary.latency_p99_ms = q(0.99);
+    summary.latency_max_ms = l.last().copied();
+    Ok(summary)
+}
+
+/// A publisher per topic of `messages`, with the QoS its publisher would offer.
+fn open_publishers(
+    node: &mut RosNode,
+    messages: &[BagMessage],
+) -> Result<HashMap<String, Out>, NodeError> {
     let mut outs: HashMap<String, Out> = HashMap::new();
-    for m in &messages {
+    for m in messages {
         if outs.contains_key(&*m.topic) {
             continue;
         }
@@ -109,126 +166,115 @@ pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError>
         };
         outs.insert(m.topic.to_string(), out);
     }
-    // Published clouds by stamp, and the latencies of the outputs that answer them.
-    let sent: Arc<Mutex<HashMap<i64, Instant>>> = Arc::default();
-    let latencies: Arc<Mutex<Vec<f64>>> = Arc::default();
-    let mut measuring = None;
-    if let Some(measure) = &options.measure {
-        let (sent, latencies) = (sent.clone(), latencies.clone());
-        measuring = Some(node.subscribe::<JointState>(
-            measure,
-            RELIABLE_QOS,
-            false,
-            &executor,
-            move |item| {
-                if let Ok((m, _)) = item {
-                    let now = Instant::now();
-                    // The first output with a cloud's stamp answers it; the node's heartbeat
-                    // repeats the stamp of the state it holds.
-                    let at = super::lock(&sent).remove(&m.header.stamp.as_nanos());
-                    if let Some(at) = at {
-                        super::lock(&latencies).push(now.duration_since(at).as_secs_f64() * 1e3);
-                    }
-                }
-                true
-            },
-        )?);
-    }
-    let ex = executor.clone();
-    let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let done_ex = done.clone();
-    let spin = std::thread::spawn(move || {
-        smol::block_on(ex.run(async {
-            while !done_ex.load(std::sync::atomic::Ordering::Relaxed) {
-                smol::Timer::after(Duration::from_millis(20)).await;
-            }
-        }))
-    });
-    std::thread::sleep(Duration::from_secs_f64(options.wait_s));
-    let mut summary = PlaySummary::default();
-    let started = Instant::now();
-    for _ in 0..options.loops.max(1) {
-        let loop_start = Instant::now();
-        let offset = Retime {
-            t0: t0 as i64,
-            now_ns: Time::now_nanos(),
-            rate: options.rate,
-        };
-        for m in &messages {
-            let due = Duration::from_secs_f64((m.log_time_ns - t0) as f64 * 1e-9 / options.rate);
-            if let Some(wait) = due.checked_sub(loop_start.elapsed()) {
-                std::thread::sleep(wait);
-            }
-            let published = match &outs[&*m.topic] {
-                Out::Cloud(p) => {
-                    let mut c: PointCloud2 = msg::decode(&m.data)?;
-                    shift(&mut c.header.stamp, offset);
-                    let c = PointCloud2 {
-                        data: std::borrow::Cow::Owned(c.data.into_owned()),
-                        ..c
-                    };
-                    super::lock(&sent).insert(c.header.stamp.as_nanos(), Instant::now());
-                    summary.clouds_published += 1;
-                    p.publish(c)
-                }
-                Out::Depth(p) => {
-                    let mut i: Image = msg::decode(&m.data)?;
-                    shift(&mut i.header.stamp, offset);
-                    let i = Image {
-                        data: std::borrow::Cow::Owned(i.data.into_owned()),
-                        ..i
-                    };
-                    super::lock(&sent).insert(i.header.stamp.as_nanos(), Instant::now());
-                    summary.clouds_published += 1;
-                    p.publish(i)
-                }
-                Out::CameraInfo(p) => {
-                    let mut c: CameraInfo = msg::decode(&m.data)?;
-                    shift(&mut c.header.stamp, offset);
-                    p.publish(c)
-                }
-                Out::Joints(p) => {
-                    let mut j: JointState = msg::decode(&m.data)?;
-                    shift(&mut j.header.stamp, offset);
-                    p.publish(j)
-                }
-                Out::Tf(p) => {
-                    let mut t: TfMessage = msg::decode(&m.data)?;
-                    for ts in &mut t.transforms {
-                        shift(&mut ts.header.stamp, offset);
-                    }
-                    p.publish(t)
-                }
-            };
-            match published {
-                Ok(()) => summary.messages_published += 1,
-                Err(e) => log::warn!("{}: {e}", m.topic),
+    Ok(outs)
+}
+
+/// Subscribes to the node's outputs on `topic`, each matched to the cloud it answers.
+fn measure(
+    node: &mut RosNode,
+    executor: &smol::Executor<'static>,
+    topic: &str,
+    answers: Arc<Answers>,
+) -> Result<smol::Task<()>, NodeError> {
+    node.subscribe::<JointState>(topic, RELIABLE_QOS, false, executor, move |item| {
+        if let Ok((m, _)) = item {
+            let now = Instant::now();
+            // The first output with a cloud's stamp answers it; the node's heartbeat repeats
+            // the stamp of the state it holds.
+            let at = lock(&answers.sent).remove(&m.header.stamp.as_nanos());
+            if let Some(at) = at {
+                lock(&answers.latencies).push(now.duration_since(at).as_secs_f64() * 1e3);
             }
         }
-        // The loop lasts as long as the bag, even when its last message is early.
-        let span = Duration::from_secs_f64((t1 - t0) as f64 * 1e-9 / options.rate);
-        if let Some(wait) = span.checked_sub(loop_start.elapsed()) {
+        true
+    })
+}
+
+/// One pass over the bag at `rate` times its pace, its stamps moved so that it starts now; it
+/// lasts as long as the bag, even when its last message is early.
+fn play_loop(
+    messages: &[BagMessage],
+    outs: &HashMap<String, Out>,
+    rate: f64,
+    answers: &Answers,
+    summary: &mut PlaySummary,
+) -> Result<(), NodeError> {
+    let (t0, t1) = (
+        messages.first().map_or(0, |m| m.log_time_ns),
+        messages.last().map_or(0, |m| m.log_time_ns),
+    );
+    let loop_start = Instant::now();
+    let offset = Retime {
+        t0: t0 as i64,
+        now_ns: Time::now_nanos(),
+        rate,
+    };
+    for m in messages {
+        let due = Duration::from_secs_f64((m.log_time_ns - t0) as f64 * 1e-9 / rate);
+        if let Some(wait) = due.checked_sub(loop_start.elapsed()) {
             std::thread::sleep(wait);
         }
+        match publish(&outs[&*m.topic], &m.data, offset, answers, summary)? {
+            Ok(()) => summary.messages_published += 1,
+            Err(e) => log::warn!("{}: {e}", m.topic),
+        }
     }
-    let played = started.elapsed().as_secs_f64();
-    std::thread::sleep(Duration::from_secs_f64(options.linger_s));
-    if let Some(task) = measuring {
-        smol::block_on(task.cancel());
+    let span = Duration::from_secs_f64((t1 - t0) as f64 * 1e-9 / rate);
+    if let Some(wait) = span.checked_sub(loop_start.elapsed()) {
+        std::thread::sleep(wait);
     }
-    drop(outs);
-    let ctx = node.close();
-    std::thread::sleep(Duration::from_millis(50));
-    done.store(true, std::sync::atomic::Ordering::Relaxed);
-    let _ = spin.join();
-    drop(ctx);
-    let mut l = super::lock(&latencies).clone();
-    l.sort_by(f64::total_cmp);
-    summary.outputs_received = l.len();
-    summary.output_rate_hz = l.len() as f64 / played.max(1e-9);
-    let q = |f: f64| crate::stats::percentile(&l, f);
-    summary.latency_p50_ms = q(0.5);
-    summary.latency_p99_ms = q(0.99);
-    summary.latency_max_ms = l.last().copied();
-    Ok(summary)
+    Ok(())
+}
+
+/// Publishes one bag message `data` on `out`, its stamps moved by `offset`; a cloud or depth
+/// image is noted as sent. The outer error: the message does not decode; the inner: the
+/// middleware's.
+fn publish(
+    out: &Out,
+    data: &[u8],
+    offset: Retime,
+    answers: &Answers,
+    summary: &mut PlaySummary,
+) -> Result<Result<(), String>, NodeError> {
+    Ok(match out {
+        Out::Cloud(p) => {
+            let mut c: PointCloud2 = msg::decode(data)?;
+            shift(&mut c.header.stamp, offset);
+            let c = PointCloud2 {
+                data: std::borrow::Cow::Owned(c.data.into_owned()),
+                ..c
+            };
+            lock(&answers.sent).insert(c.header.stamp.as_nanos(), Instant::now());
+            summary.clouds_published += 1;
+            p.publish(c)
+        }
+        Out::Depth(p) => {
+            let mut i: Image = msg::decode(data)?;
+            shift(&mut i.header.stamp, offset);
+            let i = Image {
+                data: std::borrow::Cow::Owned(i.data.into_owned()),
+                ..i
+            };
+            lock(&answers.sent).insert(i.header.stamp.as_nanos(), Instant::now());
+            summary.clouds_published += 1;
+            p.publish(i)
+        }
+        Out::CameraInfo(p) => {
+            let mut c: CameraInfo = msg::decode(data)?;
+            shift(&mut c.header.stamp, offset);
+            p.publish(c)
+        }
+        Out::Joints(p) => {
+            let mut j: JointState = msg::decode(data)?;
+            shift(&mut j.header.stamp, offset);
+            p.publish(j)
+        }
+        Out::Tf(p) => {
+            let mut t: TfMessage = msg::decode(data)?;
+            for ts in &mut t.transforms {
+                shift(&mut ts.header.stamp, offset);
+            }
+            p.publish(t)
+        }
+    })
 }

@@ -1,13 +1,15 @@
 //! The node's publishers: one per row of the output table (`monitor::outputs::OutputTopic`),
-//! the node's own counts added to every status, and the last word published before the node
-//! leaves the network.
+//! the node's own counts added to every status (the last word that goes out on them before
+//! the node leaves the network is `lifecycle`'s).
 
 use std::any::Any;
 use std::time::Duration;
 
-use super::clock::NodeClock;
-use super::{remap_topic, Pub, QosProfile, Result, RosNode};
-use super::{Durability, History, NodeError};
+use ros2_client::qos::{Durability, History, QosProfile};
+
+use super::error::{NodeError, Result};
+use super::ros_args::remap_topic;
+use super::transport::{Pub, RosNode};
 use crate::config::Config;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::Outputs;
@@ -113,27 +115,6 @@ fn add_counts(o: &mut Outputs, dropped: u64, input_errors: u64) {
                 value: input_errors.to_string(),
             },
         ]);
-    }
-}
-
-/// A panic's message.
-pub(super) fn panic_text(panic: &(dyn Any + Send)) -> String {
-    panic
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "(no message)".into())
-}
-
-/// The node's last word before it leaves the network: `~/safety_stop` true, `~/speed_scaling` 0
-/// and an ERROR status "not monitoring: REASON", published twice 0.1 s apart on the reliable
-/// outputs so that it is delivered before the participant closes (a controller keeps the last
-/// factor it received: it must be 0).
-pub(super) fn last_word(outputs: &Publishers, config: &Config, reason: &str, clock: &NodeClock) {
-    log::info!("not monitoring: {reason}: safety_stop and a speed-scaling factor of 0 published");
-    for _ in 0..2 {
-        outputs.publish_outputs(Outputs::not_monitoring(config, reason, clock.now_ns()));
-        std::thread::sleep(Duration::from_millis(100));
     }
 }
 

@@ -7,7 +7,9 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use super::{NodeError, RosNode, Transport, RELIABLE_QOS};
+use super::error::NodeError;
+use super::qos::RELIABLE_QOS;
+use super::transport::{RosNode, Transport};
 use crate::bag::{writer::Compression, BagWriter};
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::msg::{OwnedMessage, Time};

@@ -9,11 +9,17 @@
 //!
 //! Topic names expand as ROS 2 expands them (`~/x` private, `x` in the namespace, `/x`
 //! absolute), and a remapping applies to every topic the node uses, inputs and outputs alike:
-//! rcl matches the expanded `FROM` against the expanded topic name.
+//! rcl matches the expanded `FROM` against the expanded topic name. Here too the names the
+//! middleware is given: a topic's ROS 2 name ([`topic_name`]), an input topic as the node
+//! subscribes to it ([`input_topic`]) and a message type's (`pkg/msg/Type`, [`type_name`]).
 
 use std::path::PathBuf;
 
-use super::{NodeError, Result};
+use ros2_client::{MessageTypeName, Name};
+
+use super::error::{entity, NodeError, Result};
+use crate::config::Config;
+use crate::msg::RosMessage;
 
 /// The node's ROS arguments.
 #[derive(Debug, Default, Clone)]
@@ -107,6 +113,24 @@ pub fn remap_topic(full: &str, remaps: &[(String, String)], node_path: &str) -> 
 /// at `node_path`, then remapped.
 pub fn resolve_topic(name: &str, remaps: &[(String, String)], node_path: &str) -> String {
     remap_topic(&expand_topic(name, node_path), remaps, node_path)
+}
+
+/// The topic the node subscribes to for the input topic `name` (a topic parameter, `/tf`,
+/// `/clock`): expanded in the node's namespace and remapped by `-r FROM:=TO`.
+pub fn input_topic(config: &Config, name: &str) -> String {
+    resolve_topic(name, &config.remaps, &config.node_path())
+}
+
+/// A ROS 2 name from a fully qualified topic name.
+pub fn topic_name(full: &str) -> Result<Name> {
+    Name::parse(full).map_err(|e| entity("topic", full, e))
+}
+
+/// The ROS 2 package and type name of a message type (`pkg/msg/Type`).
+pub fn type_name<T: RosMessage>() -> MessageTypeName {
+    let package = T::TYPE.split('/').next().unwrap_or_default();
+    let name = T::TYPE.rsplit('/').next().unwrap_or_default();
+    MessageTypeName::new(package, name)
 }
 
 /// Parses the arguments after `--ros-args` (a further `--ros-args` is allowed, `--` ends them).
@@ -318,5 +342,16 @@ mod tests {
             "/cell1/joint_states"
         );
         assert_eq!(resolve_topic("~", &remaps, "/cell1/watch"), "/cell1/watch");
+    }
+
+    #[test]
+    fn message_type_names_follow_ros() {
+        use crate::msg::{DiagnosticArray, PointCloud2};
+        let t = type_name::<PointCloud2>();
+        assert_eq!(t.dds_msg_type(), "sensor_msgs::msg::dds_::PointCloud2_");
+        assert_eq!(
+            type_name::<DiagnosticArray>().dds_msg_type(),
+            "diagnostic_msgs::msg::dds_::DiagnosticArray_"
+        );
     }
 }

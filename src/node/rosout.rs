@@ -10,7 +10,8 @@
 use std::sync::mpsc::{sync_channel, SyncSender};
 use std::sync::{Mutex, OnceLock};
 
-use super::{lock, Pub};
+use super::error::lock;
+use super::transport::Pub;
 use crate::msg::{Log, Time};
 
 /// Lines waiting for the publishing thread.

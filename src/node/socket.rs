@@ -1,11 +1,18 @@
-//! The DDS sockets' receive buffer. The participant asks for [`super::SOCKET_BUFFER`] with
+//! The DDS sockets' receive buffer. The participant asks for [`SOCKET_BUFFER`] with
 //! `SO_RCVBUF`, which Linux clamps to `net.core.rmem_max` (4 MiB on many hosts: less than one
 //! camera-sized cloud, which arrives as one burst of datagrams). Where the process may
 //! (`CAP_NET_ADMIN`: root, or a service given the capability), the node forces the size on its
 //! UDP sockets with `SO_RCVBUFFORCE`, which is not clamped; elsewhere the clamp stands and the
-//! node warns (docs/host-setup.md).
+//! node warns (docs/host-setup.md), at start and for a source whose messages outgrow what the
+//! kernel grants.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Kernel socket buffer asked for, bytes (SO_RCVBUF and SO_SNDBUF; the kernel clamps it to
+/// `net.core.rmem_max`/`wmem_max`). A 640×480 cloud of 32-byte points is 9.8 MB, which
+/// arrives as one burst of about 150 datagrams: the buffer must hold it while the reader
+/// reassembles.
+pub const SOCKET_BUFFER: usize = 64 << 20;
 
 /// Bytes forced on the process's UDP sockets (0: none forced).
 static FORCED: AtomicUsize = AtomicUsize::new(0);
@@ -84,6 +91,27 @@ pub fn granted_receive_buffer(requested: usize) -> Option<usize> {
 /// Whether the buffers were forced.
 pub fn forced() -> bool {
     FORCED.load(Ordering::Relaxed) > 0
+}
+
+pub(super) fn mib(bytes: usize) -> String {
+    format!("{:.1} MiB", bytes as f64 / (1 << 20) as f64)
+}
+
+/// What the granted socket buffer means for a source's messages of `bytes`: a message larger
+/// than the buffer arrives as one burst the kernel cannot hold, so whole messages are lost
+/// (measured: 9.8 MB clouds with 4 MiB granted, 12–13 % lost at 30 Hz; docs/host-setup.md).
+pub(super) fn warn_burst(source: &str, what: &str, bytes: usize) {
+    if let Some(granted) = granted_receive_buffer(SOCKET_BUFFER).filter(|&g| bytes > g) {
+        log::warn!(
+            "source {source}: each {what} is {}, more than the {} socket receive buffer the \
+             kernel grants (net.core.rmem_max): expect lost {what}s and reassembly memory; \
+             raise rmem_max to at least {} (docs/host-setup.md), or publish depth images \
+             (type: depth_image)",
+            mib(bytes),
+            mib(granted),
+            mib((2 * bytes).next_power_of_two()),
+        );
+    }
 }
 
 #[cfg(test)]

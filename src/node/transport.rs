@@ -2,15 +2,21 @@
 //! its middleware: DDS (RustDDS through ros2-client, the default) or zenoh with the wire protocol
 //! of ROS 2's `rmw_zenoh` ([`super::rmw_zenoh`]; `RMW_IMPLEMENTATION=rmw_zenoh_cpp`, or
 //! `--transport zenoh`). [`RosNode`] hides which one a node runs on, so that the node, `play` and
-//! `record` are written once.
+//! `record` are written once. Also the DDS side's own: the domain, the participant with its
+//! socket buffers, and a source's subscription on a topic that keeps few samples.
 
 use futures::StreamExt;
-use ros2_client::dds::{Publisher, Server, ServiceMapping, Subscription};
+use ros2_client::dds::{Context, Node, Publisher, Server, ServiceMapping, Subscription};
+use ros2_client::qos::{History, QosProfile, WhenFull};
 use ros2_client::{MessageInfo, NodeName, NodeOptions, ServiceTypeName};
 use serde::Serialize;
 
+use super::error::{entity, NodeError};
+use super::qos::{source_topic_qos, SOURCE_SAMPLES};
 use super::rmw_zenoh::{ZenohNode, ZenohPub};
-use super::{entity, type_name, History, NodeError, QosProfile, WhenFull};
+use super::ros_args::{topic_name, type_name};
+use super::socket::{self, SOCKET_BUFFER};
+use crate::choice::Choice;
 use crate::msg::{Owned, OwnedMessage, RosMessage};
 
 /// Which middleware a node runs on.
@@ -43,8 +49,12 @@ impl Transport {
             ))),
         }
     }
+}
 
-    pub fn name(self) -> &'static str {
+impl Choice for Transport {
+    const ALL: &'static [Self] = &[Transport::Dds, Transport::Zenoh];
+
+    fn name(self) -> &'static str {
         match self {
             Transport::Dds => "dds",
             Transport::Zenoh => "zenoh",
@@ -101,10 +111,10 @@ impl RosNode {
                 .enable_rosout(false)
                 .start_parameter_services(false)
         };
-        let domain = super::domain_id()?;
+        let domain = domain_id()?;
         match transport {
             Transport::Dds => {
-                let ctx = super::context(domain)?;
+                let ctx = context(domain)?;
                 let mut node = ctx
                     .new_node(node_name.clone(), options())
                     .map_err(|e| entity("node", name, e))?;
@@ -189,7 +199,7 @@ impl RosNode {
 
     /// Subscribes to `T` on `topic`; each message (or read error) goes to `on` in a task on
     /// `executor`, until `on` returns false. `bounded`: a source's topic, whose DDS cache keeps
-    /// at most [`super::SOURCE_SAMPLES`] (zenoh keeps no cache).
+    /// at most [`SOURCE_SAMPLES`] (zenoh keeps no cache).
     pub fn subscribe<T: OwnedMessage>(
         &mut self,
         topic: &str,
@@ -201,7 +211,7 @@ impl RosNode {
         match &mut self.inner {
             Inner::Dds { node, ctx, name } => {
                 let sub: Subscription<T> = if bounded {
-                    super::source_subscription(ctx, node, name, topic, qos)?
+                    source_subscription(ctx, node, name, topic, qos)?
                 } else {
                     let t = dds_topic::<T>(node, topic, &qos)?;
                     node.create_subscription(&t, Some(qos))
@@ -218,7 +228,7 @@ impl RosNode {
             }
             Inner::Zenoh(node) => {
                 let depth = if bounded {
-                    super::SOURCE_SAMPLES as usize
+                    SOURCE_SAMPLES as usize
                 } else {
                     100
                 };
@@ -247,7 +257,7 @@ impl RosNode {
             Inner::Dds { node, name, .. } => (node, name),
             Inner::Zenoh(z) => {
                 let full = format!("{}/{service}", z.node_path());
-                let hash = super::parameters::service_hash(ty).ok_or_else(|| {
+                let hash = crate::msg::service_hash(ty).ok_or_else(|| {
                     NodeError::Transport(format!("rcl_interfaces/srv/{ty}: no type hash"))
                 })?;
                 let server = z.service(&full, ty, hash, answer)?;
@@ -266,7 +276,7 @@ impl RosNode {
         let server: Server<Req, Resp> = node
             .create_server(
                 ServiceMapping::Enhanced,
-                &super::topic_name(&full)?,
+                &topic_name(&full)?,
                 &ServiceTypeName::new("rcl_interfaces", ty),
                 qos.clone(),
                 qos,
@@ -296,19 +306,78 @@ impl RosNode {
     }
 }
 
+/// The ROS domain: `ROS_DOMAIN_ID`, 0 when unset.
+pub fn domain_id() -> Result<u16, NodeError> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Ok(d) => d.parse::<u16>().map_err(|_| NodeError::DomainId(d)),
+        Err(_) => Ok(0),
+    }
+}
+
+/// A DDS context on `domain`, with [`SOCKET_BUFFER`] socket buffers: forced past
+/// `net.core.rmem_max` where the process may (`socket`).
+pub fn context(domain: u16) -> Result<Context, NodeError> {
+    let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
+        .socket_receive_buffer_size(SOCKET_BUFFER)
+        .socket_send_buffer_size(SOCKET_BUFFER)
+        .build()
+        .map_err(|e| NodeError::Participant(format!("{e:?}")))?;
+    if let Err(e) = socket::force_receive_buffers(SOCKET_BUFFER) {
+        log::debug!("SO_RCVBUFFORCE: {e} (the kernel's net.core.rmem_max stands)");
+    }
+    Context::from_domain_participant(participant)
+        .map_err(|e| NodeError::Participant(format!("{e:?}")))
+}
+
+/// Creates a subscription of a source's messages `T` on `topic`, whose DDS topic holds at most
+/// [`SOURCE_SAMPLES`] samples (QoS resource limits). The topic is made on the node's DDS
+/// participant directly: ros2-client's QoS profile has no resource limits.
+pub fn source_subscription<T: RosMessage + 'static>(
+    ctx: &Context,
+    node: &mut Node,
+    node_name: &NodeName,
+    topic: &str,
+    qos: QosProfile,
+) -> Result<Subscription<T>, NodeError> {
+    let dds_qos = source_topic_qos(&qos);
+    let t = ctx
+        .domain_participant()
+        .create_topic(
+            topic_name(topic)?.to_dds_name("rt", node_name, ""),
+            type_name::<T>().dds_msg_type(),
+            &dds_qos,
+            ros2_client::dds::rustdds::TopicKind::NoKey,
+        )
+        .map_err(|e| entity("topic", topic, e))?;
+    node.create_subscription(&t, Some(qos))
+        .map_err(|e| entity("subscription", topic, e))
+}
+
 /// The DDS topic of `T` named `topic`.
 fn dds_topic<T: RosMessage>(
     node: &mut ros2_client::dds::Node,
     topic: &str,
     qos: &QosProfile,
 ) -> Result<ros2_client::dds::rustdds::Topic, NodeError> {
-    node.create_topic(&super::topic_name(topic)?, type_name::<T>(), qos)
+    node.create_topic(&topic_name(topic)?, type_name::<T>(), qos)
         .map_err(|e| entity("topic", topic, e))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn transports_are_named_as_on_the_command_line() {
+        use clap::ValueEnum;
+        assert_eq!(Transport::value_variants(), Transport::ALL);
+        for t in Transport::ALL {
+            let flag = t.to_possible_value().expect("a named value");
+            assert_eq!(flag.get_name(), t.name());
+        }
+        assert_eq!(Transport::parse("zenoh"), Some(Transport::Zenoh));
+        assert_eq!(Transport::names(), "dds or zenoh");
+    }
 
     #[test]
     fn the_transport_follows_rmw_implementation() {
