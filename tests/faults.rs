@@ -9,7 +9,7 @@ use std::path::Path;
 use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
 use ist_monitor::monitor::{Frame, Level, Monitor};
-use ist_monitor::msg::{self, Header, Time};
+use ist_monitor::msg::{Header, Time};
 use ist_monitor::robot::RobotModel;
 use nalgebra::Point3;
 
@@ -70,7 +70,7 @@ fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
     };
     let layout = pointcloud2::Layout::unorganized(points.len() as u32);
     let m = pointcloud2::encode(header, points, &layout).unwrap();
-    monitor.on_cloud(0, &msg::encode(&m).unwrap(), Some(STAMP))
+    monitor.on_cloud(0, &m, std::time::Instant::now(), Some(STAMP))
 }
 
 /// A frame in which the self-filter removed every valid point says so at WARN, publishes no

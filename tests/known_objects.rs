@@ -10,7 +10,7 @@ use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
 use ist_monitor::geometry::Primitive;
 use ist_monitor::monitor::{Frame, Level, Monitor};
-use ist_monitor::msg::{self, Header, JointState, Time};
+use ist_monitor::msg::{Header, JointState, Time};
 use ist_monitor::robot::{AttachedObject, RobotModel};
 use ist_monitor::scenario::{
     self, Hit, Mount, Renderer, ScenarioParams, SceneKind, TABLE_CENTER, TABLE_SIZE,
@@ -65,14 +65,14 @@ fn feed(m: &mut Monitor, k: i64, joints: &[f64], points: &[[f32; 3]], width: u32
         position: joints.to_vec(),
         ..JointState::default()
     };
-    m.on_joint_state_message("/joint_states", &js).unwrap();
+    m.on_joint_state("/joint_states", &js).unwrap();
     let layout = pointcloud2::Layout {
         width,
         height: points.len() as u32 / width,
         ..pointcloud2::Layout::unorganized(0)
     };
     let c = pointcloud2::encode(header(scenario::OPTICAL_FRAME), points, &layout).unwrap();
-    m.on_cloud(0, &msg::encode(&c).unwrap(), Some(stamp))
+    m.on_cloud(0, &c, std::time::Instant::now(), Some(stamp))
 }
 
 /// The table scene: a box 1 cm larger than the table on every side, in `world`, takes every

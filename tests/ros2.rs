@@ -332,10 +332,10 @@ fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
         (cloud.header.stamp, image.header.stamp) = (Time::from_nanos(now), Time::from_nanos(now));
         let start = std::time::Instant::now();
         let frame = if depth_image {
-            monitor.on_camera_info_message(0, &info).unwrap();
-            monitor.on_depth_image_message(0, &image, start, now)
+            monitor.on_camera_info(0, &info).unwrap();
+            monitor.on_depth_image(0, &image, start, Some(now))
         } else {
-            monitor.on_cloud_message(0, &cloud, start, now)
+            monitor.on_cloud(0, &cloud, start, Some(now))
         };
         assert!(frame.result.is_ok(), "library: {:?}", frame.result.err());
         let library = frame.outputs;

@@ -9,7 +9,7 @@ use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
 use ist_monitor::monitor::replay::{self, Clock, ReplayFrame};
 use ist_monitor::monitor::{Frame, Monitor};
-use ist_monitor::msg::{self, Header, JointState, Time};
+use ist_monitor::msg::{Header, JointState, Time};
 use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
 use ist_monitor::separation::{LinkConstraint, SsmParams, StoppingTable};
 use proptest::prelude::*;
@@ -58,7 +58,7 @@ fn joint_state(m: &mut Monitor, t_ns: i64, position: f64, velocity: Option<f64>)
         velocity: velocity.into_iter().collect(),
         ..JointState::default()
     };
-    m.on_joint_state_message("/joint_states", &js).unwrap();
+    m.on_joint_state("/joint_states", &js).unwrap();
 }
 
 fn cloud(m: &mut Monitor, stamp_ns: i64, now_ns: i64, points: &[[f32; 3]]) -> Frame {
@@ -68,7 +68,7 @@ fn cloud(m: &mut Monitor, stamp_ns: i64, now_ns: i64, points: &[[f32; 3]]) -> Fr
     };
     let layout = pointcloud2::Layout::unorganized(points.len() as u32);
     let c = pointcloud2::encode(header, points, &layout).unwrap();
-    m.on_cloud(0, &msg::encode(&c).unwrap(), Some(now_ns))
+    m.on_cloud(0, &c, std::time::Instant::now(), Some(now_ns))
 }
 
 /// The factor of a frame, checked against the published message.

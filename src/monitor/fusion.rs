@@ -1,7 +1,7 @@
 //! Fusion across sources: the cell has one level, one stop and one distance, over every enabled
-//! source.
+//! source. [`fuse`] decides the picture ([`Fused`]); `outputs` renders it into messages.
 //!
-//! The monitor keeps each source's latest result (its stamp, its distance or its fault, its
+//! Each source keeps its latest result (`source`: its stamp, its distance or its fault, its
 //! diagnostic status). Every frame of any source publishes the fused picture:
 //!
 //! - A source counts only if it is enabled. A disabled source never counts. With none enabled
@@ -27,394 +27,193 @@
 //! and is 0 while any source is in fault.
 
 use crate::config::Config;
-use crate::msg::{
-    Bool, DiagnosticArray, DiagnosticStatus, Float64, Header, JointState, KeyValue, Marker,
-    MarkerArray, SpeedScalingFactor, Time,
-};
-use crate::query::{Outcome, QueryResult};
+use crate::query::{Nearest, Outcome, QueryResult};
 
-use super::outputs::{
-    closest_markers, link_positions, shape_markers, Level, LevelTracker, Outputs, SourceReport,
-};
+use super::level::{Level, LevelTracker};
+use super::source::{Latest, Part, Source};
 
-/// What the fused outputs are made for: a frame of `source` stamped `stamp_ns`, or a
+/// What the fused picture is made for: a frame of `source` stamped `stamp_ns`, or a
 /// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
-struct Moment {
-    source: usize,
-    stamp_ns: i64,
+pub struct Moment {
+    pub source: usize,
+    pub stamp_ns: i64,
     /// The clock the sources' results are aged by.
-    now_ns: i64,
+    pub now_ns: i64,
     /// The frame took longer than `latency_budget`.
-    over_budget: bool,
+    pub over_budget: bool,
     /// The speed scaler's factor (`None` with the separation monitor off).
-    factor: Option<f64>,
-    beat: bool,
+    pub factor: Option<f64>,
+    pub beat: bool,
 }
 
-/// One source's latest frame.
-#[derive(Debug, Clone)]
-struct Latest {
-    stamp_ns: i64,
-    /// The result, or the fault's kind and reason.
-    result: Result<QueryResult, (&'static str, String)>,
-    report: SourceReport,
+/// The cell's picture at one instant, as fusion decided it (see the module doc).
+pub struct Fused<'a> {
+    pub level: Level,
+    /// The fused conservative distance, m (`None`: a source in fault, or every measured
+    /// source's valid points self-filtered).
+    pub distance: Option<f64>,
+    /// The source of that distance.
+    pub nearest: Option<NearestSource<'a>>,
+    /// Each link's minimum over the sources the picture rests on.
+    pub per_link: PerLink,
+    /// Why the cell is not watched whole: one line per enabled source in fault, or that none
+    /// is enabled. Empty when the picture rests on every enabled source.
+    pub faults: Vec<String>,
+    /// The oldest stamp among the results the picture rests on (the moment's where none).
+    pub stamp_ns: i64,
+    /// What `~/speed_scaling` carries: the scaler's factor, 0 while a source is in fault
+    /// (`None` with the separation monitor off).
+    pub speed_factor: Option<f64>,
+    /// Every enabled source's part, in the config's order.
+    pub parts: Vec<(usize, Part<'a>)>,
+    /// The moment's source: its closest-point markers are cleared when no source has any.
+    pub source: usize,
 }
 
-/// A source's part in the fused picture at one instant.
-enum Part<'a> {
-    Fault { kind: &'static str, reason: String },
-    Measured(&'a Latest),
+/// The source whose conservative distance is the smallest.
+pub struct NearestSource<'a> {
+    pub source: usize,
+    pub distance_m: f64,
+    /// Its nearest obstacle point, where it saw one (not for "nothing within").
+    pub seen: Option<&'a Nearest>,
 }
 
-/// The latest result of every source and the fused level (see the module doc).
-#[derive(Debug, Clone)]
-pub struct Fusion {
-    /// Each source's own level, for its own status.
-    trackers: Vec<LevelTracker>,
-    fused: LevelTracker,
-    latest: Vec<Option<Latest>>,
+/// Each link's conservative distance, m, in the engine's link order.
+#[derive(Default)]
+pub struct PerLink {
+    pub links: Vec<String>,
+    pub distances_m: Vec<f64>,
 }
 
-impl Fusion {
-    pub fn new(config: &Config) -> Self {
-        Self {
-            trackers: vec![LevelTracker::new(config); config.sources.len()],
-            fused: LevelTracker::new(config),
-            latest: vec![None; config.sources.len()],
-        }
-    }
-
-    /// Takes the thresholds and enabled flags of `new` (a run-time change of `old`): each level
-    /// is kept as held and left only by the new thresholds; a source enabled now starts as
-    /// never heard from (a fault until its first frame), one disabled forgets its result.
-    pub fn reconfigure(&mut self, old: &Config, new: &Config) {
-        for t in self.trackers.iter_mut().chain([&mut self.fused]) {
-            t.set_thresholds(new);
-        }
-        for (k, (o, n)) in old.sources.iter().zip(&new.sources).enumerate() {
-            if o.enabled != n.enabled {
-                self.latest[k] = None;
-                self.trackers[k] = LevelTracker::new(new);
-            }
-        }
-    }
-
-    /// Forgets every source's result (each is then in fault until its next frame); the levels
-    /// held are kept.
-    pub fn forget_results(&mut self) {
-        self.latest.iter_mut().for_each(|l| *l = None);
-    }
-
-    /// Whether the fused level is ERROR now (the safety stop is raised).
-    pub fn stop_raised(&self) -> bool {
-        self.fused.level() == Level::Error
-    }
-
-    /// Whether each source is in fault at `now_ns` (see the module doc); a disabled source is
-    /// not.
-    pub fn in_fault(&self, config: &Config, now_ns: i64) -> Vec<bool> {
-        (0..config.sources.len())
-            .map(|k| {
-                config.sources[k].enabled
-                    && matches!(
-                        Self::part(&self.latest, config, k, now_ns),
-                        Part::Fault { .. }
-                    )
+impl<'a> Fused<'a> {
+    /// The results the picture rests on: every measured source, or nothing while one is in
+    /// fault.
+    pub fn contributing(&self) -> impl Iterator<Item = (usize, &'a Latest)> + '_ {
+        let whole = self.faults.is_empty();
+        (self.parts.iter())
+            .filter(move |_| whole)
+            .filter_map(|(k, part)| match part {
+                Part::Measured(l) => Some((*k, *l)),
+                Part::Fault { .. } => None,
             })
-            .collect()
     }
+}
 
-    /// Takes a frame of source `source` and returns the fused outputs. `now_ns` is the clock
-    /// the other sources' results are aged by (the frame's own stamp where there is none).
-    #[allow(clippy::too_many_arguments)]
-    pub fn frame(
-        &mut self,
-        config: &Config,
-        root_frame: &str,
-        robot: &str,
-        source: usize,
-        stamp_ns: i64,
-        now_ns: Option<i64>,
-        result: &Result<QueryResult, super::Fault>,
-        processing_s: f64,
-        speed: Option<&crate::separation::SpeedScaling>,
-    ) -> Outputs {
-        let name = &config.sources[source].name;
-        let report = SourceReport::new(
-            config,
-            robot,
-            name,
-            result,
-            processing_s,
-            speed,
-            &mut self.trackers[source],
-        );
-        let over_budget = report.over_budget;
-        self.latest[source] = Some(Latest {
-            stamp_ns,
-            result: match result {
-                Ok(r) => Ok(r.clone()),
-                Err(f) => Err((f.kind(), f.to_string())),
-            },
-            report,
-        });
-        let now_ns = now_ns.unwrap_or(stamp_ns);
-        let moment = Moment {
-            source,
-            stamp_ns,
-            now_ns,
-            over_budget,
-            factor: speed.map(|s| s.factor),
-            beat: false,
-        };
-        self.outputs(config, root_frame, robot, moment)
-    }
-
-    /// The fused outputs at `now_ns` without a new frame (the node's heartbeat): every source's
-    /// latest result aged by the clock, so a source gone stale shows at once. `factor` is the
-    /// speed scaler's (`None` with the separation monitor off).
-    pub fn heartbeat(
-        &mut self,
-        config: &Config,
-        root_frame: &str,
-        robot: &str,
-        now_ns: i64,
-        factor: Option<f64>,
-    ) -> Outputs {
-        let moment = Moment {
-            source: config.sources.iter().position(|s| s.enabled).unwrap_or(0),
-            stamp_ns: now_ns,
-            now_ns,
-            over_budget: false,
-            factor,
-            beat: true,
-        };
-        self.outputs(config, root_frame, robot, moment)
-    }
-
-    /// Source `k`'s part at `now_ns`.
-    fn part<'a>(latest: &'a [Option<Latest>], config: &Config, k: usize, now_ns: i64) -> Part<'a> {
-        let s = &config.sources[k];
-        match &latest[k] {
-            None => Part::Fault {
-                kind: "no_message_yet",
-                reason: "nothing received yet".into(),
-            },
-            Some(Latest {
-                result: Err((kind, reason)),
-                ..
-            }) => Part::Fault {
-                kind,
-                reason: reason.clone(),
-            },
-            Some(l) => {
-                let age_s = (now_ns as f64 - l.stamp_ns as f64) * 1e-9;
-                if age_s > s.source_timeout_s {
-                    Part::Fault {
-                        kind: "stale_source",
-                        reason: format!(
-                            "its latest result is stamped {age_s:.3} s before now \
-                             (source_timeout {} s)",
-                            s.source_timeout_s
-                        ),
-                    }
-                } else {
-                    Part::Measured(l)
-                }
+/// The fused picture of `sources` at `moment`; `fused` is the cell's level, which it updates.
+pub fn fuse<'a>(
+    config: &Config,
+    sources: &'a [Source],
+    fused: &mut LevelTracker,
+    moment: &Moment,
+) -> Fused<'a> {
+    let parts: Vec<(usize, Part)> = (0..config.sources.len())
+        .filter(|&k| config.sources[k].enabled)
+        .map(|k| (k, sources[k].part(&config.sources[k], moment.now_ns)))
+        .collect();
+    let mut faults: Vec<String> = (parts.iter())
+        .filter_map(|(k, part)| match part {
+            Part::Fault { reason, .. } => {
+                Some(format!("source {}: {reason}", config.sources[*k].name))
             }
-        }
+            Part::Measured(_) => None,
+        })
+        .collect();
+    if parts.is_empty() {
+        // Nothing watches the cell (every source disabled, at start or at run time): as a
+        // fault, never a clean state.
+        faults.push("no source is enabled: nothing watches the cell".into());
     }
-
-    fn outputs(
-        &mut self,
-        config: &Config,
-        root_frame: &str,
-        robot: &str,
-        moment: Moment,
-    ) -> Outputs {
-        let Moment {
-            source,
-            stamp_ns,
-            now_ns,
-            over_budget,
-            factor,
-            beat,
-        } = moment;
-        let kv = |key: &str, value: String| KeyValue {
-            key: key.into(),
-            value,
-        };
-        let enabled: Vec<usize> = (0..config.sources.len())
-            .filter(|&k| config.sources[k].enabled)
-            .collect();
-        let Self { fused, latest, .. } = self;
-        let latest = &*latest;
-        let parts: Vec<(usize, Part)> = enabled
-            .iter()
-            .map(|&k| (k, Self::part(latest, config, k, now_ns)))
-            .collect();
-        let mut statuses = Vec::with_capacity(parts.len() + 1);
-        let mut faults = Vec::new();
-        let mut measured = Vec::new();
-        for (k, part) in &parts {
-            let name = &config.sources[*k].name;
-            match part {
-                Part::Measured(l) => {
-                    statuses.push(l.report.status.clone());
-                    measured.push((*k, *l));
-                }
-                Part::Fault { kind, reason } => {
-                    faults.push(format!("source {name}: {reason}"));
-                    // The source's own status where its latest frame was the fault; one made
-                    // here where it has none or its result went stale.
-                    match &latest[*k] {
-                        Some(l) if l.result.is_err() => statuses.push(l.report.status.clone()),
-                        _ => statuses.push(DiagnosticStatus {
-                            level: Level::Error.diagnostic(),
-                            name: format!("{}: {name}", config.node_name),
-                            message: reason.clone(),
-                            hardware_id: robot.to_owned(),
-                            values: vec![kv("source", name.clone()), kv("fault", (*kind).into())],
-                        }),
-                    }
-                }
-            }
-        }
-        if enabled.is_empty() {
-            // Nothing watches the cell (every source disabled, at start or at run time): as a
-            // fault, never a clean state.
-            faults.push("no source is enabled: nothing watches the cell".into());
-        }
-        let max_distance = f64::from(config.query.max_distance_m);
-        // What the picture rests on: every measured source, or nothing while one is in fault.
-        let contributing: &[(usize, &Latest)] = if faults.is_empty() { &measured } else { &[] };
-        let holding = contributing.iter().any(|(_, l)| l.report.all_self);
-        // The nearest source: the smallest conservative distance.
-        let nearest = contributing
-            .iter()
-            .filter_map(|(k, l)| l.report.distance.map(|d| (*k, *l, d)))
-            .min_by(|a, b| a.2.total_cmp(&b.2));
-        let distance = nearest.map(|(_, _, d)| d);
-        let mut level = if !faults.is_empty() {
-            fused.update(None)
-        } else if beat {
-            // A heartbeat brings no new result: the level stays as the results left it.
-            fused.level()
-        } else if let Some(d) = distance {
-            let before = fused.level();
-            let level = fused.update(Some(d));
-            if holding {
-                fused.hold_at_least(before.max(Level::Warn))
-            } else {
-                level
-            }
+    let mut picture = Fused {
+        level: Level::Error,
+        distance: None,
+        nearest: None,
+        per_link: PerLink::default(),
+        faults,
+        stamp_ns: moment.stamp_ns,
+        speed_factor: None,
+        parts,
+        source: moment.source,
+    };
+    let holding = picture.contributing().any(|(_, l)| l.report.all_self);
+    // The nearest source: the smallest conservative distance.
+    let nearest = (picture.contributing())
+        .filter_map(|(k, l)| l.report.distance.map(|d| (k, l, d)))
+        .min_by(|a, b| a.2.total_cmp(&b.2));
+    let nearest = nearest.map(|(source, l, distance_m)| NearestSource {
+        source,
+        distance_m,
+        seen: (l.result.as_ref().ok())
+            .filter(|r| r.outcome == Outcome::Nearest)
+            .and_then(|r| r.nearest.as_ref()),
+    });
+    let distance = nearest.as_ref().map(|n| n.distance_m);
+    let whole = picture.faults.is_empty();
+    let mut level = if !whole {
+        fused.update(None)
+    } else if moment.beat {
+        // A heartbeat brings no new result: the level stays as the results left it.
+        fused.level()
+    } else if let Some(d) = distance {
+        let before = fused.level();
+        let level = fused.update(Some(d));
+        if holding {
+            fused.hold_at_least(before.max(Level::Warn))
         } else {
-            // Every measured source self-filtered all its points: nothing is known, nothing
-            // failed: WARN at least, the level held.
-            fused.hold_at_least(Level::Warn)
-        };
-        if over_budget {
-            level = level.max(Level::Warn);
+            level
         }
-        let header = Header {
-            stamp: Time::from_nanos(
-                contributing
-                    .iter()
-                    .map(|(_, l)| l.stamp_ns)
-                    .min()
-                    .unwrap_or(stamp_ns),
-            ),
-            frame_id: root_frame.to_owned(),
-        };
-        // Per link, the minimum over the sources (every source's links come in the engine's
-        // order).
-        let mut link_distances = JointState {
-            header: header.clone(),
-            ..JointState::default()
-        };
-        let mut markers = Vec::new();
-        for (k, l) in contributing {
-            let Ok(r) = &l.result else { continue };
-            let positions = link_positions(r, max_distance);
-            if link_distances.name.is_empty() {
-                link_distances.name = r.links.iter().map(|l| l.link.clone()).collect();
-                link_distances.position = positions;
-            } else {
-                for (p, q) in link_distances.position.iter_mut().zip(positions) {
-                    *p = p.min(q);
-                }
-            }
-            if let (Some(n), Some(d)) = (&r.nearest, l.report.distance) {
-                let name = &config.sources[*k].name;
-                markers.extend(closest_markers(&header, name, n, d, level));
-            }
-        }
-        if markers.is_empty() {
-            markers.push(Marker {
-                header: header.clone(),
-                ns: format!("{}/closest", config.sources[source].name),
-                action: Marker::DELETEALL,
-                ..Marker::default()
-            });
-        }
-        markers.extend(shape_markers(config, header.stamp));
-        let mut values = vec![kv(
-            "sources",
-            enabled
-                .iter()
-                .map(|&k| config.sources[k].name.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-        )];
-        let message = if !faults.is_empty() {
-            values.push(kv("fault", "source_fault".into()));
-            format!("not monitoring the whole cell: {}", faults.join("; "))
-        } else if let Some((k, l, d)) = nearest {
-            let name = &config.sources[k].name;
-            values.push(kv("distance_m", format!("{d:.6}")));
-            values.push(kv("nearest_source", name.clone()));
-            let seen = (l.result.as_ref().ok())
-                .filter(|r| r.outcome == Outcome::Nearest)
-                .and_then(|r| r.nearest.as_ref());
-            match seen {
-                Some(n) => {
-                    values.push(kv("link", n.link.clone()));
-                    format!("min distance {d:.3} m (source {name}, link {})", n.link)
-                }
-                None => format!("nothing within {d:.3} m"),
-            }
+    } else {
+        // Every measured source self-filtered all its points: nothing is known, nothing
+        // failed: WARN at least, the level held.
+        fused.hold_at_least(Level::Warn)
+    };
+    if moment.over_budget {
+        level = level.max(Level::Warn);
+    }
+    let stamp_ns = picture.contributing().map(|(_, l)| l.stamp_ns).min();
+    let max_distance = f64::from(config.query.max_distance_m);
+    let per_link = per_link(picture.contributing(), max_distance);
+    picture.level = level;
+    picture.distance = distance;
+    picture.nearest = nearest;
+    picture.per_link = per_link;
+    picture.stamp_ns = stamp_ns.unwrap_or(moment.stamp_ns);
+    // A source in fault allows no motion, whatever the scaler last had from it.
+    picture.speed_factor = moment.factor.map(|f| if whole { f } else { 0.0 });
+    picture
+}
+
+/// Per link, the minimum over `contributing` (every source's links come in the engine's order).
+fn per_link<'a>(
+    contributing: impl Iterator<Item = (usize, &'a Latest)>,
+    max_distance: f64,
+) -> PerLink {
+    let mut per_link = PerLink::default();
+    for (_, l) in contributing {
+        let Ok(r) = &l.result else { continue };
+        let positions = link_positions(r, max_distance);
+        if per_link.links.is_empty() {
+            per_link.links = r.links.iter().map(|l| l.link.clone()).collect();
+            per_link.distances_m = positions;
         } else {
-            "every source's valid points were all self-filtered: only the robot is seen, or an \
-             obstacle touching it"
-                .into()
-        };
-        statuses.push(DiagnosticStatus {
-            level: level.diagnostic(),
-            name: format!("{}: all sources", config.node_name),
-            message,
-            hardware_id: robot.to_owned(),
-            values,
-        });
-        Outputs {
-            level,
-            min_distance: distance.map(|data| Float64 { data }),
-            distance: super::outputs::stamped_distance(config, &header, distance),
-            link_distances,
-            closest_points: MarkerArray { markers },
-            diagnostics: DiagnosticArray {
-                header: Header {
-                    frame_id: String::new(),
-                    ..header
-                },
-                status: statuses,
-            },
-            safety_stop: Bool {
-                data: level == Level::Error,
-            },
-            // A source in fault allows no motion, whatever the scaler last had from it.
-            speed_scaling: factor.map(|f| SpeedScalingFactor {
-                factor: if faults.is_empty() { f } else { 0.0 },
-            }),
+            for (p, q) in per_link.distances_m.iter_mut().zip(positions) {
+                *p = p.min(q);
+            }
         }
     }
+    per_link
+}
+
+/// Each link's conservative distance in a result, in the engine's link order (a link beyond
+/// `per_link_range`: the bound it is known to exceed; `max_distance` when nothing is nearer).
+pub fn link_positions(r: &QueryResult, max_distance: f64) -> Vec<f64> {
+    r.links
+        .iter()
+        .map(|l| {
+            l.exact_m
+                .or(l.lower_m)
+                .or(l.distance_m)
+                .or(l.farther_than_m)
+                .unwrap_or(max_distance)
+        })
+        .collect()
 }

@@ -1,6 +1,7 @@
-//! The node's outputs for one frame, as ROS 2 messages, and the warning level with hysteresis.
-//! Each source's part of a frame is a [`SourceReport`]; `monitor::fusion` makes the published
-//! outputs from every source's latest.
+//! The node's outputs for one frame, as ROS 2 messages: the output table, and the one step
+//! that renders the cell's fused picture (`fusion::Fused`) into its messages. Each source's
+//! status comes from its report (`report`), the levels from `level`, the markers from
+//! `markers`.
 //!
 //! | topic | type | content |
 //! |---|---|---|
@@ -23,127 +24,14 @@
 
 use crate::config::Config;
 use crate::msg::{
-    Bool, ColorRgba, DiagnosticArray, DiagnosticStatus, Duration, Float64, Header, JointState,
-    KeyValue, Marker, MarkerArray, OwnedMessage, Point, Pose, Quaternion, Range,
-    SpeedScalingFactor, Time, Vector3,
+    Bool, DiagnosticArray, DiagnosticStatus, Float64, Header, JointState, KeyValue, Marker,
+    MarkerArray, OwnedMessage, Range, SpeedScalingFactor, Time,
 };
-use crate::query::{Outcome, QueryResult};
-use crate::separation::SpeedScaling;
-use nalgebra::Isometry3;
 
-use super::Fault;
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
-#[serde(rename_all = "UPPERCASE")]
-pub enum Level {
-    Ok,
-    Warn,
-    Error,
-}
-
-impl Level {
-    pub fn diagnostic(self) -> u8 {
-        match self {
-            Level::Ok => DiagnosticStatus::OK,
-            Level::Warn => DiagnosticStatus::WARN,
-            Level::Error => DiagnosticStatus::ERROR,
-        }
-    }
-    fn color(self) -> ColorRgba {
-        let (r, g, b) = match self {
-            Level::Ok => (0.1, 0.8, 0.2),
-            Level::Warn => (1.0, 0.7, 0.0),
-            Level::Error => (0.9, 0.1, 0.1),
-        };
-        ColorRgba { r, g, b, a: 1.0 }
-    }
-}
-
-/// The distance level with hysteresis.
-#[derive(Debug, Clone)]
-pub struct LevelTracker {
-    warn_m: f64,
-    stop_m: f64,
-    hysteresis_m: f64,
-    level: Level,
-    /// A lower level is taken after this many consecutive updates allow it.
-    release_frames: u32,
-    /// Consecutive updates so far that allowed a lower level.
-    lower_streak: u32,
-}
-
-impl LevelTracker {
-    pub fn new(config: &Config) -> Self {
-        Self {
-            warn_m: config.warn_distance_m,
-            stop_m: config.stop_distance_m,
-            hysteresis_m: config.hysteresis_m,
-            level: Level::Ok,
-            release_frames: config.release_frames.max(1),
-            lower_streak: 0,
-        }
-    }
-
-    /// Takes `config`'s thresholds, keeping the level held and the count towards lowering it.
-    pub fn set_thresholds(&mut self, config: &Config) {
-        self.warn_m = config.warn_distance_m;
-        self.stop_m = config.stop_distance_m;
-        self.hysteresis_m = config.hysteresis_m;
-        self.release_frames = config.release_frames.max(1);
-    }
-
-    /// The level when nothing about the distance can be said but no input failed either: at
-    /// least `floor`, and never below the level held (the stop stays as it was).
-    pub fn hold_at_least(&mut self, floor: Level) -> Level {
-        if floor > self.level {
-            self.level = floor;
-            self.lower_streak = 0;
-        }
-        self.level
-    }
-
-    /// The level held now.
-    pub fn level(&self) -> Level {
-        self.level
-    }
-
-    /// The level for a conservative distance `d` (`None`: no distance is known, a fault).
-    pub fn update(&mut self, d: Option<f64>) -> Level {
-        let Some(d) = d else {
-            self.level = Level::Error;
-            self.lower_streak = 0;
-            return self.level;
-        };
-        // Thresholds are raised by the hysteresis for the levels we are above.
-        let up = |level: Level, threshold: f64, current: Level| {
-            if current >= level {
-                threshold + self.hysteresis_m
-            } else {
-                threshold
-            }
-        };
-        let current = self.level;
-        let target = if d < up(Level::Error, self.stop_m, current) {
-            Level::Error
-        } else if d < up(Level::Warn, self.warn_m, current) {
-            Level::Warn
-        } else {
-            Level::Ok
-        };
-        // Raising is immediate; lowering waits for `release_frames` results in a row.
-        if target >= current {
-            self.lower_streak = 0;
-            self.level = target;
-        } else {
-            self.lower_streak += 1;
-            if self.lower_streak >= self.release_frames {
-                self.lower_streak = 0;
-                self.level = target;
-            }
-        }
-        self.level
-    }
-}
+use super::fusion::{Fused, NearestSource};
+use super::level::Level;
+use super::markers::{closest_markers, shape_markers};
+use super::source::Part;
 
 /// The messages of one frame. `min_distance` is `None` when nothing may be published.
 #[derive(Debug, Clone)]
@@ -265,28 +153,6 @@ pub fn visit_output_topics<V: OutputVisitor>(v: &mut V) -> Result<(), V::Error> 
     each_output(None, v)
 }
 
-/// The conservative distance of a result: `None` when there were no valid points.
-pub fn conservative_distance(r: &QueryResult) -> Option<f64> {
-    match (&r.outcome, &r.nearest) {
-        (Outcome::Nearest, Some(n)) => Some(n.lower_m.unwrap_or(n.distance_m)),
-        (Outcome::NothingWithinMaxDistance, _) => Some(f64::from(r.max_distance_m)),
-        _ => None,
-    }
-}
-
-/// Every valid point within the self-filter padding of the robot: the camera sees only the
-/// robot, or an obstacle touching it, which the padding cannot tell apart.
-fn all_self_filtered(r: &QueryResult) -> bool {
-    let c = &r.counts;
-    c.self_filtered > 0 && c.self_filtered == c.total - c.invalid
-}
-
-/// What `~/min_distance` carries for a result: its conservative distance, unless the
-/// self-filter removed every valid point (then nothing is known).
-pub fn published_distance(r: &QueryResult) -> Option<f64> {
-    conservative_distance(r).filter(|_| !all_self_filtered(r))
-}
-
 /// `~/distance`: the conservative distance `d` stamped with `header` (NaN: none known).
 pub fn stamped_distance(config: &Config, header: &Header, d: Option<f64>) -> Range {
     Range {
@@ -298,14 +164,6 @@ pub fn stamped_distance(config: &Config, header: &Header, d: Option<f64>) -> Ran
         max_range: config.query.max_distance_m,
         range: d.map_or(f32::NAN, |d| d as f32),
         variance: 0.0,
-    }
-}
-
-fn point(p: [f64; 3]) -> Point {
-    Point {
-        x: p[0],
-        y: p[1],
-        z: p[2],
     }
 }
 
@@ -353,303 +211,132 @@ impl Outputs {
         }
     }
 
+    /// The messages of the fused picture `fused` of the robot `robot` (its root frame
+    /// `root_frame`).
+    pub fn render(config: &Config, root_frame: &str, robot: &str, fused: Fused) -> Self {
+        let header = Header {
+            stamp: Time::from_nanos(fused.stamp_ns),
+            frame_id: root_frame.to_owned(),
+        };
+        let mut markers = Vec::new();
+        for (k, l) in fused.contributing() {
+            let Ok(r) = &l.result else { continue };
+            if let (Some(n), Some(d)) = (&r.nearest, l.report.distance) {
+                let name = &config.sources[k].name;
+                markers.extend(closest_markers(&header, name, n, d, fused.level));
+            }
+        }
+        if markers.is_empty() {
+            markers.push(Marker {
+                header: header.clone(),
+                ns: format!("{}/closest", config.sources[fused.source].name),
+                action: Marker::DELETEALL,
+                ..Marker::default()
+            });
+        }
+        markers.extend(shape_markers(config, header.stamp));
+        let mut statuses = source_statuses(config, robot, &fused);
+        statuses.push(cell_status(config, robot, &fused));
+        let level = fused.level;
+        Outputs {
+            level,
+            min_distance: fused.distance.map(|data| Float64 { data }),
+            distance: stamped_distance(config, &header, fused.distance),
+            link_distances: JointState {
+                header: header.clone(),
+                name: fused.per_link.links,
+                position: fused.per_link.distances_m,
+                ..JointState::default()
+            },
+            closest_points: MarkerArray { markers },
+            diagnostics: DiagnosticArray {
+                header: Header {
+                    frame_id: String::new(),
+                    ..header
+                },
+                status: statuses,
+            },
+            safety_stop: Bool {
+                data: level == Level::Error,
+            },
+            speed_scaling: (fused.speed_factor).map(|factor| SpeedScalingFactor { factor }),
+        }
+    }
+
     /// Walks every output topic with this frame's message, handed over.
     pub fn visit<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
         each_output(Some(self), v)
     }
 }
 
-/// One source's part of a frame: its own level (with its own hysteresis), its diagnostic
-/// status, and what it contributes to the fused result (`monitor::fusion`).
-#[derive(Debug, Clone)]
-pub struct SourceReport {
-    pub level: Level,
-    pub status: DiagnosticStatus,
-    /// The source's conservative distance (`None`: a fault, or every valid point
-    /// self-filtered).
-    pub distance: Option<f64>,
-    /// Every valid point self-filtered: no distance, and the level held at WARN at least.
-    pub all_self: bool,
-    /// The frame took longer than `latency_budget`.
-    pub over_budget: bool,
-}
-
-impl SourceReport {
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        config: &Config,
-        robot: &str,
-        source: &str,
-        result: &Result<QueryResult, Fault>,
-        processing_s: f64,
-        speed: Option<&SpeedScaling>,
-        tracker: &mut LevelTracker,
-    ) -> Self {
-        let kv = |key: &str, value: String| KeyValue {
-            key: key.into(),
-            value,
-        };
-        let mut values = vec![
-            kv("source", source.into()),
-            kv("latency_ms", format!("{:.3}", processing_s * 1e3)),
-        ];
-        let over_budget = processing_s > config.latency_budget_s;
-        // Every valid point self-filtered: no distance, WARN at least, and the level held (a
-        // stop is never released by this).
-        let all_self = result.as_ref().is_ok_and(all_self_filtered);
-        let (distance, mut message) = match result {
-            Err(fault) => {
-                values.push(kv("fault", fault.kind().into()));
-                (None, fault.to_string())
-            }
-            Ok(r) => {
-                let c = &r.counts;
-                let used = c.evaluated + c.pruned;
-                values.extend([
-                    kv("mode", format!("{:?}", r.mode).to_lowercase()),
-                    kv("points_total", c.total.to_string()),
-                    kv("points_used", used.to_string()),
-                    kv("points_culled", c.outside_roi.to_string()),
-                    kv("points_self_filtered", c.self_filtered.to_string()),
-                    kv("points_invalid", c.invalid.to_string()),
-                ]);
-                if config.stray.enabled() {
-                    values.push(kv("points_stray_rejected", r.stray_rejected.to_string()));
-                }
-                values.extend(
-                    (r.excluded.iter())
-                        .map(|(v, n)| kv(&format!("points_excluded.{v}"), n.to_string())),
-                );
-                values.extend(
-                    r.self_filtered_by_link.iter().map(|(link, n)| {
-                        kv(&format!("points_self_filtered.{link}"), n.to_string())
-                    }),
-                );
-                if let Some(n) = &r.nearest {
-                    values.extend([
-                        kv("distance_m", format!("{:.6}", n.distance_m)),
-                        kv("link", n.link.clone()),
-                    ]);
-                    if let Some(l) = n.lower_m {
-                        values.push(kv("lower_m", format!("{l:.6}")));
-                    }
-                }
-                let d = published_distance(r);
-                let message = match d {
-                    _ if all_self => format!(
-                        "the self-filter removed every valid point ({} within \
-                         self_filter_padding of the robot): only the robot is seen, or an \
-                         obstacle touching it",
-                        c.self_filtered
-                    ),
-                    Some(d) if r.outcome == Outcome::Nearest => format!("min distance {d:.3} m"),
-                    Some(d) => format!("nothing within {d:.3} m"),
-                    None => "no valid points in the cloud".into(),
-                };
-                (d, message)
-            }
-        };
-        // No distance (a fault, or a result without one) is ERROR: never read as "clear".
-        let mut level = if all_self {
-            tracker.hold_at_least(Level::Warn)
-        } else {
-            tracker.update(distance)
-        };
-        if over_budget {
-            level = level.max(Level::Warn);
-            message.push_str(&format!(
-                "; over the latency budget ({:.1} ms > {:.1} ms)",
-                processing_s * 1e3,
-                config.latency_budget_s * 1e3
-            ));
-        }
-        if let Some(speed) = speed {
-            values.push(kv("speed_scaling", format!("{:.3}", speed.factor)));
-            match &speed.separation {
-                Ok(s) => values.extend([
-                    kv("ssm_link", s.link.clone()),
-                    kv("separation_margin_m", format!("{:.4}", s.margin_m)),
-                    kv("protective_distance_m", format!("{:.4}", s.protective_m)),
-                    kv("approach_speed_mps", format!("{:.4}", s.approach_mps)),
-                    kv(
-                        "nearest_approach_speed_mps",
-                        s.nearest_approach_mps
-                            .map_or_else(|| "-".into(), |v| format!("{v:.4}")),
-                    ),
-                    kv(
-                        "time_to_collision_s",
-                        format!("{:.3}", s.time_to_collision_s),
-                    ),
-                    kv("ssm_allowed_factor", format!("{:.3}", s.allowed)),
-                    kv("joint_velocities", s.velocity_source.name().into()),
-                ]),
-                Err(reason) => values.push(kv("ssm_fault", reason.clone())),
-            }
-        }
-        Self {
-            level,
-            status: DiagnosticStatus {
-                level: level.diagnostic(),
-                name: format!("{}: {source}", config.node_name),
-                message,
-                hardware_id: robot.to_owned(),
-                values,
-            },
-            distance,
-            all_self,
-            over_budget,
-        }
+fn kv(key: &str, value: String) -> KeyValue {
+    KeyValue {
+        key: key.into(),
+        value,
     }
 }
 
-/// Each link's conservative distance in a result, in the engine's link order (a link beyond
-/// `per_link_range`: the bound it is known to exceed; `max_distance` when nothing is nearer).
-pub fn link_positions(r: &QueryResult, max_distance: f64) -> Vec<f64> {
-    r.links
-        .iter()
-        .map(|l| {
-            l.exact_m
-                .or(l.lower_m)
-                .or(l.distance_m)
-                .or(l.farther_than_m)
-                .unwrap_or(max_distance)
-        })
-        .collect()
+/// Each enabled source's status: its own where its latest frame made one (a result, or the
+/// fault it was), one made here where it has none or its result went stale.
+fn source_statuses(config: &Config, robot: &str, fused: &Fused) -> Vec<DiagnosticStatus> {
+    let mut statuses = Vec::with_capacity(fused.parts.len() + 1);
+    for (k, part) in &fused.parts {
+        let name = &config.sources[*k].name;
+        statuses.push(match part {
+            Part::Measured(l) => l.report.status.clone(),
+            Part::Fault {
+                status: Some(status),
+                ..
+            } => (*status).clone(),
+            Part::Fault { kind, reason, .. } => DiagnosticStatus {
+                level: Level::Error.diagnostic(),
+                name: format!("{}: {name}", config.node_name),
+                message: reason.clone(),
+                hardware_id: robot.to_owned(),
+                values: vec![kv("source", name.clone()), kv("fault", (*kind).into())],
+            },
+        });
+    }
+    statuses
 }
 
-/// The markers of a source's nearest point: a line from the robot to it and the distance as
-/// text, coloured by `level`, under the namespace `<source>/closest`.
-pub fn closest_markers(
-    header: &Header,
-    source: &str,
-    nearest: &crate::query::Nearest,
-    d: f64,
-    level: Level,
-) -> Vec<Marker<'static>> {
-    let base = Marker {
-        header: header.clone(),
-        ns: format!("{source}/closest"),
-        action: Marker::ADD,
-        pose: Pose::default(),
-        color: level.color(),
-        lifetime: Duration { sec: 1, nanosec: 0 },
-        ..Marker::default()
-    };
-    let n = nearest;
-    let mid = [0, 1, 2].map(|k| 0.5 * (n.point_root[k] + n.robot_point_root[k]));
-    vec![
-        Marker {
-            id: 0,
-            r#type: Marker::LINE_LIST,
-            scale: Vector3 {
-                x: 0.005,
-                ..Vector3::default()
-            },
-            points: vec![point(n.robot_point_root), point(n.point_root)],
-            ..base.clone()
-        },
-        Marker {
-            id: 1,
-            r#type: Marker::TEXT_VIEW_FACING,
-            pose: Pose {
-                position: point(mid),
-                ..Pose::default()
-            },
-            scale: Vector3 {
-                z: 0.04,
-                ..Vector3::default()
-            },
-            text: format!("{} {d:.3} m", n.link),
-            ..base
-        },
-    ]
-}
-
-/// The exclusion volumes (grey) and attached objects (blue) as RViz shapes, each in its own
-/// frame (a volume's TF frame, an object's link) at `stamp`.
-pub fn shape_markers(config: &Config, stamp: Time) -> Vec<Marker<'static>> {
-    use crate::geometry::{Primitive, Shape};
-    let marker = |ns: &str, id: usize, frame: &str, shape: &Shape, pose: &Isometry3<f64>| {
-        let mut mesh_resource = String::new();
-        let (r#type, scale) = match shape {
-            Shape::Primitive(Primitive::Box { size }) => (Marker::CUBE, *size),
-            Shape::Primitive(Primitive::Sphere { radius }) => (Marker::SPHERE, [2.0 * radius; 3]),
-            Shape::Primitive(Primitive::Cylinder { radius, length }) => {
-                (Marker::CYLINDER, [2.0 * radius, 2.0 * radius, *length])
+/// The cell's status, `<node>: all sources`: the fused level, and what it rests on.
+fn cell_status(config: &Config, robot: &str, fused: &Fused) -> DiagnosticStatus {
+    let names: Vec<&str> = (fused.parts.iter())
+        .map(|(k, _)| config.sources[*k].name.as_str())
+        .collect();
+    let mut values = vec![kv("sources", names.join(", "))];
+    let message = if !fused.faults.is_empty() {
+        values.push(kv("fault", "source_fault".into()));
+        format!("not monitoring the whole cell: {}", fused.faults.join("; "))
+    } else if let Some(NearestSource {
+        source,
+        distance_m: d,
+        seen,
+    }) = &fused.nearest
+    {
+        let name = &config.sources[*source].name;
+        values.push(kv("distance_m", format!("{d:.6}")));
+        values.push(kv("nearest_source", name.clone()));
+        match seen {
+            Some(n) => {
+                values.push(kv("link", n.link.clone()));
+                format!("min distance {d:.3} m (source {name}, link {})", n.link)
             }
-            // RViz loads the file itself (on the machine it runs on).
-            Shape::Mesh { file, scale } => {
-                let file = std::fs::canonicalize(file).unwrap_or_else(|_| file.clone());
-                mesh_resource = format!("file://{}", file.display());
-                (Marker::MESH_RESOURCE, *scale)
-            }
-        };
-        let t = pose.translation.vector;
-        Marker {
-            header: Header {
-                stamp,
-                frame_id: frame.to_owned(),
-            },
-            ns: ns.to_owned(),
-            id: id as i32,
-            r#type,
-            action: Marker::ADD,
-            pose: Pose {
-                position: point([t.x, t.y, t.z]),
-                orientation: Quaternion::from_unit(&pose.rotation),
-            },
-            scale: Vector3 {
-                x: scale[0],
-                y: scale[1],
-                z: scale[2],
-            },
-            lifetime: Duration { sec: 1, nanosec: 0 },
-            frame_locked: true,
-            mesh_resource,
-            ..Marker::default()
+            None => format!("nothing within {d:.3} m"),
         }
+    } else {
+        "every source's valid points were all self-filtered: only the robot is seen, or an \
+         obstacle touching it"
+            .into()
     };
-    let volumes = config
-        .exclusion_volumes
-        .iter()
-        .enumerate()
-        .map(|(k, v)| Marker {
-            color: ColorRgba {
-                r: 0.5,
-                g: 0.5,
-                b: 0.5,
-                a: 0.3,
-            },
-            text: v.name.clone(),
-            ..marker(
-                "exclusion_volumes",
-                k,
-                &v.frame,
-                &v.shape.shape(),
-                &v.frame_from_volume,
-            )
-        });
-    let objects = config
-        .attached_objects
-        .iter()
-        .enumerate()
-        .map(|(k, o)| Marker {
-            color: ColorRgba {
-                r: 0.2,
-                g: 0.4,
-                b: 0.9,
-                a: 0.6,
-            },
-            text: o.name.clone(),
-            ..marker(
-                "attached_objects",
-                k,
-                &o.link,
-                &o.shape,
-                &o.link_from_object,
-            )
-        });
-    volumes.chain(objects).collect()
+    DiagnosticStatus {
+        level: fused.level.diagnostic(),
+        name: format!("{}: all sources", config.node_name),
+        message,
+        hardware_id: robot.to_owned(),
+        values,
+    }
 }
 
 #[cfg(test)]
@@ -683,51 +370,5 @@ mod tests {
         visit_output_topics(&mut names).unwrap();
         assert_eq!(names.0.len(), 7);
         assert!(names.0.iter().all(|(_, m)| !m));
-    }
-
-    #[test]
-    fn levels_have_hysteresis() {
-        let config = Config::default();
-        assert_eq!(
-            (
-                config.warn_distance_m,
-                config.stop_distance_m,
-                config.hysteresis_m
-            ),
-            (0.3, 0.1, 0.02)
-        );
-        let mut t = LevelTracker::new(&config);
-        let seq = [
-            (0.5, Level::Ok),
-            (0.29, Level::Warn),
-            (0.31, Level::Warn),
-            (0.33, Level::Ok),
-            (0.09, Level::Error),
-            (0.11, Level::Error),
-            (0.125, Level::Warn),
-            (0.2, Level::Warn),
-            (0.5, Level::Ok),
-        ];
-        for (d, expected) in seq {
-            assert_eq!(t.update(Some(d)), expected, "{d}");
-        }
-        assert_eq!(t.update(None), Level::Error);
-        assert_eq!(t.update(Some(0.11)), Level::Error);
-    }
-
-    #[test]
-    fn a_level_is_lowered_only_after_release_frames_in_a_row() {
-        let config = Config::from_overrides(&[("release_frames".into(), "3".into())]).unwrap();
-        let mut t = LevelTracker::new(&config);
-        // Raising is immediate.
-        assert_eq!(t.update(Some(0.05)), Level::Error);
-        // Two clear results are not enough; one near result starts the count again.
-        assert_eq!(t.update(Some(1.0)), Level::Error);
-        assert_eq!(t.update(Some(1.0)), Level::Error);
-        assert_eq!(t.update(Some(0.05)), Level::Error);
-        assert_eq!(t.update(Some(1.0)), Level::Error);
-        assert_eq!(t.update(Some(1.0)), Level::Error);
-        assert_eq!(t.update(Some(1.0)), Level::Ok);
-        assert_eq!(t.update(Some(0.2)), Level::Warn);
     }
 }

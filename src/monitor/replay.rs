@@ -15,13 +15,23 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::msg::{self, Float64, OwnedMessage};
+use std::time::Instant;
+
+use crate::bag::{read_messages, writer::Compression, BagError, BagMessage, BagWriter};
+use crate::choice::Choice;
+use crate::cloud::{pointcloud2, CloudError};
+use crate::config::SourceKind;
+use crate::msg::{
+    self, CameraInfo, Float64, Image, JointState, OwnedMessage, RosMessage, TfMessage,
+};
 use crate::query::Outcome;
 use crate::stats::percentile;
 
+use super::fault::InputError;
+use super::level::Level;
 use super::outputs::{OutputTopic, OutputVisitor};
-use super::{Level, Monitor};
-use crate::bag::{read_messages, writer::Compression, BagError, BagWriter};
+use super::pipeline::{Frame, Monitor};
+use super::setup::MonitorError;
 
 /// Where generated bags record the exact minimum distance of each cloud (`std_msgs/Float64`).
 pub use crate::bag::{APPROACH_TRUTH_TOPIC, GROUND_TRUTH_TOPIC, MARGIN_TRUTH_TOPIC};
@@ -91,7 +101,7 @@ pub struct Summary {
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     #[error(transparent)]
-    Monitor(#[from] super::MonitorError),
+    Monitor(#[from] MonitorError),
     #[error(transparent)]
     Bag(#[from] BagError),
     #[error(
@@ -116,6 +126,16 @@ pub enum Clock {
     /// The cloud's own stamp, which turns the stamp check off: for bags whose log times are
     /// not when the data was taken (converted, or recorded from a replay). Say so when used.
     Stamp,
+}
+
+impl Choice for Clock {
+    const ALL: &'static [Self] = &[Clock::Log, Clock::Stamp];
+    fn name(self) -> &'static str {
+        match self {
+            Clock::Log => "log",
+            Clock::Stamp => "stamp",
+        }
+    }
 }
 
 /// Writes a frame's outputs into a bag, each on its topic of the output table.
@@ -149,69 +169,8 @@ pub fn replay(
     on_frame: &mut dyn FnMut(&ReplayFrame),
 ) -> Result<Summary, ReplayError> {
     monitor.reset()?;
-    let joint_topic = monitor.config.joint_states_topic.clone();
-    let source_topics: Vec<String> = monitor
-        .config
-        .sources
-        .iter()
-        .map(|s| s.topic.clone())
-        .collect();
-    let camera_info_topics: Vec<String> = (monitor.config.sources.iter())
-        .filter_map(|s| s.camera_info_topic.clone())
-        .collect();
-    // Every channel of the bag, to say what it has when it has no cloud for the sources.
-    let channels = std::cell::RefCell::new(std::collections::BTreeSet::new());
-    let keep = |t: &str, schema: &str| {
-        channels.borrow_mut().insert(format!("{t} ({schema})"));
-        t == "/tf"
-            || t == "/tf_static"
-            || t == joint_topic
-            || t == GROUND_TRUTH_TOPIC
-            || t == APPROACH_TRUTH_TOPIC
-            || t == MARGIN_TRUTH_TOPIC
-            || source_topics.iter().any(|s| s == t)
-            || camera_info_topics.iter().any(|s| s == t)
-    };
-    let messages = read_messages(bag, &keep)?;
-    // A bag with no cloud for any enabled source replays nothing: say so, with what it has,
-    // rather than report "0 frames, 0 faults" as if all were well.
-    if !messages
-        .iter()
-        .any(|m| monitor.source_of(&m.topic).is_some())
-    {
-        let found: Vec<String> = channels.into_inner().into_iter().collect();
-        return Err(ReplayError::NoClouds {
-            bag: bag.to_owned(),
-            sources: monitor
-                .config
-                .sources
-                .iter()
-                .filter(|s| s.enabled)
-                .map(|s| s.topic.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-            found: if found.is_empty() {
-                "no messages".into()
-            } else {
-                found.join(", ")
-            },
-        });
-    }
-    // The truth topics, each by log time.
-    let truth_of = |topic: &str| -> HashMap<u64, f64> {
-        messages
-            .iter()
-            .filter(|m| &*m.topic == topic)
-            .filter_map(|m| {
-                msg::decode::<Float64>(&m.data)
-                    .ok()
-                    .map(|f| (m.log_time_ns, f.data))
-            })
-            .collect()
-    };
-    let truth = truth_of(GROUND_TRUTH_TOPIC);
-    let truth_approach = truth_of(APPROACH_TRUTH_TOPIC);
-    let truth_margin = truth_of(MARGIN_TRUTH_TOPIC);
+    let messages = read(monitor, bag)?;
+    let truths = Truths::of(&messages);
     let node_path = monitor.config.node_path();
     let mut writer = out
         .map(|(path, compression)| BagWriter::create(path, compression))
@@ -222,80 +181,18 @@ pub fn replay(
     let mut summary = Summary::default();
     let mut times = Vec::new();
     for m in &messages {
-        let t = &*m.topic;
-        let input = match t {
-            "/tf" | "/tf_static" => monitor.on_tf(t, &m.data, t == "/tf_static"),
-            _ if t == joint_topic => monitor.on_joint_state(t, &m.data),
-            _ => Ok(()),
-        };
-        if let Err(e) = input {
-            log::warn!("{e}");
-            summary.input_errors += 1;
-        }
-        for source in monitor.camera_info_sources(t) {
-            if let Err(e) = monitor.on_camera_info(source, &m.data) {
-                log::warn!("{e}");
-                summary.input_errors += 1;
-            }
-        }
-        let Some(source) = monitor.source_of(t) else {
+        summary.input_errors += feed(monitor, &m.topic, &m.data);
+        let Some(source) = monitor.source_of(&m.topic) else {
             continue;
         };
         let now_ns = (clock == Clock::Log).then_some(m.log_time_ns as i64);
-        let frame = monitor.on_source_message(source, &m.data, now_ns);
-        let index = summary.frames;
-        summary.frames += 1;
+        let frame = source_frame(monitor, source, &m.data, now_ns);
         times.push(frame.processing_s * 1e3);
-        let o = &frame.outputs;
-        let (outcome, nearest) = match &frame.result {
-            Err(f) => {
-                *summary.faults.entry(f.kind().into()).or_default() += 1;
-                ("fault", None)
-            }
-            Ok(r) => (
-                match r.outcome {
-                    Outcome::Nearest => "nearest",
-                    Outcome::NoPoints => "no_points",
-                    Outcome::NothingWithinMaxDistance => "nothing_within_max_distance",
-                },
-                r.nearest.as_ref(),
-            ),
-        };
-        let separation = frame
-            .speed
-            .as_ref()
-            .and_then(|s| s.separation.as_ref().ok());
-        let row = ReplayFrame {
-            index,
-            source: frame.source.clone(),
-            stamp_ns: frame.stamp_ns,
-            level: o.level,
-            outcome,
-            distance_m: nearest.map(|n| n.distance_m),
-            lower_m: nearest.and_then(|n| n.lower_m),
-            min_distance_m: o.min_distance.map(|f| f.data),
-            link: nearest.map(|n| n.link.clone()),
-            backend: frame.result.as_ref().ok().map(|r| r.backend),
-            processing_ms: frame.processing_s * 1e3,
-            fault: frame.result.as_ref().err().map(|f| f.to_string()),
-            truth_m: truth.get(&m.log_time_ns).copied(),
-            speed_scaling: frame.speed.as_ref().map(|s| s.factor),
-            allowed_factor: separation.map(|s| s.allowed),
-            separation_margin_m: separation.map(|s| s.margin_m),
-            ssm_distance_m: separation.map(|s| s.distance_m),
-            protective_m: separation.map(|s| s.protective_m),
-            approach_mps: separation.map(|s| s.approach_mps),
-            nearest_approach_mps: separation.and_then(|s| s.nearest_approach_mps),
-            ssm_link: separation.map(|s| s.link.clone()),
-            ssm_ms: frame.speed.as_ref().map(|s| s.stage_s * 1e3),
-            outputs_ms: frame.outputs_s * 1e3,
-            ssm_fault: frame
-                .speed
-                .as_ref()
-                .and_then(|s| s.separation.as_ref().err().cloned()),
-            truth_approach_mps: truth_approach.get(&m.log_time_ns).copied(),
-            truth_margin_m: truth_margin.get(&m.log_time_ns).copied(),
-        };
+        if let Err(f) = &frame.result {
+            *summary.faults.entry(f.kind().into()).or_default() += 1;
+        }
+        let row = ReplayFrame::of(summary.frames, &frame, &truths, m.log_time_ns);
+        summary.frames += 1;
         if let (Some(d), Some(t)) = (row.min_distance_m, row.truth_m) {
             let e = summary
                 .max_error_vs_truth_m
@@ -320,4 +217,206 @@ pub fn replay(
     summary.processing_p50_ms = percentile(&times, 0.5).unwrap_or(0.0);
     summary.processing_p99_ms = percentile(&times, 0.99).unwrap_or(0.0);
     Ok(summary)
+}
+
+/// The messages of `bag` that the monitor reads (and the truths), in log-time order. A bag
+/// with no cloud for any enabled source replays nothing: that is an error that says what the
+/// bag has, rather than "0 frames, 0 faults" as if all were well.
+fn read(monitor: &Monitor, bag: &Path) -> Result<Vec<BagMessage>, ReplayError> {
+    let config = &monitor.config;
+    // Every channel of the bag, to say what it has when it has no cloud for the sources.
+    let channels = std::cell::RefCell::new(std::collections::BTreeSet::new());
+    let keep = |t: &str, schema: &str| {
+        channels.borrow_mut().insert(format!("{t} ({schema})"));
+        t == "/tf"
+            || t == "/tf_static"
+            || t == config.joint_states_topic
+            || t == GROUND_TRUTH_TOPIC
+            || t == APPROACH_TRUTH_TOPIC
+            || t == MARGIN_TRUTH_TOPIC
+            || config.sources.iter().any(|s| s.topic == t)
+            || (config.sources.iter()).any(|s| s.camera_info_topic.as_deref() == Some(t))
+    };
+    let messages = read_messages(bag, &keep)?;
+    if messages
+        .iter()
+        .any(|m| monitor.source_of(&m.topic).is_some())
+    {
+        return Ok(messages);
+    }
+    let found: Vec<String> = channels.into_inner().into_iter().collect();
+    Err(ReplayError::NoClouds {
+        bag: bag.to_owned(),
+        sources: (config.sources.iter())
+            .filter(|s| s.enabled)
+            .map(|s| s.topic.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        found: if found.is_empty() {
+            "no messages".into()
+        } else {
+            found.join(", ")
+        },
+    })
+}
+
+/// The recorded truths of a generated bag, each by log time.
+struct Truths {
+    distance: HashMap<u64, f64>,
+    approach: HashMap<u64, f64>,
+    margin: HashMap<u64, f64>,
+}
+
+impl Truths {
+    fn of(messages: &[BagMessage]) -> Self {
+        let truth_of = |topic: &str| -> HashMap<u64, f64> {
+            messages
+                .iter()
+                .filter(|m| &*m.topic == topic)
+                .filter_map(|m| {
+                    msg::decode::<Float64>(&m.data)
+                        .ok()
+                        .map(|f| (m.log_time_ns, f.data))
+                })
+                .collect()
+        };
+        Self {
+            distance: truth_of(GROUND_TRUTH_TOPIC),
+            approach: truth_of(APPROACH_TRUTH_TOPIC),
+            margin: truth_of(MARGIN_TRUTH_TOPIC),
+        }
+    }
+}
+
+/// A message on `topic` decoded from its CDR payload (an error names the topic).
+fn decoded<'a, T: RosMessage + serde::Deserialize<'a>>(
+    topic: &str,
+    payload: &'a [u8],
+) -> Result<T, InputError> {
+    msg::decode(payload).map_err(|source| InputError::Msg {
+        topic: topic.into(),
+        source,
+    })
+}
+
+/// Feeds a message on `topic` that is not a source's (TF, joint states, camera info) to the
+/// monitor; how many inputs it refused (each logged).
+fn feed(monitor: &mut Monitor, topic: &str, payload: &[u8]) -> usize {
+    let mut refused = 0;
+    let mut refuse = |e: &InputError| {
+        log::warn!("{e}");
+        refused += 1;
+    };
+    let input = match topic {
+        "/tf" | "/tf_static" => decoded::<TfMessage>(topic, payload)
+            .and_then(|m| monitor.on_tf(topic, &m, topic == "/tf_static")),
+        _ if topic == monitor.config.joint_states_topic => {
+            decoded::<JointState>(topic, payload).and_then(|m| monitor.on_joint_state(topic, &m))
+        }
+        _ => Ok(()),
+    };
+    if let Err(e) = &input {
+        refuse(e);
+    }
+    let sources = monitor.camera_info_sources(topic);
+    if !sources.is_empty() {
+        // Refused for each source it is meant for, as each would have taken it.
+        let info = decoded::<CameraInfo>(topic, payload);
+        for source in sources {
+            match &info {
+                Ok(m) => {
+                    if let Err(e) = &monitor.on_camera_info(source, m) {
+                        refuse(e);
+                    }
+                }
+                Err(e) => refuse(e),
+            }
+        }
+    }
+    refused
+}
+
+/// The frame of a message of source `source`, decoded as the source's type says; a payload
+/// that does not decode is a decode fault. Its processing time includes the decoding.
+fn source_frame(
+    monitor: &mut Monitor,
+    source: usize,
+    payload: &[u8],
+    now_ns: Option<i64>,
+) -> Frame {
+    let start = Instant::now();
+    match monitor.config.sources[source].kind {
+        SourceKind::PointCloud => match pointcloud2::decode(payload) {
+            Ok(m) => monitor.on_cloud(source, &m, start, now_ns),
+            Err(e) => monitor.on_undecodable(source, e, start, now_ns),
+        },
+        SourceKind::DepthImage => match msg::decode::<Image>(payload) {
+            Ok(m) => monitor.on_depth_image(source, &m, start, now_ns),
+            Err(e) => monitor.on_undecodable(source, CloudError::Decode(e), start, now_ns),
+        },
+    }
+}
+
+impl ReplayFrame {
+    /// The row of `frame`, the `index`th of the replay, logged at `log_time_ns`.
+    fn of(index: usize, frame: &Frame, truths: &Truths, log_time_ns: u64) -> Self {
+        let o = &frame.outputs;
+        let (outcome, nearest) = match &frame.result {
+            Err(_) => ("fault", None),
+            Ok(r) => (
+                match r.outcome {
+                    Outcome::Nearest => "nearest",
+                    Outcome::NoPoints => "no_points",
+                    Outcome::NothingWithinMaxDistance => "nothing_within_max_distance",
+                },
+                r.nearest.as_ref(),
+            ),
+        };
+        let speed = frame.speed.as_ref();
+        let separation = speed.and_then(|s| s.separation.as_ref().ok());
+        ReplayFrame {
+            index,
+            source: frame.source.clone(),
+            stamp_ns: frame.stamp_ns,
+            level: o.level,
+            outcome,
+            distance_m: nearest.map(|n| n.distance_m),
+            lower_m: nearest.and_then(|n| n.lower_m),
+            min_distance_m: o.min_distance.map(|f| f.data),
+            link: nearest.map(|n| n.link.clone()),
+            backend: frame.result.as_ref().ok().map(|r| r.backend),
+            processing_ms: frame.processing_s * 1e3,
+            fault: frame.result.as_ref().err().map(|f| f.to_string()),
+            truth_m: truths.distance.get(&log_time_ns).copied(),
+            speed_scaling: speed.map(|s| s.factor),
+            allowed_factor: separation.map(|s| s.allowed),
+            separation_margin_m: separation.map(|s| s.margin_m),
+            ssm_distance_m: separation.map(|s| s.distance_m),
+            protective_m: separation.map(|s| s.protective_m),
+            approach_mps: separation.map(|s| s.approach_mps),
+            nearest_approach_mps: separation.and_then(|s| s.nearest_approach_mps),
+            ssm_link: separation.map(|s| s.link.clone()),
+            ssm_ms: speed.map(|s| s.stage_s * 1e3),
+            outputs_ms: frame.outputs_s * 1e3,
+            ssm_fault: speed.and_then(|s| s.separation.as_ref().err().cloned()),
+            truth_approach_mps: truths.approach.get(&log_time_ns).copied(),
+            truth_margin_m: truths.margin.get(&log_time_ns).copied(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::ValueEnum;
+
+    #[test]
+    fn clock_names_are_clap_s() {
+        assert_eq!(Clock::ALL, Clock::value_variants());
+        for c in Clock::ALL {
+            let clap = c.to_possible_value().unwrap();
+            assert_eq!(clap.get_name(), c.name());
+            assert_eq!(Clock::parse(c.name()), Some(*c));
+        }
+    }
 }

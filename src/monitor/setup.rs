@@ -5,13 +5,16 @@
 //! frame at fault. A change of attached objects at run time starts a monitor the same way, from
 //! the robot without them, and hands it the inputs received so far (`Monitor::take_inputs`).
 
-use super::{Base, Fusion, Monitor};
 use crate::config::{Config, RobotSource};
 use crate::ist::{self, cache::TreeCache, LinkTree};
 use crate::query::{Engine, QueryError};
 use crate::robot::RobotModel;
 use crate::separation::SpeedScaler;
 use crate::tf::{JointError, JointStateBuffer, TfBuffer, TfError};
+
+use super::level::LevelTracker;
+use super::pipeline::{Base, Monitor};
+use super::source::Source;
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
 #[derive(Debug, thiserror::Error)]
@@ -124,13 +127,26 @@ impl Monitor {
 
     /// Takes over the inputs `old` received (transforms, joint states, camera models), up to
     /// the moment it is replaced: a `/tf_static` that arrived while this monitor was built is
-    /// kept. Its levels start anew: every source is in fault until its next frame.
+    /// kept. Its levels start anew: every source is in fault until its next frame; the node's
+    /// watch of each source (heard from, silent since when) goes on as it was.
     pub fn take_inputs(&mut self, old: &mut Monitor) {
         std::mem::swap(&mut self.tf, &mut old.tf);
         std::mem::swap(&mut self.joints, &mut old.joints);
-        if old.cameras.len() == self.cameras.len() {
-            std::mem::swap(&mut self.cameras, &mut old.cameras);
+        if old.sources.len() == self.sources.len() {
+            for (new, old) in self.sources.iter_mut().zip(&mut old.sources) {
+                new.take_inputs(old);
+            }
         }
+    }
+
+    /// Forgets every transform, joint state and level received, as at start-up (a replay of
+    /// another bag starts from here).
+    pub fn reset(&mut self) -> Result<(), MonitorError> {
+        (self.tf, self.joints) = Self::inputs(&self.config, &self.model)?;
+        self.sources = Self::sources(&self.config);
+        self.fused = LevelTracker::new(&self.config);
+        self.scaler = Self::scaler(&self.config);
+        Ok(())
     }
 
     /// As [`Monitor::new`], with the model and trees given (the model with the config's
@@ -156,18 +172,15 @@ impl Monitor {
         // The self-filter's grids now, not on the first cloud.
         engine.prepare_self_filter(&config.query);
         let (tf, joints) = Self::inputs(&config, &model)?;
-        let fusion = Fusion::new(&config);
-        let scaler = Self::scaler(&config);
-        let cameras = vec![None; config.sources.len()];
         Ok(Self {
+            sources: Self::sources(&config),
+            fused: LevelTracker::new(&config),
+            scaler: Self::scaler(&config),
             config,
             model,
             engine,
             tf,
             joints,
-            fusion,
-            scaler,
-            cameras,
             depth_points: Vec::new(),
             base: Base::Unknown,
         })
@@ -193,6 +206,11 @@ impl Monitor {
             .set_fixed(&config.fixed_joint_state)
             .map_err(MonitorError::FixedJoint)?;
         Ok((tf, joints))
+    }
+
+    /// The config's sources, each never heard from.
+    fn sources(config: &Config) -> Vec<Source> {
+        config.sources.iter().map(|_| Source::new(config)).collect()
     }
 
     /// The speed scaler of the config's sources, each starting at 0.

@@ -10,8 +10,16 @@
 //! publishes "not monitoring" (ERROR, the safety stop, no distance); a change that arrives
 //! meanwhile restarts the build with it, and a build that fails leaves the node not
 //! monitoring, with the reason, until the next change.
+//!
+//! Each turn of the loop is a row of named phases — wait, drain inputs, apply parameters, not
+//! monitoring, clock, sources, heartbeat, safety — that wire the node to the monitor and decide
+//! nothing: whether a silence or an untrusted clock is a fault, and what "not monitoring"
+//! publishes, the monitor says (`monitor::watch`, each source's state in `monitor::Source`).
+//! The loop reads the node's start-up config only; what a run-time change alters, the monitor
+//! holds.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
@@ -23,12 +31,13 @@ use super::{
     PANIC_AFTER_ENV, RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS,
 };
 use crate::config::{Config, SourceConfig, SourceKind};
-use crate::monitor::{Monitor, Outputs};
+use crate::monitor::{Heard, Monitor, Outputs};
 use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
 
 /// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
 /// through the monitor, the fused outputs published, silent sources reported, and the fused
-/// state published at least every `heartbeat_period`.
+/// state published at least every `heartbeat_period`. `config` is the node's, as it started
+/// (what a run-time change can alter, the monitor holds).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn serve(
     config: &Config,
@@ -41,188 +50,356 @@ pub(super) fn serve(
     tasks: &mut Vec<smol::Task<()>>,
     runtime: Runtime,
 ) -> Result<()> {
-    let shared = Arc::new(Shared {
-        slots: config
-            .sources
-            .iter()
-            .map(|_| Mutex::new(Slot::default()))
-            .collect(),
-        clock: runtime.clock.clone(),
-        wake: Condvar::new(),
-        wake_lock: Mutex::new(false),
-        dropped: AtomicU64::new(0),
-        input_errors: AtomicU64::new(0),
-    });
-    // Inputs: clouds into slots; TF and joint states into a queue the processing thread drains
-    // (they are small; the monitor is owned by that thread).
-    let (tf_tx, tf_rx) = std::sync::mpsc::channel::<(TfMessage, bool)>();
-    let (js_tx, js_rx) = std::sync::mpsc::channel::<JointState>();
-    let (info_tx, info_rx) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
-    // Each source's subscriptions, made while it is enabled (also when it is enabled at run
-    // time), dropped when it is disabled.
-    let subscribe =
-        |node: &mut RosNode, k: usize, s: &SourceConfig| -> Result<Vec<smol::Task<()>>> {
-            subscribe_source(node, executor, k, s, config, &shared, &info_tx)
-        };
-    let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
-    for (k, s) in config.sources.iter().enumerate() {
-        source_tasks.push(if s.enabled {
-            subscribe(node, k, s)?
-        } else {
-            Vec::new()
-        });
+    let (info, camera_info) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
+    let wiring = Wiring {
+        config,
+        executor,
+        shared: Arc::new(Shared {
+            slots: config
+                .sources
+                .iter()
+                .map(|_| Mutex::new(Slot::default()))
+                .collect(),
+            clock: runtime.clock.clone(),
+            wake: Condvar::new(),
+            wake_lock: Mutex::new(false),
+            dropped: AtomicU64::new(0),
+            input_errors: AtomicU64::new(0),
+        }),
+        info,
+    };
+    let (inputs, source_tasks) = wiring.subscribe(node, tasks, camera_info)?;
+    log_up(config, monitor, node);
+    let clock = runtime.clock.clone();
+    let mut serving = Serving {
+        wiring,
+        transport,
+        outputs,
+        runtime,
+        inputs,
+        source_tasks,
+        heartbeat: Duration::from_secs_f64(config.heartbeat_period_s),
+        last_published: Instant::now(),
+        published_frames: 0,
+        panic_after: std::env::var(PANIC_AFTER_ENV)
+            .ok()
+            .and_then(|v| v.parse().ok()),
+        pending: None,
+        clock_jumps: 0,
+        clock_fault_logged: false,
+    };
+    // Each source's silence counts from now.
+    monitor.watch_from(clock.monotonic_ns());
+    while !stop.load(Ordering::Relaxed) {
+        serving.wait();
+        serving.drain_inputs(monitor);
+        serving.apply_parameters(monitor, node)?;
+        if serving.not_monitoring(monitor) || serving.clock(monitor) {
+            continue;
+        }
+        serving.sources(monitor);
+        serving.heartbeat(monitor);
+        let (raised, in_fault) = monitor.safety(clock.now_ns());
+        serving.runtime.safety.set(raised, in_fault);
     }
-    for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
-        let topic = input_topic(config, name);
-        let qos = if is_static {
-            TF_STATIC_QOS
-        } else {
-            RELIABLE_QOS.history(History::KeepLast { depth: 100 })
-        };
+    Ok(())
+}
+
+/// The subscriptions' side: what the node's inputs are subscribed with.
+struct Wiring<'a> {
+    config: &'a Config,
+    executor: &'a Arc<smol::Executor<'static>>,
+    /// Each source's slot, the wake-up, the counts.
+    shared: Arc<Shared>,
+    /// Where depth sources' CameraInfo goes.
+    info: Sender<(usize, CameraInfo)>,
+}
+
+/// TF, joint states and depth sources' CameraInfo, in queues the processing thread drains
+/// (they are small; the monitor is owned by that thread).
+struct Inputs {
+    tf: Receiver<(TfMessage, bool)>,
+    joints: Receiver<JointState>,
+    camera_info: Receiver<(usize, CameraInfo)>,
+}
+
+impl Wiring<'_> {
+    /// Subscribes to every input: each enabled source's messages into its slot, TF and joint
+    /// states (their tasks into `tasks`); the queues (`camera_info`: where `info` goes), and
+    /// the sources' subscriptions, per source.
+    fn subscribe(
+        &self,
+        node: &mut RosNode,
+        tasks: &mut Vec<smol::Task<()>>,
+        camera_info: Receiver<(usize, CameraInfo)>,
+    ) -> Result<(Inputs, Vec<Vec<smol::Task<()>>>)> {
+        let config = self.config;
+        let (tf_tx, tf) = std::sync::mpsc::channel::<(TfMessage, bool)>();
+        let (js_tx, joints) = std::sync::mpsc::channel::<JointState>();
+        // Each source's subscriptions, made while it is enabled (also when it is enabled at run
+        // time), dropped when it is disabled.
+        let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
+        for (k, s) in config.sources.iter().enumerate() {
+            source_tasks.push(if s.enabled {
+                self.subscribe_source(node, k, s)?
+            } else {
+                Vec::new()
+            });
+        }
+        for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
+            let topic = input_topic(config, name);
+            let qos = if is_static {
+                TF_STATIC_QOS
+            } else {
+                RELIABLE_QOS.history(History::KeepLast { depth: 100 })
+            };
+            tasks.push(forward(
+                node,
+                &topic,
+                qos,
+                self.executor,
+                name,
+                tf_tx.clone(),
+                move |m: TfMessage| (m, is_static),
+                &self.shared,
+            )?);
+        }
+        let joint_qos = QosProfile::subscription_default()
+            .reliability_best_effort()
+            .history(History::KeepLast { depth: 100 });
         tasks.push(forward(
             node,
-            &topic,
-            qos,
-            executor,
-            name,
-            tf_tx.clone(),
-            move |m: TfMessage| (m, is_static),
-            &shared,
+            &input_topic(config, &config.joint_states_topic),
+            joint_qos,
+            self.executor,
+            "joint states",
+            js_tx,
+            |m: JointState| m,
+            &self.shared,
         )?);
+        let inputs = Inputs {
+            tf,
+            joints,
+            camera_info,
+        };
+        Ok((inputs, source_tasks))
     }
-    let joint_qos = QosProfile::subscription_default()
-        .reliability_best_effort()
-        .history(History::KeepLast { depth: 100 });
-    tasks.push(forward(
-        node,
-        &input_topic(config, &config.joint_states_topic),
-        joint_qos,
-        executor,
-        "joint states",
-        js_tx,
-        |m: JointState| m,
-        &shared,
-    )?);
-    log_up(config, monitor, node);
-    let n = config.sources.len();
-    let mut heard = vec![false; n];
-    let mut silent_logged = vec![false; n];
-    let clock = runtime.clock.clone();
-    let started = Instant::now();
-    // Since when each source is enabled (the node's monotonic clock): its silence counts from
-    // then.
-    let mut enabled_at = vec![clock.monotonic_ns(); n];
-    let heartbeat = Duration::from_secs_f64(config.heartbeat_period_s);
-    let mut last_published = started;
-    let mut published_frames = 0u64;
-    let panic_after: Option<u64> = std::env::var(PANIC_AFTER_ENV)
-        .ok()
-        .and_then(|v| v.parse().ok());
-    let counts = || {
+
+    /// Subscribes to source `k`'s messages (and a depth source's camera info).
+    fn subscribe_source(
+        &self,
+        node: &mut RosNode,
+        k: usize,
+        s: &SourceConfig,
+    ) -> Result<Vec<smol::Task<()>>> {
+        let (executor, shared) = (self.executor, &self.shared);
+        let mut tasks = Vec::new();
+        let topic = input_topic(self.config, &s.topic);
+        let qos = if s.reliable {
+            RELIABLE_QOS.history(History::KeepLast { depth: 1 })
+        } else {
+            SENSOR_QOS
+        };
+        match s.kind {
+            SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
+                node,
+                &topic,
+                qos,
+                executor,
+                k,
+                shared,
+                SourceMessage::Cloud,
+            )?),
+            SourceKind::DepthImage => {
+                tasks.push(source_task::<Image<'static>>(
+                    node,
+                    &topic,
+                    qos.clone(),
+                    executor,
+                    k,
+                    shared,
+                    SourceMessage::Depth,
+                )?);
+                // The camera model, with the image's QoS as image_transport's CameraSubscriber
+                // gives both; a latched (transient local) publisher is matched too.
+                let info_topic = s.camera_info_topic.as_deref().unwrap_or_default();
+                tasks.push(forward(
+                    node,
+                    &input_topic(self.config, info_topic),
+                    qos,
+                    executor,
+                    "camera info",
+                    self.info.clone(),
+                    move |m: CameraInfo| (k, m),
+                    shared,
+                )?);
+            }
+        }
+        Ok(tasks)
+    }
+
+    /// Empties every source's slot (`whole`: also forgets when it last received).
+    fn clear_slots(&self, whole: bool) {
+        for slot in &self.shared.slots {
+            let mut slot = lock(slot);
+            if whole {
+                *slot = Slot::default();
+            } else {
+                slot.cloud = None;
+            }
+        }
+    }
+}
+
+/// The serving loop's state between its phases.
+struct Serving<'a> {
+    wiring: Wiring<'a>,
+    transport: Transport,
+    outputs: &'a Publishers,
+    runtime: Runtime,
+    inputs: Inputs,
+    source_tasks: Vec<Vec<smol::Task<()>>>,
+    heartbeat: Duration,
+    last_published: Instant,
+    published_frames: u64,
+    /// The injected panic's frame count (`PANIC_AFTER_ENV`, tests).
+    panic_after: Option<u64>,
+    /// A monitor being rebuilt for a change of attached objects, or why it failed.
+    pending: Option<Pending>,
+    /// The clock's jumps back seen so far.
+    clock_jumps: u64,
+    clock_fault_logged: bool,
+}
+
+impl Serving<'_> {
+    /// Waits for a source's message, at most 20 ms.
+    fn wait(&self) {
+        let shared = &self.wiring.shared;
+        let mut woken = lock(&shared.wake_lock);
+        if !*woken {
+            woken = shared
+                .wake
+                .wait_timeout(woken, Duration::from_millis(20))
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+                .0;
+        }
+        *woken = false;
+    }
+
+    /// The dropped messages and the refused inputs so far.
+    fn counts(&self) -> (u64, u64) {
+        let shared = &self.wiring.shared;
         (
             shared.dropped.load(Ordering::Relaxed),
             shared.input_errors.load(Ordering::Relaxed),
         )
-    };
-    let mut last_fault_report = vec![None::<i64>; n];
-    let mut pending: Option<Pending> = None;
-    let mut clock_jumps = 0;
-    let mut clock_fault_logged = false;
-    while !stop.load(Ordering::Relaxed) {
-        {
-            let mut woken = lock(&shared.wake_lock);
-            if !*woken {
-                woken = shared
-                    .wake
-                    .wait_timeout(woken, Duration::from_millis(20))
-                    .unwrap_or_else(|poisoned| poisoned.into_inner())
-                    .0;
-            }
-            *woken = false;
-        }
-        while let Ok((m, is_static)) = tf_rx.try_recv() {
+    }
+
+    /// Publishes `o` with the counts.
+    fn publish(&mut self, o: Outputs) {
+        let (d, e) = self.counts();
+        self.outputs.publish(o, d, e);
+        self.last_published = Instant::now();
+    }
+
+    fn heartbeat_due(&self) -> bool {
+        self.last_published.elapsed() >= self.heartbeat
+    }
+
+    /// TF, camera info and joint states received since, into the monitor.
+    fn drain_inputs(&self, monitor: &mut Monitor) {
+        let refused = |e: crate::monitor::InputError| {
+            log::warn!("{e}");
+            (self.wiring.shared.input_errors).fetch_add(1, Ordering::Relaxed);
+        };
+        while let Ok((m, is_static)) = self.inputs.tf.try_recv() {
             let topic = if is_static { "/tf_static" } else { "/tf" };
-            if let Err(e) = monitor.on_tf_message(topic, &m, is_static) {
-                log::warn!("{e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
+            monitor.on_tf(topic, &m, is_static).unwrap_or_else(refused);
         }
-        while let Ok((k, m)) = info_rx.try_recv() {
-            if let Err(e) = monitor.on_camera_info_message(k, &m) {
-                log::warn!("{e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
+        while let Ok((k, m)) = self.inputs.camera_info.try_recv() {
+            monitor.on_camera_info(k, &m).unwrap_or_else(refused);
         }
-        while let Ok(m) = js_rx.try_recv() {
-            if let Err(e) = monitor.on_joint_state_message(&config.joint_states_topic, &m) {
-                log::warn!("{e}");
-                shared.input_errors.fetch_add(1, Ordering::Relaxed);
-            }
+        let topic = &self.wiring.config.joint_states_topic;
+        while let Ok(m) = self.inputs.joints.try_recv() {
+            monitor.on_joint_state(topic, &m).unwrap_or_else(refused);
         }
-        // Parameters set at run time (`parameters`), applied before the next frame; a change
-        // of attached objects rebuilds the monitor meanwhile.
-        let was: Vec<bool> = monitor.config.sources.iter().map(|s| s.enabled).collect();
-        while let Ok(new) = runtime.apply.try_recv() {
-            if pending.is_some() || new.attached_objects != monitor.config.attached_objects {
-                pending = Some(Pending::start(monitor, new)?);
+    }
+
+    /// Parameters set at run time (`parameters`), applied before the next frame; a change of
+    /// attached objects rebuilds the monitor meanwhile. A source enabled is subscribed to, one
+    /// disabled left.
+    fn apply_parameters(&mut self, monitor: &mut Monitor, node: &mut RosNode) -> Result<()> {
+        let was = monitor.enabled_sources();
+        while let Ok(new) = self.runtime.apply.try_recv() {
+            if self.pending.is_some() || monitor.needs_rebuild(&new) {
+                self.pending = Some(Pending::start(monitor, new)?);
             } else {
                 monitor.reconfigure(new);
             }
         }
-        if let Some(Pending::Building { done, config }) = &pending {
+        if let Some(Pending::Building { done, objects }) = &self.pending {
             match done.try_recv() {
                 Ok(Ok(mut rebuilt)) => {
                     rebuilt.take_inputs(monitor);
                     log::info!(
-                        "the monitor is rebuilt with the attached objects [{}]: monitoring",
-                        object_names(&rebuilt.config)
+                        "the monitor is rebuilt with the attached objects [{objects}]: monitoring"
                     );
                     *monitor = rebuilt;
-                    pending = None;
+                    self.pending = None;
                 }
-                Ok(Err(e)) => pending = Some(Pending::failed(config, e.to_string())),
+                Ok(Err(e)) => self.pending = Some(Pending::failed(e.to_string())),
                 Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                    pending = Some(Pending::failed(config, "the build thread stopped".into()))
+                    self.pending = Some(Pending::failed("the build thread stopped".into()))
                 }
                 Err(std::sync::mpsc::TryRecvError::Empty) => {}
             }
         }
-        for (k, s) in monitor.config.sources.iter().enumerate() {
-            if s.enabled && !was[k] {
+        let config = self.wiring.config;
+        let now = monitor.enabled_sources();
+        for (k, s) in config.sources.iter().enumerate() {
+            if now[k] && !was[k] {
                 log::info!(
                     "source {}: enabled on {}",
                     s.name,
                     input_topic(config, &s.topic)
                 );
-                source_tasks[k] = subscribe(node, k, s)?;
-                (heard[k], silent_logged[k]) = (false, false);
-                (enabled_at[k], last_fault_report[k]) = (clock.monotonic_ns(), None);
-                *lock(&shared.slots[k]) = Slot::default();
-            } else if !s.enabled && was[k] {
+                self.source_tasks[k] = self.wiring.subscribe_source(node, k, s)?;
+                monitor.enable_source(k, self.runtime.clock.monotonic_ns());
+                *lock(&self.wiring.shared.slots[k]) = Slot::default();
+            } else if !now[k] && was[k] {
                 log::info!("source {}: disabled", s.name);
-                source_tasks[k].clear();
-                *lock(&shared.slots[k]) = Slot::default();
+                self.source_tasks[k].clear();
+                *lock(&self.wiring.shared.slots[k]) = Slot::default();
             }
         }
-        if let Some(p) = &pending {
-            // Not monitoring while the monitor is rebuilt (or after a build failed): the
-            // sources' messages are dropped, "not monitoring" goes out every heartbeat.
-            for slot in &shared.slots {
-                lock(slot).cloud = None;
-            }
-            if last_published.elapsed() >= heartbeat {
-                let (config, reason) = p.describe();
-                outputs.publish_outputs(Outputs::not_monitoring(config, &reason, clock.now_ns()));
-                last_published = Instant::now();
-            }
-            let (_, in_fault) = monitor.safety(clock.now_ns());
-            runtime.safety.set(true, in_fault);
-            continue;
+        Ok(())
+    }
+
+    /// Not monitoring while the monitor is rebuilt (or after a build failed): the sources'
+    /// messages are dropped, "not monitoring" goes out every heartbeat. Whether it is so.
+    fn not_monitoring(&mut self, monitor: &Monitor) -> bool {
+        let Some(p) = &self.pending else {
+            return false;
+        };
+        self.wiring.clear_slots(false);
+        let clock = &self.runtime.clock;
+        if self.heartbeat_due() {
+            let reason = p.reason();
+            self.outputs
+                .publish_outputs(monitor.not_monitoring(&reason, clock.now_ns()));
+            self.last_published = Instant::now();
         }
-        // Simulated time: a jump back forgets what was received; a silent /clock is a fault
-        // of every source (`clock`).
-        if clock.jumps() != clock_jumps {
-            clock_jumps = clock.jumps();
+        let (_, in_fault) = monitor.safety(clock.now_ns());
+        self.runtime.safety.set(true, in_fault);
+        true
+    }
+
+    /// Simulated time: a jump back forgets what was received; a silent /clock is a fault of
+    /// every source (`clock`), its outputs every heartbeat. Whether the clock is in fault.
+    fn clock(&mut self, monitor: &mut Monitor) -> bool {
+        let clock = self.runtime.clock.clone();
+        if clock.jumps() != self.clock_jumps {
+            self.clock_jumps = clock.jumps();
             let (from, to) = clock.last_jump();
             log::warn!(
                 "/clock went back from {:.3} s to {:.3} s: the transforms, joint states and \
@@ -231,126 +408,120 @@ pub(super) fn serve(
                 from as f64 * 1e-9,
                 to as f64 * 1e-9
             );
-            monitor.on_clock_jump();
-            enabled_at.fill(clock.monotonic_ns());
-            last_fault_report.fill(None);
-            for slot in &shared.slots {
-                *lock(slot) = Slot::default();
-            }
+            monitor.on_clock_jump(clock.monotonic_ns());
+            self.wiring.clear_slots(true);
         }
-        if let Some(reason) = clock.fault(monitor.config.clock_timeout_s) {
-            if !clock_fault_logged {
+        if let Some(reason) = clock.fault(self.wiring.config.clock_timeout_s) {
+            if !self.clock_fault_logged {
                 log::error!("{reason}: ERROR until it ticks");
-                clock_fault_logged = true;
+                self.clock_fault_logged = true;
             }
-            for slot in &shared.slots {
-                lock(slot).cloud = None;
-            }
-            if last_published.elapsed() >= heartbeat {
-                let now_ns = clock.now_ns();
-                let enabled = (monitor.config.sources.iter().enumerate())
-                    .filter(|(_, s)| s.enabled)
-                    .map(|(k, _)| k)
-                    .collect::<Vec<_>>();
-                let mut last = None;
-                for k in enabled {
-                    let fault = crate::monitor::Fault::Clock(reason.clone());
-                    last = Some(monitor.on_source_fault(k, fault, now_ns).outputs);
-                }
-                let beat = last.unwrap_or_else(|| monitor.heartbeat(now_ns));
-                let (d, e) = counts();
-                outputs.publish(beat, d, e);
-                last_published = Instant::now();
+            self.wiring.clear_slots(false);
+            if self.heartbeat_due() {
+                let beat = monitor.clock_fault(&reason, clock.now_ns());
+                self.publish(beat);
             }
             let (_, in_fault) = monitor.safety(clock.now_ns());
-            runtime.safety.set(true, in_fault);
-            continue;
+            self.runtime.safety.set(true, in_fault);
+            return true;
         }
-        if clock_fault_logged {
+        if self.clock_fault_logged {
             log::info!("/clock ticks again");
-            clock_fault_logged = false;
-            enabled_at.fill(clock.monotonic_ns());
+            self.clock_fault_logged = false;
+            monitor.watch_from(clock.monotonic_ns());
         }
-        let sources = monitor.config.sources.clone();
+        false
+    }
+
+    /// Each enabled source: its newest message through the monitor, or its silence reported.
+    fn sources(&mut self, monitor: &mut Monitor) {
+        let config = self.wiring.config;
+        let clock = self.runtime.clock.clone();
         let now = clock.monotonic_ns();
-        for (k, s) in sources.iter().enumerate().filter(|(_, s)| s.enabled) {
-            let (cloud, last) = {
-                let mut slot = lock(&shared.slots[k]);
+        let enabled = monitor.enabled_sources();
+        for (k, s) in config
+            .sources
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| enabled[*k])
+        {
+            let (message, last) = {
+                let mut slot = lock(&self.wiring.shared.slots[k]);
                 (slot.cloud.take(), slot.last_received)
             };
-            if let Some((cloud, received, clock_ns)) = cloud {
-                if !heard[k] || silent_logged[k] {
-                    let (width, height, frame_id, bytes) = cloud.describe();
-                    let what = match s.kind {
-                        SourceKind::PointCloud => "cloud",
-                        SourceKind::DepthImage => "depth image",
-                    };
-                    log::info!(
-                        "source {}: {} {what} on {} ({width}×{height}, {}, frame '{frame_id}')",
-                        s.name,
-                        if heard[k] { "again a" } else { "first" },
-                        input_topic(config, &s.topic),
-                        mib(bytes),
-                    );
-                    if !heard[k] && transport == Transport::Dds {
-                        warn_burst(&s.name, what, bytes);
-                    }
-                    (heard[k], silent_logged[k]) = (true, false);
-                }
-                let frame = match &cloud {
-                    SourceMessage::Cloud(c) => monitor.on_cloud_message(k, c, received, clock_ns),
-                    SourceMessage::Depth(i) => {
-                        monitor.on_depth_image_message(k, i, received, clock_ns)
-                    }
-                };
-                {
-                    let (d, e) = counts();
-                    outputs.publish(frame.outputs, d, e);
-                }
-                last_published = Instant::now();
-                published_frames += 1;
-                if panic_after.is_some_and(|n| published_frames >= n) {
-                    panic!("injected after {published_frames} frames ({PANIC_AFTER_ENV})");
-                }
-                last_fault_report[k] = None;
+            if let Some((message, received, clock_ns)) = message {
+                self.frame(monitor, k, s, &message, received, clock_ns);
                 continue;
             }
-            // Seconds by the node's clock since the last message (or since enabled).
-            let silent = (now - last.unwrap_or(enabled_at[k])).max(0) as f64 * 1e-9;
-            let timeout = s.source_timeout_s;
-            let due = last_fault_report[k].is_none_or(|t| (now - t) as f64 * 1e-9 >= timeout / 2.0);
-            if silent > timeout && due {
-                if !silent_logged[k] {
+            if let Some((silence, frame)) = monitor.silence(k, last, now, clock.now_ns()) {
+                if silence.first {
                     log::warn!(
                         "source {}: no cloud on {} for {:.1} s (source_timeout {} s): ERROR \
                          until one arrives",
                         s.name,
                         input_topic(config, &s.topic),
-                        silent,
+                        silence.silent_s,
                         s.source_timeout_s
                     );
-                    silent_logged[k] = true;
                 }
-                let frame = monitor.on_source_timeout(k, silent, last.is_none(), clock.now_ns());
-                {
-                    let (d, e) = counts();
-                    outputs.publish(frame.outputs, d, e);
-                }
-                last_published = Instant::now();
-                last_fault_report[k] = Some(now);
+                self.publish(frame.outputs);
             }
         }
-        // The heartbeat: the fused state, aged by the clock, when no frame went out for a
-        // heartbeat period (a subscriber can tell a quiet monitor from a dead one).
-        if last_published.elapsed() >= heartbeat {
-            let (d, e) = counts();
-            outputs.publish(monitor.heartbeat(clock.now_ns()), d, e);
-            last_published = Instant::now();
-        }
-        let (raised, in_fault) = monitor.safety(clock.now_ns());
-        runtime.safety.set(raised, in_fault);
     }
-    Ok(())
+
+    /// Source `k`'s message, received at `received` (the node's clock then: `clock_ns`),
+    /// through the monitor and published.
+    fn frame(
+        &mut self,
+        monitor: &mut Monitor,
+        k: usize,
+        s: &SourceConfig,
+        message: &SourceMessage,
+        received: Instant,
+        clock_ns: i64,
+    ) {
+        if let Some(heard) = monitor.hear(k) {
+            let (width, height, frame_id, bytes) = message.describe();
+            let what = match s.kind {
+                SourceKind::PointCloud => "cloud",
+                SourceKind::DepthImage => "depth image",
+            };
+            log::info!(
+                "source {}: {} {what} on {} ({width}×{height}, {}, frame '{frame_id}')",
+                s.name,
+                if heard == Heard::Again {
+                    "again a"
+                } else {
+                    "first"
+                },
+                input_topic(self.wiring.config, &s.topic),
+                mib(bytes),
+            );
+            if heard == Heard::First && self.transport == Transport::Dds {
+                warn_burst(&s.name, what, bytes);
+            }
+        }
+        let now_ns = Some(clock_ns);
+        let frame = match message {
+            SourceMessage::Cloud(c) => monitor.on_cloud(k, c, received, now_ns),
+            SourceMessage::Depth(i) => monitor.on_depth_image(k, i, received, now_ns),
+        };
+        self.publish(frame.outputs);
+        self.published_frames += 1;
+        let published = self.published_frames;
+        if self.panic_after.is_some_and(|n| published >= n) {
+            panic!("injected after {published} frames ({PANIC_AFTER_ENV})");
+        }
+    }
+
+    /// The heartbeat: the fused state, aged by the clock, when no frame went out for a
+    /// heartbeat period (a subscriber can tell a quiet monitor from a dead one).
+    fn heartbeat(&mut self, monitor: &mut Monitor) {
+        if self.heartbeat_due() {
+            let beat = monitor.heartbeat(self.runtime.clock.now_ns());
+            self.publish(beat);
+        }
+    }
 }
 
 /// What the processing thread shares with the parameter services: the changes they took, and
@@ -362,61 +533,6 @@ pub(super) struct Runtime {
     pub(super) clock: Arc<super::NodeClock>,
 }
 
-/// Subscribes to source `k`'s messages (and a depth source's camera info).
-fn subscribe_source(
-    node: &mut RosNode,
-    executor: &Arc<smol::Executor<'static>>,
-    k: usize,
-    s: &SourceConfig,
-    config: &Config,
-    shared: &Arc<Shared>,
-    info_tx: &std::sync::mpsc::Sender<(usize, CameraInfo)>,
-) -> Result<Vec<smol::Task<()>>> {
-    let mut tasks = Vec::new();
-    let topic = input_topic(config, &s.topic);
-    let qos = if s.reliable {
-        RELIABLE_QOS.history(History::KeepLast { depth: 1 })
-    } else {
-        SENSOR_QOS
-    };
-    match s.kind {
-        SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
-            node,
-            &topic,
-            qos,
-            executor,
-            k,
-            shared,
-            SourceMessage::Cloud,
-        )?),
-        SourceKind::DepthImage => {
-            tasks.push(source_task::<Image<'static>>(
-                node,
-                &topic,
-                qos.clone(),
-                executor,
-                k,
-                shared,
-                SourceMessage::Depth,
-            )?);
-            // The camera model, with the image's QoS as image_transport's CameraSubscriber
-            // gives both; a latched (transient local) publisher is matched too.
-            let topic = input_topic(config, s.camera_info_topic.as_deref().unwrap_or_default());
-            tasks.push(forward(
-                node,
-                &topic,
-                qos,
-                executor,
-                "camera info",
-                info_tx.clone(),
-                move |m: CameraInfo| (k, m),
-                shared,
-            )?);
-        }
-    }
-    Ok(tasks)
-}
-
 /// The names of `config`'s attached objects, for the log.
 fn object_names(config: &Config) -> String {
     let names: Vec<&str> = (config.attached_objects.iter())
@@ -425,15 +541,14 @@ fn object_names(config: &Config) -> String {
     names.join(", ")
 }
 
-/// A monitor being rebuilt with the attached objects of `config`, or the reason its build
-/// failed.
+/// A monitor being rebuilt with run-time attached objects, or the reason its build failed.
 enum Pending {
     Building {
-        done: std::sync::mpsc::Receiver<std::result::Result<Monitor, crate::monitor::MonitorError>>,
-        config: Config,
+        done: Receiver<std::result::Result<Monitor, crate::monitor::MonitorError>>,
+        /// The attached objects' names, for the log.
+        objects: String,
     },
     Failed {
-        config: Config,
         reason: String,
     },
 }
@@ -443,7 +558,6 @@ impl Pending {
     fn start(monitor: &Monitor, config: Config) -> Result<Self> {
         let Some(model) = monitor.robot_without_objects() else {
             return Ok(Self::failed(
-                &config,
                 "this monitor's robot came with its objects attached".into(),
             ));
         };
@@ -453,37 +567,32 @@ impl Pending {
             object_names(&config)
         );
         let (tx, done) = std::sync::mpsc::channel();
-        let build = config.clone();
+        let objects = object_names(&config);
         std::thread::Builder::new()
             .name("monitor rebuild".into())
             .spawn(move || {
-                let _ = tx.send(Monitor::with_model(build, model, &|_| {}));
+                let _ = tx.send(Monitor::with_model(config, model, &|_| {}));
             })?;
-        Ok(Self::Building { done, config })
+        Ok(Self::Building { done, objects })
     }
 
-    fn failed(config: &Config, reason: String) -> Self {
+    fn failed(reason: String) -> Self {
         log::error!(
             "the attached objects set at run time could not be built: {reason}; not monitoring \
              until they are changed"
         );
-        Self::Failed {
-            config: config.clone(),
-            reason,
-        }
+        Self::Failed { reason }
     }
 
-    /// The config being built and why the node is not monitoring.
-    fn describe(&self) -> (&Config, String) {
+    /// Why the node is not monitoring.
+    fn reason(&self) -> String {
         match self {
-            Self::Building { config, .. } => (
-                config,
-                "building the monitor with the attached objects set at run time".into(),
-            ),
-            Self::Failed { config, reason } => (
-                config,
-                format!("the attached objects set at run time could not be built: {reason}"),
-            ),
+            Self::Building { .. } => {
+                "building the monitor with the attached objects set at run time".into()
+            }
+            Self::Failed { reason } => {
+                format!("the attached objects set at run time could not be built: {reason}")
+            }
         }
     }
 }

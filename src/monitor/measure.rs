@@ -1,0 +1,381 @@
+//! One frame of a source, measured: the stamp against the clock (0, older than the source's
+//! `source_timeout` or ahead by more than `future_stamp_tolerance` is a fault) → the points
+//! (a cloud's, outside the source's `min_range`/`max_range` made invalid; a depth image's made
+//! with the source's last camera model, into a buffer the monitor keeps) → the joint values at
+//! the stamp (`tf::JointStateBuffer`) → forward kinematics → the sensor frame in the robot's
+//! root frame at the stamp (`tf::root_from_sensor`) → the points of the source's exclusion
+//! volumes dropped (`cloud::exclusion`, each volume placed in the sensor frame at the stamp) →
+//! the query (`query::Engine`; with `stray_filter` on, `stray` rejects isolated nearest
+//! points) → the separation stage (`crate::separation`: joint velocities at the stamp, link
+//! twists, the speed-scaling factor through `SpeedScaler`) → the source's report and the
+//! fused outputs. Any step that fails makes the frame a fault with its reason (`fault`).
+
+use std::time::Instant;
+
+use nalgebra::Isometry3;
+
+use crate::cloud::depth;
+use crate::cloud::exclusion::{self, ExclusionVolume};
+use crate::cloud::RangeLimits;
+use crate::msg::{Image, PointCloud2};
+use crate::query::{Outcome, QueryResult};
+use crate::separation::{self, SpeedScaling};
+use crate::tf;
+
+use super::fault::Fault;
+use super::fusion::Moment;
+use super::pipeline::{Frame, Monitor};
+use super::report::{published_distance, FrameFacts};
+use super::stray;
+
+/// What a processed cloud leaves for the separation stage.
+pub(super) struct Motion {
+    poses: Vec<Isometry3<f64>>,
+    stamp_ns: i64,
+    /// Clock minus stamp, s (0 without a clock).
+    age_s: f64,
+}
+
+/// What a source's message gives its query: a cloud's points, or a depth image with the buffer
+/// its points are made into where they are made on the host.
+enum Points<'a, 'b> {
+    Cloud {
+        points: &'a mut [[f32; 3]],
+        width: Option<usize>,
+    },
+    Depth {
+        view: &'a depth::DepthView<'b>,
+        points: &'a mut Vec<[f32; 3]>,
+    },
+}
+
+impl Monitor {
+    /// The frame of source `source` that `process` measures, received at `start`: its
+    /// separation stage, its report and the fused outputs.
+    pub(super) fn finish_frame(
+        &mut self,
+        source: usize,
+        start: Instant,
+        stamp_ns: i64,
+        now_ns: Option<i64>,
+        process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion), Fault>,
+    ) -> Frame {
+        let processed = process(self);
+        let processing_s = start.elapsed().as_secs_f64();
+        let speed = self
+            .config
+            .ssm
+            .enabled
+            .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
+        let result = processed.map(|(r, _)| r);
+        let name = self.config.sources[source].name.clone();
+        let fusion_start = Instant::now();
+        let facts = FrameFacts {
+            source: &name,
+            result: &result,
+            processing_s,
+            speed: speed.as_ref(),
+        };
+        let over_budget =
+            self.sources[source].frame(&self.config, &self.model.name, stamp_ns, facts);
+        let moment = Moment {
+            source,
+            stamp_ns,
+            now_ns: now_ns.unwrap_or(stamp_ns),
+            over_budget,
+            factor: speed.as_ref().map(|s| s.factor),
+            beat: false,
+        };
+        let outputs = self.outputs(&moment);
+        Frame {
+            source: name,
+            stamp_ns,
+            result,
+            processing_s,
+            speed,
+            outputs_s: fusion_start.elapsed().as_secs_f64(),
+            outputs,
+        }
+    }
+
+    /// The separation stage (`crate::separation`): the factor this frame allows, through the
+    /// scaler. A frame without a distance, or without joint velocities, allows 0.
+    fn speed_scaling(
+        &mut self,
+        source: usize,
+        stamp_ns: i64,
+        processed: &Result<(QueryResult, Motion), Fault>,
+        processing_s: f64,
+    ) -> SpeedScaling {
+        let start = Instant::now();
+        let ssm = &self.config.ssm;
+        let separation = match processed {
+            Err(fault) => Err(format!("no distance: {fault}")),
+            Ok((r, _)) if published_distance(r).is_none() => {
+                Err("no distance: no valid points, or every valid point self-filtered".into())
+            }
+            Ok((r, m)) => match self
+                .joints
+                .velocities_at(Some(m.stamp_ns), self.config.joint_state_tolerance_s)
+            {
+                Err(e) => Err(format!("no joint velocity: {e}")),
+                Ok((q_dot, velocity_source)) => {
+                    let twists = self.model.kinematics.link_velocities(&q_dot, &m.poses);
+                    let scale = separation::nominal_scale(ssm, self.scaler.factor());
+                    let constraints = separation::constraints(
+                        ssm,
+                        r,
+                        self.engine.links(),
+                        &m.poses,
+                        &twists,
+                        scale,
+                    );
+                    let reaction_s = ssm.reaction_time_s + m.age_s + processing_s;
+                    separation::separation(ssm, &constraints, reaction_s, scale, velocity_source)
+                        .ok_or_else(|| "no link".to_string())
+                }
+            },
+        };
+        let allowed = separation.as_ref().ok().map(|s| s.allowed);
+        let factor = self.scaler.update(source, stamp_ns, allowed);
+        SpeedScaling {
+            factor,
+            separation,
+            stage_s: start.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The range limits of source `source`.
+    fn range(&self, source: usize) -> Option<RangeLimits> {
+        let s = &self.config.sources[source];
+        RangeLimits::new(s.min_range_m, s.max_range_m)
+    }
+
+    /// The stamp against the clock: a cloud with no stamp, one older than the source's
+    /// `source_timeout` or one ahead of the clock is a fault before anything else is done.
+    fn check_stamp(&self, source: usize, stamp_ns: i64, now_ns: Option<i64>) -> Result<(), Fault> {
+        if stamp_ns == 0 {
+            return Err(Fault::NoStamp);
+        }
+        let Some(now_ns) = now_ns else {
+            return Ok(());
+        };
+        let age_s = (now_ns as f64 - stamp_ns as f64) * 1e-9;
+        let timeout_s = self.config.sources[source].source_timeout_s;
+        let tolerance_s = self.config.future_stamp_tolerance_s;
+        if age_s > timeout_s {
+            return Err(Fault::StaleCloud { age_s, timeout_s });
+        }
+        if -age_s > tolerance_s {
+            return Err(Fault::FutureCloud {
+                ahead_s: -age_s,
+                tolerance_s,
+            });
+        }
+        Ok(())
+    }
+
+    /// A cloud: its points (those outside the source's range made invalid), then measured.
+    pub(super) fn process(
+        &mut self,
+        source: usize,
+        message: &PointCloud2,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
+        let stamp_ns = message.header.stamp.as_nanos();
+        self.check_stamp(source, stamp_ns, now_ns)?;
+        let mut cloud = message.to_cloud()?;
+        let frame = cloud.frame_id.take().filter(|f| !f.is_empty());
+        let frame = frame.ok_or(Fault::NoFrame)?;
+        if let Some(range) = self.range(source) {
+            for p in &mut cloud.points {
+                if !range.keeps(*p) {
+                    *p = [f32::NAN; 3];
+                }
+            }
+        }
+        let width = (cloud.height > 1).then_some(cloud.width as usize);
+        let points = Points::Cloud {
+            points: &mut cloud.points,
+            width,
+        };
+        self.measure(source, stamp_ns, &frame, points, now_ns)
+    }
+
+    /// A depth image: its points made with the source's camera model (`cloud::depth`), then
+    /// measured as a cloud's (made on the GPU where the query runs there: `Points::Depth`).
+    pub(super) fn process_depth(
+        &mut self,
+        source: usize,
+        image: &Image,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
+        let stamp_ns = image.header.stamp.as_nanos();
+        self.check_stamp(source, stamp_ns, now_ns)?;
+        let frame = Some(image.header.frame_id.clone()).filter(|f| !f.is_empty());
+        let frame = frame.ok_or(Fault::NoFrame)?;
+        let camera = self.sources[source]
+            .camera()
+            .map_err(|reason| Fault::NoCameraInfo {
+                topic: self.camera_info_topic(source),
+                reason,
+            })?;
+        let range = self.range(source);
+        let mut points = std::mem::take(&mut self.depth_points);
+        let result = depth::DepthView::new(image, &camera, range)
+            .map_err(Fault::Decode)
+            .and_then(|view| {
+                let points = Points::Depth {
+                    view: &view,
+                    points: &mut points,
+                };
+                self.measure(source, stamp_ns, &frame, points, now_ns)
+            });
+        self.depth_points = points;
+        result
+    }
+
+    /// The query of source `source`'s cloud, its points in `frame` at `stamp_ns` (the
+    /// exclusion volumes that apply to it drop theirs first), and the motion the separation
+    /// stage needs. A depth image goes to the engine whole (`Engine::query_depth`: on the GPU
+    /// its points are made there) unless an exclusion volume or the stray filter needs its
+    /// points here.
+    fn measure(
+        &mut self,
+        source: usize,
+        stamp_ns: i64,
+        frame: &str,
+        points: Points,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
+        let stamp = Some(stamp_ns);
+        let q = self.joints.at(stamp, self.config.joint_state_tolerance_s)?;
+        let poses = self.model.kinematics.link_poses(&q);
+        let kinematics = &self.model.kinematics;
+        let link_pose = |name: &str| -> Option<Isometry3<f64>> {
+            kinematics.link_index(name).map(|i| poses[i])
+        };
+        let root_from_sensor = tf::root_from_sensor(
+            &self.tf,
+            frame,
+            kinematics.root_link(),
+            stamp,
+            self.config.tf_tolerance_s,
+            &link_pose,
+        )?;
+        let name = &self.config.sources[source].name;
+        let needs_points = self.config.stray.enabled()
+            || (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));
+        let (points, width) = match points {
+            Points::Depth { view, points } if !needs_points => {
+                let result = self.engine.query_depth(
+                    view,
+                    points,
+                    &root_from_sensor,
+                    &poses,
+                    &self.config.query,
+                )?;
+                return self.finish_measure(result, Vec::new(), poses, stamp_ns, now_ns);
+            }
+            Points::Depth { view, points } => {
+                view.unproject_into(points);
+                let width = (view.height() > 1).then_some(view.width());
+                (points.as_mut_slice(), width)
+            }
+            Points::Cloud { points, width } => (points, width),
+        };
+        let excluded = self.exclude(source, points, &root_from_sensor, stamp, &link_pose)?;
+        let mut result = self.engine.query_image(
+            points,
+            width,
+            &root_from_sensor,
+            &poses,
+            &self.config.query,
+        )?;
+        if self.config.stray.enabled() {
+            let input = stray::Input {
+                points,
+                width,
+                root_from_sensor: &root_from_sensor,
+                poses: &poses,
+                options: &self.config.query,
+            };
+            result = stray::reject_strays(&mut self.engine, &self.config.stray, input, result)?;
+        }
+        self.finish_measure(result, excluded, poses, stamp_ns, now_ns)
+    }
+
+    /// A measured source's result with the counts of its exclusion volumes, and its motion: a
+    /// cloud whose valid points all lay in exclusion volumes has nothing near; one without valid
+    /// points is blind.
+    fn finish_measure(
+        &self,
+        mut result: QueryResult,
+        excluded: Vec<(String, u64)>,
+        poses: Vec<Isometry3<f64>>,
+        stamp_ns: i64,
+        now_ns: Option<i64>,
+    ) -> Result<(QueryResult, Motion), Fault> {
+        let excluded_any = excluded.iter().any(|(_, n)| *n > 0);
+        result.excluded = excluded;
+        if result.outcome == Outcome::NoPoints {
+            // Valid points that all lay in exclusion volumes: the sensor sees, and what it sees
+            // is known. Only a cloud without valid points is blind.
+            if !excluded_any {
+                return Err(Fault::NoValidPoints {
+                    total: result.counts.total,
+                });
+            }
+            result.outcome = Outcome::NothingWithinMaxDistance;
+        }
+        let motion = Motion {
+            poses,
+            stamp_ns,
+            age_s: now_ns.map_or(0.0, |n| ((n - stamp_ns) as f64 * 1e-9).max(0.0)),
+        };
+        Ok((result, motion))
+    }
+
+    /// Drops the points of source `source` that lie in its exclusion volumes (each placed in
+    /// the sensor's frame at `stamp`, as the sensor itself is); the count of each volume that
+    /// applies. A volume whose frame cannot be placed is a fault: its points would otherwise
+    /// stop the cell, or be dropped in the wrong place.
+    fn exclude(
+        &self,
+        source: usize,
+        points: &mut [[f32; 3]],
+        root_from_sensor: &Isometry3<f64>,
+        stamp: Option<i64>,
+        link_pose: &dyn Fn(&str) -> Option<Isometry3<f64>>,
+    ) -> Result<Vec<(String, u64)>, Fault> {
+        let name = &self.config.sources[source].name;
+        let volumes: Vec<&ExclusionVolume> = (self.config.exclusion_volumes.iter())
+            .filter(|v| v.applies_to(name))
+            .collect();
+        if volumes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let sensor_from_root = root_from_sensor.inverse();
+        let placed = volumes
+            .iter()
+            .map(|v| {
+                let root_from_frame = tf::root_from_sensor(
+                    &self.tf,
+                    &v.frame,
+                    self.model.kinematics.root_link(),
+                    stamp,
+                    self.config.tf_tolerance_s,
+                    link_pose,
+                )
+                .map_err(|source| Fault::ExclusionFrame {
+                    volume: v.name.clone(),
+                    source,
+                })?;
+                let sensor_from_volume = sensor_from_root * root_from_frame * v.frame_from_volume;
+                Ok(exclusion::Placed::new(&v.shape, &sensor_from_volume))
+            })
+            .collect::<Result<Vec<_>, Fault>>()?;
+        let counts = exclusion::exclude(points, &placed);
+        Ok(volumes.iter().map(|v| v.name.clone()).zip(counts).collect())
+    }
+}

@@ -1,0 +1,271 @@
+//! The monitor itself: what it holds (the robot, the query engine, the transform and joint
+//! buffers, every configured [`Source`], the cell's level, the speed scaler) and its one entry
+//! point per input kind, each taking a decoded message: `/tf` and `/tf_static`, the joint
+//! states, a depth source's CameraInfo, a source's PointCloud2 or depth Image (or why its
+//! payload could not be decoded). Each cloud or image gives a [`Frame`] (`measure`: the stamp,
+//! the points, the poses, the query, the separation stage), fused with every source's latest
+//! result into the node's outputs (`fusion`, then `outputs`).
+
+use std::time::Instant;
+
+use crate::cloud::depth::PinholeCamera;
+use crate::cloud::CloudError;
+use crate::config::Config;
+use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
+use crate::query::{Backend, Engine, QueryResult};
+use crate::robot::RobotModel;
+use crate::separation::{SpeedScaler, SpeedScaling};
+use crate::tf::{JointStateBuffer, TfBuffer};
+
+use super::fault::{Fault, InputError};
+use super::fusion::{fuse, Moment};
+use super::level::{Level, LevelTracker};
+use super::outputs::Outputs;
+use super::source::{Part, Source};
+
+/// One processed cloud.
+#[derive(Debug)]
+pub struct Frame {
+    pub source: String,
+    pub stamp_ns: i64,
+    pub result: Result<QueryResult, Fault>,
+    /// Decode, poses and query, s.
+    pub processing_s: f64,
+    /// Speed and separation monitoring (`None` when `speed_scaling.enabled` is off).
+    pub speed: Option<SpeedScaling>,
+    /// Fusion with the other sources' latest results and the outputs' messages, s.
+    pub outputs_s: f64,
+    pub outputs: Outputs,
+}
+
+pub struct Monitor {
+    pub config: Config,
+    pub model: RobotModel,
+    pub(super) engine: Engine,
+    pub(super) tf: TfBuffer,
+    pub(super) joints: JointStateBuffer,
+    /// Every configured source, in the config's order.
+    pub(super) sources: Vec<Source>,
+    /// The cell's one level, over every enabled source (`fusion`).
+    pub(super) fused: LevelTracker,
+    pub(super) scaler: SpeedScaler,
+    /// The points of the last depth image (kept so that its allocation is reused).
+    pub(super) depth_points: Vec<[f32; 3]>,
+    /// What a change of attached objects is built from ([`Monitor::robot_without_objects`]).
+    pub(super) base: Base,
+}
+
+/// The robot without the config's attached objects.
+pub(super) enum Base {
+    /// `model` itself: the config attaches none.
+    Model,
+    /// A copy of the robot taken before they joined it.
+    Detached(RobotModel),
+    /// Not known: the monitor was made from a model with its objects attached
+    /// ([`Monitor::with_trees`]).
+    Unknown,
+}
+
+impl Monitor {
+    /// Loads the GPU driver now when the backend may use it (`gpu`, or `auto`) instead of on
+    /// the first cloud that needs it: the live node does this before it goes on the network, so
+    /// that no frame's latency carries the probe (about 0.1 s with a software Vulkan driver).
+    /// `replay` leaves it lazy, so that clouds below `gpu_min_points` and depth images below
+    /// `gpu_min_depth_pixels` never load a driver.
+    pub fn probe_gpu(&mut self) {
+        if self.config.query.backend != Backend::Cpu {
+            self.engine.gpu();
+        }
+    }
+
+    /// How many links the engine monitors (after `links`/`exclude_links`).
+    pub fn links(&self) -> usize {
+        self.engine.links().len()
+    }
+
+    /// Takes `config`, a run-time change of the running one that `Config::with_changes` made
+    /// (only settable parameters differ: thresholds, the stray filter, sources' enabled flags,
+    /// exclusion volumes). Levels held stay held; a source enabled now is in fault until its
+    /// first frame, and its speed factor starts at 0.
+    pub fn reconfigure(&mut self, config: Config) {
+        let old = &self.config.sources;
+        for (k, source) in self.sources.iter_mut().enumerate() {
+            source.reconfigure(&config, old[k].enabled != config.sources[k].enabled);
+        }
+        self.fused.set_thresholds(&config);
+        let was = self.enabled_sources();
+        self.scaler.set_enabled(&was, &enabled(&config));
+        self.config = config;
+    }
+
+    /// Whether the run-time change `config` changes the robot (its attached objects): then a
+    /// monitor is built for it (`Monitor::with_model`) instead of reconfiguring this one.
+    pub fn needs_rebuild(&self, config: &Config) -> bool {
+        config.attached_objects != self.config.attached_objects
+    }
+
+    /// Whether each source is enabled.
+    pub fn enabled_sources(&self) -> Vec<bool> {
+        enabled(&self.config)
+    }
+
+    /// The robot's own links (its attached objects left out).
+    pub fn robot_links(&self) -> Vec<String> {
+        let objects = &self.config.attached_objects;
+        (self.model.kinematics.link_names().iter())
+            .filter(|l| !objects.iter().any(|o| &o.name == *l))
+            .cloned()
+            .collect()
+    }
+
+    /// Whether the cell's safety stop is raised now, and whether each source is in fault at
+    /// `now_ns` (what a run-time change is checked against: `Config::weakening`).
+    pub fn safety(&self, now_ns: i64) -> (bool, Vec<bool>) {
+        let in_fault = (self.config.sources.iter().zip(&self.sources))
+            .map(|(s, source)| s.enabled && matches!(source.part(s, now_ns), Part::Fault { .. }))
+            .collect();
+        (self.fused.level() == Level::Error, in_fault)
+    }
+
+    /// Adds a `tf2_msgs/TFMessage` from `/tf` or (`is_static`) `/tf_static`.
+    pub fn on_tf(&mut self, topic: &str, m: &TfMessage, is_static: bool) -> Result<(), InputError> {
+        for t in &m.transforms {
+            self.tf
+                .insert(t, is_static)
+                .map_err(|source| InputError::Tf {
+                    topic: topic.into(),
+                    source,
+                })?;
+        }
+        Ok(())
+    }
+
+    /// Adds a `sensor_msgs/JointState`.
+    pub fn on_joint_state(&mut self, topic: &str, m: &JointState) -> Result<(), InputError> {
+        self.joints.insert(m).map_err(|source| InputError::Joints {
+            topic: topic.into(),
+            source,
+        })
+    }
+
+    /// Which source, if any, publishes on `topic`.
+    pub fn source_of(&self, topic: &str) -> Option<usize> {
+        self.config
+            .sources
+            .iter()
+            .position(|s| s.enabled && s.topic == topic)
+    }
+
+    /// The enabled depth image sources whose CameraInfo comes on `topic`.
+    pub fn camera_info_sources(&self, topic: &str) -> Vec<usize> {
+        (self.config.sources.iter().enumerate())
+            .filter(|(_, s)| s.enabled && s.camera_info_topic.as_deref() == Some(topic))
+            .map(|(k, _)| k)
+            .collect()
+    }
+
+    /// The CameraInfo topic of depth image source `source` (for messages).
+    pub(super) fn camera_info_topic(&self, source: usize) -> String {
+        let s = &self.config.sources[source];
+        s.camera_info_topic.clone().unwrap_or_default()
+    }
+
+    /// Takes a `sensor_msgs/CameraInfo` of depth image source `source`: its camera model is
+    /// used for the source's next depth images; a refused one (the error names the field)
+    /// makes them faults that say why, until a good one arrives.
+    pub fn on_camera_info(&mut self, source: usize, m: &CameraInfo) -> Result<(), InputError> {
+        let camera = PinholeCamera::from_camera_info(m);
+        self.sources[source].set_camera(camera.as_ref().map_err(|e| e.to_string()).copied());
+        camera.map(|_| ()).map_err(|e| InputError::Camera {
+            topic: self.camera_info_topic(source),
+            source: Box::new(e),
+        })
+    }
+
+    /// Processes one cloud of source `source`, received at `received`; `now_ns` is the clock
+    /// the cloud's stamp is checked against (the node's clock at receipt; in replay, the bag's
+    /// log time), `None` where there is none (a replay that takes each cloud's stamp as its
+    /// time: only a stamp of 0 is then refused).
+    pub fn on_cloud(
+        &mut self,
+        source: usize,
+        m: &PointCloud2,
+        received: Instant,
+        now_ns: Option<i64>,
+    ) -> Frame {
+        let stamp_ns = m.header.stamp.as_nanos();
+        self.finish_frame(source, received, stamp_ns, now_ns, |me| {
+            me.process(source, m, now_ns)
+        })
+    }
+
+    /// Processes one depth image of source `source` (as [`Monitor::on_cloud`]).
+    pub fn on_depth_image(
+        &mut self,
+        source: usize,
+        m: &Image,
+        received: Instant,
+        now_ns: Option<i64>,
+    ) -> Frame {
+        let stamp_ns = m.header.stamp.as_nanos();
+        self.finish_frame(source, received, stamp_ns, now_ns, |me| {
+            me.process_depth(source, m, now_ns)
+        })
+    }
+
+    /// A message of source `source` whose payload could not be decoded (`error`): a decode
+    /// fault, stamped 0 (as [`Monitor::on_cloud`]).
+    pub fn on_undecodable(
+        &mut self,
+        source: usize,
+        error: CloudError,
+        received: Instant,
+        now_ns: Option<i64>,
+    ) -> Frame {
+        self.finish_frame(source, received, 0, now_ns, |_| Err(error.into()))
+    }
+
+    /// The clock went back (a bag played again, a simulation reset) at `watch_ns` by the
+    /// node's monotonic clock: everything received is from another time line. Forgets the
+    /// dynamic transforms, the joint states, the sources' results (each source is in fault
+    /// until its next frame, its silence counted from now) and the speed scaler's history.
+    /// Levels held stay held, so nothing is released by the jump; static transforms and camera
+    /// models, which hold for all time, are kept.
+    pub fn on_clock_jump(&mut self, watch_ns: i64) {
+        self.tf.forget_dynamic();
+        self.joints.forget();
+        self.sources.iter_mut().for_each(|s| s.restart(watch_ns));
+        self.scaler = Self::scaler(&self.config);
+    }
+
+    /// The cell's fused outputs at `now_ns` without a new frame (the node's heartbeat): every
+    /// source's latest result aged by the clock, so a source gone stale shows at once.
+    pub fn heartbeat(&mut self, now_ns: i64) -> Outputs {
+        let moment = Moment {
+            source: self
+                .config
+                .sources
+                .iter()
+                .position(|s| s.enabled)
+                .unwrap_or(0),
+            stamp_ns: now_ns,
+            now_ns,
+            over_budget: false,
+            factor: self.config.ssm.enabled.then(|| self.scaler.factor()),
+            beat: true,
+        };
+        self.outputs(&moment)
+    }
+
+    /// The fused picture at `moment`, rendered.
+    pub(super) fn outputs(&mut self, moment: &Moment) -> Outputs {
+        let fused = fuse(&self.config, &self.sources, &mut self.fused, moment);
+        let root = self.model.kinematics.root_link();
+        Outputs::render(&self.config, root, &self.model.name, fused)
+    }
+}
+
+/// Whether each of `config`'s sources is enabled.
+fn enabled(config: &Config) -> Vec<bool> {
+    config.sources.iter().map(|s| s.enabled).collect()
+}

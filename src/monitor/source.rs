@@ -1,0 +1,248 @@
+//! A source: one configured camera or lidar and everything the monitor keeps of it — its
+//! latest frame (stamp, result or fault, report), its own level, the camera model of a depth
+//! image source, and how the node watches it (heard from yet, silent since when, its silence
+//! last reported when). Times on the watch are the node's monotonic clock, ns; stamps are the
+//! clock of the frames (ns since the epoch).
+//!
+//! A source is **in fault** (its [`Part`] in the fused picture) when its latest frame was a
+//! fault, when nothing was received from it yet, or when its latest result is older than its
+//! `source_timeout` by the clock of the frame being fused. A silent source is reported as a
+//! fault every half `source_timeout` while its silence lasts (`Source::silence`).
+
+use crate::cloud::depth::PinholeCamera;
+use crate::config::{Config, SourceConfig};
+use crate::msg::DiagnosticStatus;
+use crate::query::QueryResult;
+
+use super::level::LevelTracker;
+use super::report::{FrameFacts, SourceReport};
+
+/// One configured source (see the module doc).
+#[derive(Debug, Clone)]
+pub struct Source {
+    /// Its latest frame (`None`: nothing since it was enabled, or since the clock went back).
+    latest: Option<Latest>,
+    /// Its own level, for its own status.
+    tracker: LevelTracker,
+    /// The camera model of its last CameraInfo, or why that one was refused (depth image
+    /// sources; `None` until one arrives).
+    camera: Option<Result<PinholeCamera, String>>,
+    watch: Watch,
+}
+
+/// A source's latest frame.
+#[derive(Debug, Clone)]
+pub struct Latest {
+    pub stamp_ns: i64,
+    /// The result, or the fault's kind and reason.
+    pub result: Result<QueryResult, (&'static str, String)>,
+    pub report: SourceReport,
+}
+
+/// A source's part in the fused picture at one instant.
+pub enum Part<'a> {
+    /// In fault: the kind and the reason, and the source's own status where its latest frame
+    /// was the fault.
+    Fault {
+        kind: &'static str,
+        reason: String,
+        status: Option<&'a DiagnosticStatus>,
+    },
+    Measured(&'a Latest),
+}
+
+/// How the node watches a source's messages (the node's monotonic clock, ns).
+#[derive(Debug, Clone, Default)]
+struct Watch {
+    /// A message came since the source was enabled.
+    heard: bool,
+    /// Its silence was reported (and not yet ended by a message).
+    silent_logged: bool,
+    /// Since when its silence counts: when it was enabled, or the node's clock last restarted.
+    since_ns: i64,
+    /// When its silence was last reported as a fault.
+    last_report_ns: Option<i64>,
+}
+
+/// What a message of a source ends, for the node's log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Heard {
+    /// The first since the source was enabled.
+    First,
+    /// The first after a silence that was reported.
+    Again,
+}
+
+/// A silence due to be reported as a fault.
+#[derive(Debug, Clone, Copy)]
+pub struct Silence {
+    /// Seconds since the last message (or since the source was enabled).
+    pub silent_s: f64,
+    /// Nothing was received since it was enabled.
+    pub never: bool,
+    /// The first report of this silence (the node says so once).
+    pub first: bool,
+}
+
+impl Source {
+    pub fn new(config: &Config) -> Self {
+        Self {
+            latest: None,
+            tracker: LevelTracker::new(config),
+            camera: None,
+            watch: Watch::default(),
+        }
+    }
+
+    /// Takes a frame: its report (with the source's own level) and its result as the latest.
+    /// Whether the frame was over the latency budget.
+    pub fn frame(
+        &mut self,
+        config: &Config,
+        robot: &str,
+        stamp_ns: i64,
+        facts: FrameFacts,
+    ) -> bool {
+        let report = SourceReport::new(config, robot, facts, &mut self.tracker);
+        let over_budget = report.over_budget;
+        self.latest = Some(Latest {
+            stamp_ns,
+            result: match facts.result {
+                Ok(r) => Ok(r.clone()),
+                Err(f) => Err((f.kind(), f.to_string())),
+            },
+            report,
+        });
+        over_budget
+    }
+
+    /// Its part at `now_ns` (see the module doc); `config` is the source's own.
+    pub fn part(&self, config: &SourceConfig, now_ns: i64) -> Part<'_> {
+        match &self.latest {
+            None => Part::Fault {
+                kind: "no_message_yet",
+                reason: "nothing received yet".into(),
+                status: None,
+            },
+            Some(Latest {
+                result: Err((kind, reason)),
+                report,
+                ..
+            }) => Part::Fault {
+                kind,
+                reason: reason.clone(),
+                status: Some(&report.status),
+            },
+            Some(l) => {
+                let age_s = (now_ns as f64 - l.stamp_ns as f64) * 1e-9;
+                if age_s > config.source_timeout_s {
+                    Part::Fault {
+                        kind: "stale_source",
+                        reason: format!(
+                            "its latest result is stamped {age_s:.3} s before now \
+                             (source_timeout {} s)",
+                            config.source_timeout_s
+                        ),
+                        status: None,
+                    }
+                } else {
+                    Part::Measured(l)
+                }
+            }
+        }
+    }
+
+    /// Takes the thresholds of `config` (the level held is kept); a source enabled or disabled
+    /// by the change (`toggled`) starts anew: never heard from, in fault until its first frame.
+    pub fn reconfigure(&mut self, config: &Config, toggled: bool) {
+        self.tracker.set_thresholds(config);
+        if toggled {
+            self.latest = None;
+            self.tracker = LevelTracker::new(config);
+        }
+    }
+
+    /// Forgets its latest result (it is in fault until its next frame); its level is kept.
+    pub fn forget_result(&mut self) {
+        self.latest = None;
+    }
+
+    /// Takes a CameraInfo's camera model, or why it was refused.
+    pub fn set_camera(&mut self, camera: Result<PinholeCamera, String>) {
+        self.camera = Some(camera);
+    }
+
+    /// The camera model its depth images are made into points with, or why there is none.
+    pub fn camera(&self) -> Result<PinholeCamera, String> {
+        match &self.camera {
+            Some(Ok(c)) => Ok(*c),
+            Some(Err(e)) => Err(format!("the last CameraInfo was refused: {e}")),
+            None => Err("no CameraInfo received yet".into()),
+        }
+    }
+
+    /// Takes over what `old` (the same source in the monitor this one replaces) received and
+    /// how the node watched it: its camera model and its silence.
+    pub fn take_inputs(&mut self, old: &mut Source) {
+        std::mem::swap(&mut self.camera, &mut old.camera);
+        std::mem::swap(&mut self.watch, &mut old.watch);
+    }
+
+    /// Enabled at `now_ns`: not heard from yet, its silence counted from now.
+    pub fn enable(&mut self, now_ns: i64) {
+        self.watch = Watch {
+            since_ns: now_ns,
+            ..Watch::default()
+        };
+    }
+
+    /// Its silence counts from `now_ns` (the node starts serving, or its clock ticks again).
+    pub fn watch_from(&mut self, now_ns: i64) {
+        self.watch.since_ns = now_ns;
+    }
+
+    /// The clock went back at `now_ns`: its result is forgotten and its silence counts anew.
+    pub fn restart(&mut self, now_ns: i64) {
+        self.latest = None;
+        self.watch.since_ns = now_ns;
+        self.watch.last_report_ns = None;
+    }
+
+    /// A message arrived: what it ends, where the node says so (its first, or the first after
+    /// a reported silence).
+    pub fn hear(&mut self) -> Option<Heard> {
+        let w = &mut self.watch;
+        w.last_report_ns = None;
+        if w.heard && !w.silent_logged {
+            return None;
+        }
+        let heard = if w.heard { Heard::Again } else { Heard::First };
+        (w.heard, w.silent_logged) = (true, false);
+        Some(heard)
+    }
+
+    /// No message at `now_ns` (the last one at `last_ns`, `None` since enabled): a silence
+    /// longer than `timeout_s` is due to be reported when it never was, or half `timeout_s`
+    /// after it last was.
+    pub fn silence(
+        &mut self,
+        timeout_s: f64,
+        last_ns: Option<i64>,
+        now_ns: i64,
+    ) -> Option<Silence> {
+        let w = &mut self.watch;
+        let silent_s = (now_ns - last_ns.unwrap_or(w.since_ns)).max(0) as f64 * 1e-9;
+        let due = (w.last_report_ns).is_none_or(|t| (now_ns - t) as f64 * 1e-9 >= timeout_s / 2.0);
+        if !(silent_s > timeout_s && due) {
+            return None;
+        }
+        let first = !w.silent_logged;
+        w.silent_logged = true;
+        w.last_report_ns = Some(now_ns);
+        Some(Silence {
+            silent_s,
+            never: last_ns.is_none(),
+            first,
+        })
+    }
+}
