@@ -8,7 +8,9 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
 use super::clock::NodeClock;
-use super::{lock, QosProfile, Result, RosNode};
+use super::error::{lock, Result};
+use super::transport::RosNode;
+use ros2_client::qos::QosProfile;
 use crate::msg::{Image, OwnedMessage, PointCloud2};
 
 /// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer

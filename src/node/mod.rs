@@ -61,9 +61,3 @@ pub use socket::{granted_receive_buffer, SOCKET_BUFFER};
 pub use transport::{context, domain_id, source_subscription, Pub, RosNode, Transport};
 
 pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
-
-// The names `serve` and `inputs` take from here (`super::…`).
-pub(crate) use error::lock;
-use error::Result;
-use socket::{mib, warn_burst};
-use up::log_up;

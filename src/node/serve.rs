@@ -26,10 +26,15 @@ use std::time::{Duration, Instant};
 use super::inputs::{forward, source_task, Shared, Slot, SourceMessage};
 use super::parameters::Safety;
 use super::publishers::Publishers;
-use super::{
-    input_topic, lock, log_up, mib, warn_burst, History, QosProfile, Result, RosNode, Transport,
-    PANIC_AFTER_ENV, RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS,
-};
+use super::clock::NodeClock;
+use super::error::{lock, Result};
+use super::publishers::PANIC_AFTER_ENV;
+use super::qos::{RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS};
+use super::ros_args::input_topic;
+use super::socket::{mib, warn_burst};
+use super::transport::{RosNode, Transport};
+use super::up::log_up;
+use ros2_client::qos::{History, QosProfile};
 use crate::config::{Config, SourceConfig, SourceKind};
 use crate::monitor::{Heard, Monitor, Outputs};
 use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
@@ -530,7 +535,7 @@ pub(super) struct Runtime {
     pub(super) apply: std::sync::mpsc::Receiver<Config>,
     pub(super) safety: Arc<Safety>,
     /// The node's clock (`clock`).
-    pub(super) clock: Arc<super::NodeClock>,
+    pub(super) clock: Arc<NodeClock>,
 }
 
 /// The names of `config`'s attached objects, for the log.
