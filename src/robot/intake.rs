@@ -42,10 +42,10 @@
 
 use std::collections::HashMap;
 
-use super::exact::ExactSurface;
 use super::fill::Fill;
 use super::mesh::{check_soup, extent, ClosedMesh, MeshError};
 use super::solid::Solid;
+use super::surface::ExactSurface;
 use crate::geometry::{dist, dot, mesh_volume, sub, triangle_area, widen};
 
 /// Welding tolerance relative to the mesh's largest extent.

@@ -19,7 +19,7 @@ use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 
-use super::RobotError;
+use super::error::RobotError;
 
 /// How a joint moves its child link.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -11,13 +11,14 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3};
 
+use super::error::RobotError;
 use super::intake::{intake, MeshReport};
 use super::kinematics::{pose_from_urdf, Kinematics};
 use super::mesh::{
     load_mesh_file, tessellate_box, tessellate_capsule, tessellate_cylinder, tessellate_sphere,
-    ClosedMesh, Tessellation,
+    ClosedMesh, Tessellation, TriangleSoup,
 };
-use super::{LinkSelection, RobotError};
+use super::selection::LinkSelection;
 
 /// One `--package-path NAME=DIR` entry.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,7 +81,7 @@ pub struct MeshIntake {
     pub report: MeshReport,
     /// The file's own triangles in the link frame (metres, the URDF's scale and origin
     /// applied), before any repair: what `ist::validate` certifies h against.
-    pub original: std::sync::Arc<super::mesh::TriangleSoup>,
+    pub original: std::sync::Arc<TriangleSoup>,
 }
 
 /// A robot loaded from a URDF: kinematics and the collision geometry of its links.
