@@ -53,8 +53,7 @@ pub fn read(bytes: &[u8]) -> Result<MeshFile, String> {
             }
         }
         None => {
-            walk
-                .placed
+            walk.placed
                 .out
                 .notes
                 .push("no <scene>: every geometry taken once, untransformed".into());
@@ -74,8 +73,7 @@ pub fn read(bytes: &[u8]) -> Result<MeshFile, String> {
         ));
     }
     if meter != 1.0 {
-        walk
-            .placed
+        walk.placed
             .out
             .notes
             .push(format!("unit {meter} m applied"));
