@@ -154,6 +154,50 @@ pub fn triangle_area(a: P3, b: P3, c: P3) -> f64 {
     0.5 * norm(cross(sub(b, a), sub(c, a)))
 }
 
+/// Axis-aligned bounds (min, max) of f32 points, in f64.
+pub fn bounds_f64(vertices: &[[f32; 3]]) -> (P3, P3) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for v in vertices {
+        for k in 0..3 {
+            lo[k] = lo[k].min(v[k] as f64);
+            hi[k] = hi[k].max(v[k] as f64);
+        }
+    }
+    (lo, hi)
+}
+
+/// The closed, outward-oriented triangle mesh of a box of `size` centred at the origin: its 8
+/// corners (corner `i` on the + side of axis `k` where bit `k` of `i` is set) and 12 triangles.
+/// The one box every caller tessellates (`robot::mesh::tessellate_box`, the tests' cubes).
+pub fn box_mesh(size: P3) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let h = size.map(|s| (s / 2.0) as f32);
+    let vertices = (0..8)
+        .map(|i| {
+            [
+                if i & 1 == 0 { -h[0] } else { h[0] },
+                if i & 2 == 0 { -h[1] } else { h[1] },
+                if i & 4 == 0 { -h[2] } else { h[2] },
+            ]
+        })
+        .collect();
+    let triangles = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    (vertices, triangles)
+}
+
 /// Volume of a ball of radius `r`.
 #[inline]
 pub fn ball_volume(r: f64) -> f64 {
@@ -270,32 +314,10 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// The unit cube [0, 1]³: the shared box, moved by half its edge.
     fn unit_cube() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let v = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [1.0, 1.0, 1.0],
-            [0.0, 1.0, 1.0],
-        ];
-        let t = vec![
-            [0, 2, 1],
-            [0, 3, 2],
-            [4, 5, 6],
-            [4, 6, 7],
-            [0, 1, 5],
-            [0, 5, 4],
-            [1, 2, 6],
-            [1, 6, 5],
-            [2, 3, 7],
-            [2, 7, 6],
-            [3, 0, 4],
-            [3, 4, 7],
-        ];
-        (v, t)
+        let (v, t) = box_mesh([1.0; 3]);
+        (v.into_iter().map(|p| p.map(|x| x + 0.5)).collect(), t)
     }
 
     #[test]

@@ -7,8 +7,8 @@
 
 use nalgebra::Isometry3;
 
-use super::urdf::{load_shape, RobotModel};
-use super::{LinkGeometry, RobotError};
+use super::error::RobotError;
+use super::urdf::{load_shape, LinkGeometry, RobotModel};
 use crate::geometry::Shape;
 
 /// A shape fixed to a link of the robot.

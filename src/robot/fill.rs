@@ -34,8 +34,8 @@ use parry3d::math::Vector;
 use parry3d::query::{Ray, RayCast};
 use parry3d::shape::TriMesh;
 
-use super::exact::ExactSurface;
-use super::mesh::bounds_f64;
+use super::surface::ExactSurface;
+use crate::geometry::bounds_f64;
 
 /// Voxels along the longest side of the mesh's box.
 pub const MAX_VOXELS_PER_AXIS: usize = 256;

@@ -19,7 +19,7 @@ use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 
-use super::RobotError;
+use super::error::RobotError;
 
 /// How a joint moves its child link.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,151 +78,26 @@ pub fn pose_from_urdf(pose: &urdf_rs::Pose) -> Isometry3<f64> {
 impl Kinematics {
     /// Builds and checks the tree. `path` names the URDF in errors.
     pub fn from_urdf(robot: &urdf_rs::Robot, path: &str) -> Result<Self, RobotError> {
-        let topology = |message: String| RobotError::Topology {
-            path: path.to_owned(),
-            message,
-        };
         let link_names: Vec<String> = robot.links.iter().map(|l| l.name.clone()).collect();
-        let link_index: HashMap<&str, usize> = link_names
-            .iter()
-            .enumerate()
-            .map(|(i, n)| (n.as_str(), i))
-            .collect();
-        if link_index.len() != link_names.len() {
-            return Err(topology("two links share a name".into()));
-        }
-        if link_names.is_empty() {
-            return Err(topology("the robot has no links".into()));
-        }
-        let find = |joint: &str, link: &str| {
-            link_index.get(link).copied().ok_or_else(|| {
-                topology(format!(
-                    "joint {joint} names link {link}, which does not exist"
-                ))
-            })
-        };
-        let mut parent_joint: Vec<Option<usize>> = vec![None; link_names.len()];
-        let mut raw = Vec::with_capacity(robot.joints.len());
-        for (j, joint) in robot.joints.iter().enumerate() {
-            let parent = find(&joint.name, &joint.parent.link)?;
-            let child = find(&joint.name, &joint.child.link)?;
-            if let Some(other) = parent_joint[child] {
-                return Err(topology(format!(
-                    "link {} has two parent joints, {} and {}",
-                    joint.child.link, robot.joints[other].name, joint.name
-                )));
-            }
-            parent_joint[child] = Some(j);
-            let values = joint.origin.xyz.iter().chain(joint.origin.rpy.iter());
-            let axis = *joint.axis.xyz;
-            if values.chain(axis.iter()).any(|v| !v.is_finite()) {
-                return Err(RobotError::NonFinite {
-                    path: path.to_owned(),
-                    element: format!("joint {} origin or axis", joint.name),
-                });
-            }
-            raw.push((parent, child));
-        }
-        let roots: Vec<usize> = (0..link_names.len())
-            .filter(|&l| parent_joint[l].is_none())
-            .collect();
-        let root = match roots.as_slice() {
-            [root] => *root,
-            [] => return Err(topology("no root link: the joints form a cycle".into())),
-            many => {
-                return Err(topology(format!(
-                    "{} root links ({}); a URDF is one tree",
-                    many.len(),
-                    many.iter()
-                        .map(|&l| link_names[l].as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )))
-            }
-        };
-        // Order joints breadth-first from the root; joints never reached lie on a cycle.
-        let mut children: Vec<Vec<usize>> = vec![Vec::new(); link_names.len()];
-        for (j, &(parent, _)) in raw.iter().enumerate() {
-            children[parent].push(j);
-        }
-        let mut order = Vec::with_capacity(raw.len());
-        let mut frontier = vec![root];
-        while let Some(link) = frontier.pop() {
-            for &j in &children[link] {
-                order.push(j);
-                frontier.push(raw[j].1);
-            }
-        }
-        if order.len() != raw.len() {
-            let reached: std::collections::HashSet<usize> = order.iter().copied().collect();
-            let cycle: Vec<&str> = (0..raw.len())
-                .filter(|j| !reached.contains(j))
-                .map(|j| robot.joints[j].name.as_str())
-                .collect();
-            return Err(topology(format!(
-                "joints {} form a cycle detached from the root",
-                cycle.join(", ")
-            )));
-        }
-
-        let mut variables = Vec::new();
-        let mut variable_of: HashMap<&str, usize> = HashMap::new();
-        let mut motions = Vec::with_capacity(raw.len());
-        for joint in &robot.joints {
-            let axis = Vector3::from(*joint.axis.xyz);
-            let unit = || {
-                Unit::try_new(axis, 1e-12).ok_or_else(|| RobotError::NonFinite {
-                    path: path.to_owned(),
-                    element: format!("joint {} axis is zero", joint.name),
-                })
-            };
-            use urdf_rs::JointType as T;
-            let motion = match joint.joint_type {
-                T::Revolute | T::Continuous => JointMotion::Revolute(unit()?),
-                T::Prismatic => JointMotion::Prismatic(unit()?),
-                T::Fixed => JointMotion::Fixed,
-                T::Floating | T::Planar | T::Spherical => {
-                    log::warn!(
-                        "{path}: joint {} is {:?}; it is held at its origin",
-                        joint.name,
-                        joint.joint_type
-                    );
-                    JointMotion::Fixed
-                }
-            };
-            if motion != JointMotion::Fixed && joint.mimic.is_none() {
-                variable_of.insert(joint.name.as_str(), variables.len());
-                variables.push(joint.name.clone());
-            }
-            motions.push(motion);
-        }
-        let mut joints = Vec::with_capacity(raw.len());
+        let links = joint_links(robot, &link_names, path)?;
+        let root = root_link(&links, &link_names, path)?;
+        let order = joint_order(robot, &links, root, path)?;
+        let JointMotions {
+            motions,
+            variables,
+            variable_of,
+        } = joint_motions(robot, path)?;
+        let mut joints = Vec::with_capacity(links.joints.len());
         for &j in &order {
             let joint = &robot.joints[j];
-            let source = match (&joint.mimic, motions[j]) {
-                (_, JointMotion::Fixed) => JointSource::None,
-                (None, _) => JointSource::Variable(variable_of[joint.name.as_str()]),
-                (Some(mimic), _) => {
-                    let variable = *variable_of.get(mimic.joint.as_str()).ok_or_else(|| {
-                        topology(format!(
-                            "joint {} mimics {}, which is not a moving, non-mimic joint",
-                            joint.name, mimic.joint
-                        ))
-                    })?;
-                    JointSource::Mimic {
-                        variable,
-                        multiplier: mimic.multiplier.unwrap_or(1.0),
-                        offset: mimic.offset.unwrap_or(0.0),
-                    }
-                }
-            };
+            let (parent, child) = links.joints[j];
             joints.push(Joint {
                 name: joint.name.clone(),
-                parent: raw[j].0,
-                child: raw[j].1,
+                parent,
+                child,
                 parent_from_joint: pose_from_urdf(&joint.origin),
                 motion: motions[j],
-                source,
+                source: joint_source(joint, motions[j], &variable_of, path)?,
             });
         }
         Ok(Self {
@@ -383,6 +258,224 @@ impl JointSource {
             } => multiplier * q_dot[variable],
         }
     }
+}
+
+/// An error in the shape of the URDF's tree.
+fn topology(path: &str, message: String) -> RobotError {
+    RobotError::Topology {
+        path: path.to_owned(),
+        message,
+    }
+}
+
+/// Each joint's links, by index, and each link's parent joint.
+struct JointLinks {
+    /// (parent, child) of every joint, in URDF order.
+    joints: Vec<(usize, usize)>,
+    parent_joint: Vec<Option<usize>>,
+}
+
+/// The links every joint names, checked: link names unique and present, one parent joint per
+/// link, origins and axes finite.
+fn joint_links(
+    robot: &urdf_rs::Robot,
+    link_names: &[String],
+    path: &str,
+) -> Result<JointLinks, RobotError> {
+    let link_index: HashMap<&str, usize> = link_names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.as_str(), i))
+        .collect();
+    if link_index.len() != link_names.len() {
+        return Err(topology(path, "two links share a name".into()));
+    }
+    if link_names.is_empty() {
+        return Err(topology(path, "the robot has no links".into()));
+    }
+    let find = |joint: &str, link: &str| {
+        link_index.get(link).copied().ok_or_else(|| {
+            topology(
+                path,
+                format!("joint {joint} names link {link}, which does not exist"),
+            )
+        })
+    };
+    let mut parent_joint: Vec<Option<usize>> = vec![None; link_names.len()];
+    let mut raw = Vec::with_capacity(robot.joints.len());
+    for (j, joint) in robot.joints.iter().enumerate() {
+        let parent = find(&joint.name, &joint.parent.link)?;
+        let child = find(&joint.name, &joint.child.link)?;
+        if let Some(other) = parent_joint[child] {
+            return Err(topology(
+                path,
+                format!(
+                    "link {} has two parent joints, {} and {}",
+                    joint.child.link, robot.joints[other].name, joint.name
+                ),
+            ));
+        }
+        parent_joint[child] = Some(j);
+        let values = joint.origin.xyz.iter().chain(joint.origin.rpy.iter());
+        let axis = *joint.axis.xyz;
+        if values.chain(axis.iter()).any(|v| !v.is_finite()) {
+            return Err(RobotError::NonFinite {
+                path: path.to_owned(),
+                element: format!("joint {} origin or axis", joint.name),
+            });
+        }
+        raw.push((parent, child));
+    }
+    Ok(JointLinks {
+        joints: raw,
+        parent_joint,
+    })
+}
+
+/// The one link without a parent joint.
+fn root_link(links: &JointLinks, link_names: &[String], path: &str) -> Result<usize, RobotError> {
+    let roots: Vec<usize> = (0..link_names.len())
+        .filter(|&l| links.parent_joint[l].is_none())
+        .collect();
+    match roots.as_slice() {
+        [root] => Ok(*root),
+        [] => Err(topology(
+            path,
+            "no root link: the joints form a cycle".into(),
+        )),
+        many => Err(topology(
+            path,
+            format!(
+                "{} root links ({}); a URDF is one tree",
+                many.len(),
+                many.iter()
+                    .map(|&l| link_names[l].as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+    }
+}
+
+/// The joints breadth-first from the root, so that a joint's parent link is posed before it;
+/// joints never reached lie on a cycle.
+fn joint_order(
+    robot: &urdf_rs::Robot,
+    links: &JointLinks,
+    root: usize,
+    path: &str,
+) -> Result<Vec<usize>, RobotError> {
+    let raw = &links.joints;
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); links.parent_joint.len()];
+    for (j, &(parent, _)) in raw.iter().enumerate() {
+        children[parent].push(j);
+    }
+    let mut order = Vec::with_capacity(raw.len());
+    let mut frontier = vec![root];
+    while let Some(link) = frontier.pop() {
+        for &j in &children[link] {
+            order.push(j);
+            frontier.push(raw[j].1);
+        }
+    }
+    if order.len() != raw.len() {
+        let reached: std::collections::HashSet<usize> = order.iter().copied().collect();
+        let cycle: Vec<&str> = (0..raw.len())
+            .filter(|j| !reached.contains(j))
+            .map(|j| robot.joints[j].name.as_str())
+            .collect();
+        return Err(topology(
+            path,
+            format!(
+                "joints {} form a cycle detached from the root",
+                cycle.join(", ")
+            ),
+        ));
+    }
+    Ok(order)
+}
+
+/// How the joints move, and which of them drive the robot.
+struct JointMotions<'r> {
+    /// Per joint, in URDF order.
+    motions: Vec<JointMotion>,
+    /// The joints whose values are the entries of `q`, in order.
+    variables: Vec<String>,
+    /// Each of those joints' entry.
+    variable_of: HashMap<&'r str, usize>,
+}
+
+/// How each joint moves; a joint that moves and mimics none drives the robot.
+fn joint_motions<'r>(
+    robot: &'r urdf_rs::Robot,
+    path: &str,
+) -> Result<JointMotions<'r>, RobotError> {
+    let mut variables = Vec::new();
+    let mut variable_of: HashMap<&str, usize> = HashMap::new();
+    let mut motions = Vec::with_capacity(robot.joints.len());
+    for joint in &robot.joints {
+        let axis = Vector3::from(*joint.axis.xyz);
+        let unit = || {
+            Unit::try_new(axis, 1e-12).ok_or_else(|| RobotError::NonFinite {
+                path: path.to_owned(),
+                element: format!("joint {} axis is zero", joint.name),
+            })
+        };
+        use urdf_rs::JointType as T;
+        let motion = match joint.joint_type {
+            T::Revolute | T::Continuous => JointMotion::Revolute(unit()?),
+            T::Prismatic => JointMotion::Prismatic(unit()?),
+            T::Fixed => JointMotion::Fixed,
+            T::Floating | T::Planar | T::Spherical => {
+                log::warn!(
+                    "{path}: joint {} is {:?}; it is held at its origin",
+                    joint.name,
+                    joint.joint_type
+                );
+                JointMotion::Fixed
+            }
+        };
+        if motion != JointMotion::Fixed && joint.mimic.is_none() {
+            variable_of.insert(joint.name.as_str(), variables.len());
+            variables.push(joint.name.clone());
+        }
+        motions.push(motion);
+    }
+    Ok(JointMotions {
+        motions,
+        variables,
+        variable_of,
+    })
+}
+
+/// Where a joint's value comes from: none for a fixed joint, its own entry of `q`, or the
+/// entry of the joint it mimics.
+fn joint_source(
+    joint: &urdf_rs::Joint,
+    motion: JointMotion,
+    variable_of: &HashMap<&str, usize>,
+    path: &str,
+) -> Result<JointSource, RobotError> {
+    Ok(match (&joint.mimic, motion) {
+        (_, JointMotion::Fixed) => JointSource::None,
+        (None, _) => JointSource::Variable(variable_of[joint.name.as_str()]),
+        (Some(mimic), _) => {
+            let variable = *variable_of.get(mimic.joint.as_str()).ok_or_else(|| {
+                topology(
+                    path,
+                    format!(
+                        "joint {} mimics {}, which is not a moving, non-mimic joint",
+                        joint.name, mimic.joint
+                    ),
+                )
+            })?;
+            JointSource::Mimic {
+                variable,
+                multiplier: mimic.multiplier.unwrap_or(1.0),
+                offset: mimic.offset.unwrap_or(0.0),
+            }
+        }
+    })
 }
 
 #[cfg(test)]

@@ -10,7 +10,11 @@
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
-use crate::geometry::{mesh_volume, triangle_area, widen};
+use super::collada;
+use super::fill::Fill;
+
+pub use super::mesh_file::MeshFile;
+use crate::geometry::{bounds_f64, box_mesh, mesh_volume, triangle_area, widen};
 
 /// Why a mesh cannot be packed.
 #[derive(Debug, thiserror::Error)]
@@ -59,7 +63,7 @@ pub struct ClosedMesh {
     pub volume_m3: f64,
     /// The flood fill that decides inside and outside, for a filled solid (then `triangles`
     /// need not be closed or oriented).
-    pub fill: Option<std::sync::Arc<super::fill::Fill>>,
+    pub fill: Option<std::sync::Arc<Fill>>,
 }
 
 impl ClosedMesh {
@@ -140,17 +144,6 @@ impl ClosedMesh {
 /// Vertices and vertex-index triangles.
 pub type TriangleSoup = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
-/// Every piece of a mesh file (COLLADA instances, STL solids, OBJ groups) in one soup, in file
-/// units (COLLADA: metres, its `<unit>` applied), with what the reader noted.
-#[derive(Debug, Clone, Default)]
-pub struct MeshFile {
-    pub vertices: Vec<[f32; 3]>,
-    pub triangles: Vec<[u32; 3]>,
-    /// Pieces read: COLLADA geometry instances, STL solids, OBJ groups.
-    pub pieces: usize,
-    pub notes: Vec<String>,
-}
-
 /// Loads every piece of a mesh file.
 pub fn load_mesh_file(path: &std::path::Path) -> Result<MeshFile, MeshError> {
     let bytes = std::fs::read(path).map_err(|e| MeshError::Load(e.to_string()))?;
@@ -168,7 +161,7 @@ pub fn load_mesh_bytes(bytes: &[u8], path: &std::path::Path) -> Result<MeshFile,
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("dae") => return super::collada::read(bytes).map_err(MeshError::Load),
+        Some("dae") => return collada::read(bytes).map_err(MeshError::Load),
         Some("stl" | "obj") => {}
         _ => {
             return Err(MeshError::Load(format!(
@@ -242,19 +235,6 @@ pub(super) fn check_soup(vertices: &[[f32; 3]], triangles: &[[u32; 3]]) -> Resul
         });
     }
     Ok(())
-}
-
-/// Axis-aligned bounds (min, max) in f64.
-pub(super) fn bounds_f64(vertices: &[[f32; 3]]) -> ([f64; 3], [f64; 3]) {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for v in vertices {
-        for k in 0..3 {
-            lo[k] = lo[k].min(v[k] as f64);
-            hi[k] = hi[k].max(v[k] as f64);
-        }
-    }
-    (lo, hi)
 }
 
 /// The largest side of the bounds, m.
@@ -349,30 +329,7 @@ const SEGMENTS: usize = 64;
 
 /// Box of `size` centred at the origin (exact).
 pub fn tessellate_box(size: [f64; 3]) -> Tessellation {
-    let h = size.map(|s| (s / 2.0) as f32);
-    let vertices = (0..8)
-        .map(|i| {
-            [
-                if i & 1 == 0 { -h[0] } else { h[0] },
-                if i & 2 == 0 { -h[1] } else { h[1] },
-                if i & 4 == 0 { -h[2] } else { h[2] },
-            ]
-        })
-        .collect();
-    let triangles = vec![
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
+    let (vertices, triangles) = box_mesh(size);
     Tessellation {
         vertices,
         triangles,

@@ -11,13 +11,14 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3};
 
+use super::error::RobotError;
 use super::intake::{intake, MeshReport};
 use super::kinematics::{pose_from_urdf, Kinematics};
 use super::mesh::{
     load_mesh_file, tessellate_box, tessellate_capsule, tessellate_cylinder, tessellate_sphere,
-    ClosedMesh, Tessellation,
+    ClosedMesh, MeshError, Tessellation, TriangleSoup,
 };
-use super::{LinkSelection, RobotError};
+use super::selection::LinkSelection;
 
 /// One `--package-path NAME=DIR` entry.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,7 +81,7 @@ pub struct MeshIntake {
     pub report: MeshReport,
     /// The file's own triangles in the link frame (metres, the URDF's scale and origin
     /// applied), before any repair: what `ist::validate` certifies h against.
-    pub original: std::sync::Arc<super::mesh::TriangleSoup>,
+    pub original: std::sync::Arc<TriangleSoup>,
 }
 
 /// A robot loaded from a URDF: kinematics and the collision geometry of its links.
@@ -262,6 +263,45 @@ fn joint_with_type(xml: &str, kind: &str) -> Option<String> {
     })
 }
 
+/// Which collision element a step works on, for its errors.
+#[derive(Clone, Copy)]
+struct ElementAt<'a> {
+    link: &'a str,
+    index: usize,
+}
+
+impl ElementAt<'_> {
+    fn geometry(self, what: &str, message: String) -> RobotError {
+        RobotError::Geometry {
+            link: self.link.to_owned(),
+            element: self.index,
+            what: what.to_owned(),
+            message,
+        }
+    }
+
+    fn mesh(self, file: &Path, source: MeshError) -> RobotError {
+        RobotError::Mesh {
+            link: self.link.to_owned(),
+            element: self.index,
+            file: file.to_owned(),
+            source,
+        }
+    }
+}
+
+/// A collision element's geometry as read, in its own frame, before the URDF's scale and origin.
+struct ReadGeometry {
+    /// What it came from, for messages: `mesh FILE` or the primitive and its size.
+    source: String,
+    tessellation: Tessellation,
+    scale: [f64; 3],
+    /// For a mesh file: its path, and the pieces and notes of its reader.
+    file: Option<(PathBuf, (usize, Vec<String>))>,
+}
+
+/// One `<collision>` element of link `link`: read, moved into the link frame, and closed (a
+/// primitive) or taken in (a mesh file, `robot::intake`).
 fn load_element(
     link: &str,
     index: usize,
@@ -269,100 +309,22 @@ fn load_element(
     base: &Path,
     packages: &[PackagePath],
 ) -> Result<(Vec<CollisionElement>, Option<MeshIntake>), RobotError> {
+    let at = ElementAt { link, index };
     let origin_values = collision
         .origin
         .xyz
         .iter()
         .chain(collision.origin.rpy.iter());
-    let geometry_error = |what: &str, message: String| RobotError::Geometry {
-        link: link.to_owned(),
-        element: index,
-        what: what.to_owned(),
-        message,
-    };
     if origin_values.clone().any(|v| !v.is_finite()) {
-        return Err(geometry_error("origin", "origin is not finite".into()));
+        return Err(at.geometry("origin", "origin is not finite".into()));
     }
     let link_from_element = pose_from_urdf(&collision.origin);
-    let positive = |what: &str, values: &[f64]| {
-        if values.iter().all(|v| v.is_finite() && *v > 0.0) {
-            Ok(())
-        } else {
-            Err(geometry_error(
-                what,
-                format!("dimensions {values:?} must be finite and positive (zero volume)"),
-            ))
-        }
-    };
-    use urdf_rs::Geometry as G;
-    let (source, tessellation, scale, file) = match &collision.geometry {
-        G::Mesh { filename, scale } => {
-            let file = resolve_uri(filename, base, packages).map_err(|e| match e {
-                UriError::Package(package) => RobotError::PackageNotFound {
-                    link: link.to_owned(),
-                    element: index,
-                    uri: filename.clone(),
-                    package,
-                },
-                UriError::Unsupported => RobotError::UnsupportedUri {
-                    link: link.to_owned(),
-                    element: index,
-                    uri: filename.clone(),
-                },
-            })?;
-            let mesh_error = |source| RobotError::Mesh {
-                link: link.to_owned(),
-                element: index,
-                file: file.clone(),
-                source,
-            };
-            let scale = scale.as_ref().map(|s| **s).unwrap_or([1.0; 3]);
-            if scale.iter().any(|s| !s.is_finite() || *s == 0.0) {
-                return Err(geometry_error(
-                    &format!("mesh {}", file.display()),
-                    format!("scale {scale:?} must be finite and non-zero"),
-                ));
-            }
-            let loaded = load_mesh_file(&file).map_err(mesh_error)?;
-            let t = Tessellation {
-                vertices: loaded.vertices,
-                triangles: loaded.triangles,
-                error_m: 0.0,
-            };
-            let read = (loaded.pieces, loaded.notes);
-            (
-                format!("mesh {}", file.display()),
-                t,
-                scale,
-                Some((file, read)),
-            )
-        }
-        G::Box { size } => {
-            positive("box", &**size)?;
-            (
-                format!("box {:?}", **size),
-                tessellate_box(**size),
-                [1.0; 3],
-                None,
-            )
-        }
-        G::Cylinder { radius, length } => {
-            positive("cylinder", &[*radius, *length])?;
-            let t = tessellate_cylinder(*radius, *length);
-            (format!("cylinder r={radius} l={length}"), t, [1.0; 3], None)
-        }
-        G::Capsule { radius, length } => {
-            positive("capsule", &[*radius])?;
-            positive("capsule", &[length.max(f64::MIN_POSITIVE)])?;
-            let t = tessellate_capsule(*radius, *length);
-            (format!("capsule r={radius} l={length}"), t, [1.0; 3], None)
-        }
-        G::Sphere { radius } => {
-            positive("sphere", &[*radius])?;
-            let t = tessellate_sphere(*radius);
-            (format!("sphere r={radius}"), t, [1.0; 3], None)
-        }
-    };
+    let ReadGeometry {
+        source,
+        tessellation,
+        scale,
+        file,
+    } = read_geometry(at, &collision.geometry, base, packages)?;
     let vertices = to_link_frame(&tessellation.vertices, scale, &link_from_element);
     let mut triangles = tessellation.triangles;
     if scale.iter().filter(|s| **s < 0.0).count() % 2 == 1 {
@@ -377,7 +339,7 @@ fn load_element(
         source,
         mesh,
         tessellation_error_m: tessellation.error_m,
-        sphere_center: matches!(collision.geometry, G::Sphere { .. }).then(|| {
+        sphere_center: matches!(collision.geometry, urdf_rs::Geometry::Sphere { .. }).then(|| {
             let c = link_from_element.translation.vector;
             [c.x, c.y, c.z]
         }),
@@ -385,14 +347,7 @@ fn load_element(
     match file {
         // A mesh file as its vendor made it: welded, closed and filled by the intake.
         Some((file, (pieces, notes))) => {
-            let original = std::sync::Arc::new((vertices.clone(), triangles.clone()));
-            let (shells, report) =
-                intake(&vertices, &triangles).map_err(|source| RobotError::Mesh {
-                    link: link.to_owned(),
-                    element: index,
-                    file: file.clone(),
-                    source,
-                })?;
+            let (shells, intake) = take_in(at, file, pieces, notes, vertices, triangles)?;
             let n = shells.len();
             let elements = shells
                 .into_iter()
@@ -406,27 +361,135 @@ fn load_element(
                     element(mesh, label)
                 })
                 .collect();
-            Ok((
-                elements,
-                Some(MeshIntake {
-                    element: index,
-                    file,
-                    report: MeshReport {
-                        pieces,
-                        notes,
-                        ..report
-                    },
-                    original,
-                }),
-            ))
+            Ok((elements, Some(intake)))
         }
         // A primitive, tessellated here: closed by construction.
         None => {
             let mesh = ClosedMesh::new(vertices, triangles, &label)
-                .map_err(|e| geometry_error(&source_label(&collision.geometry), e.to_string()))?;
+                .map_err(|e| at.geometry(&source_label(&collision.geometry), e.to_string()))?;
             Ok((vec![element(mesh, source)], None))
         }
     }
+}
+
+/// Reads a collision element's geometry: a mesh file whole, or a primitive tessellated, each
+/// checked (finite, positive sizes; a finite, non-zero scale).
+fn read_geometry(
+    at: ElementAt,
+    geometry: &urdf_rs::Geometry,
+    base: &Path,
+    packages: &[PackagePath],
+) -> Result<ReadGeometry, RobotError> {
+    let positive = |what: &str, values: &[f64]| {
+        if values.iter().all(|v| v.is_finite() && *v > 0.0) {
+            Ok(())
+        } else {
+            Err(at.geometry(
+                what,
+                format!("dimensions {values:?} must be finite and positive (zero volume)"),
+            ))
+        }
+    };
+    let primitive = |source: String, tessellation| ReadGeometry {
+        source,
+        tessellation,
+        scale: [1.0; 3],
+        file: None,
+    };
+    use urdf_rs::Geometry as G;
+    Ok(match geometry {
+        G::Mesh { filename, scale } => read_mesh(at, filename, scale.as_ref(), base, packages)?,
+        G::Box { size } => {
+            positive("box", &**size)?;
+            primitive(format!("box {:?}", **size), tessellate_box(**size))
+        }
+        G::Cylinder { radius, length } => {
+            positive("cylinder", &[*radius, *length])?;
+            let t = tessellate_cylinder(*radius, *length);
+            primitive(format!("cylinder r={radius} l={length}"), t)
+        }
+        G::Capsule { radius, length } => {
+            positive("capsule", &[*radius])?;
+            positive("capsule", &[length.max(f64::MIN_POSITIVE)])?;
+            let t = tessellate_capsule(*radius, *length);
+            primitive(format!("capsule r={radius} l={length}"), t)
+        }
+        G::Sphere { radius } => {
+            positive("sphere", &[*radius])?;
+            let t = tessellate_sphere(*radius);
+            primitive(format!("sphere r={radius}"), t)
+        }
+    })
+}
+
+/// Reads the mesh file a `<mesh filename>` names (its URI resolved), its scale checked.
+fn read_mesh(
+    at: ElementAt,
+    filename: &str,
+    scale: Option<&urdf_rs::Vec3>,
+    base: &Path,
+    packages: &[PackagePath],
+) -> Result<ReadGeometry, RobotError> {
+    let file = resolve_uri(filename, base, packages).map_err(|e| match e {
+        UriError::Package(package) => RobotError::PackageNotFound {
+            link: at.link.to_owned(),
+            element: at.index,
+            uri: filename.to_owned(),
+            package,
+        },
+        UriError::Unsupported => RobotError::UnsupportedUri {
+            link: at.link.to_owned(),
+            element: at.index,
+            uri: filename.to_owned(),
+        },
+    })?;
+    let scale = scale.map(|s| **s).unwrap_or([1.0; 3]);
+    if scale.iter().any(|s| !s.is_finite() || *s == 0.0) {
+        return Err(at.geometry(
+            &format!("mesh {}", file.display()),
+            format!("scale {scale:?} must be finite and non-zero"),
+        ));
+    }
+    let loaded = load_mesh_file(&file).map_err(|source| at.mesh(&file, source))?;
+    let tessellation = Tessellation {
+        vertices: loaded.vertices,
+        triangles: loaded.triangles,
+        error_m: 0.0,
+    };
+    Ok(ReadGeometry {
+        source: format!("mesh {}", file.display()),
+        tessellation,
+        scale,
+        file: Some((file, (loaded.pieces, loaded.notes))),
+    })
+}
+
+/// A mesh file's triangles in the link frame through the intake: its closed meshes, and what
+/// the intake did (with the reader's pieces and notes) beside the file's own triangles.
+fn take_in(
+    at: ElementAt,
+    file: PathBuf,
+    pieces: usize,
+    notes: Vec<String>,
+    vertices: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+) -> Result<(Vec<ClosedMesh>, MeshIntake), RobotError> {
+    let (shells, report) =
+        intake(&vertices, &triangles).map_err(|source| at.mesh(&file, source))?;
+    let original = std::sync::Arc::new((vertices, triangles));
+    Ok((
+        shells,
+        MeshIntake {
+            element: at.index,
+            file,
+            report: MeshReport {
+                pieces,
+                notes,
+                ..report
+            },
+            original,
+        },
+    ))
 }
 
 /// A primitive (box, sphere, cylinder), centred on the link's frame, or a mesh file (an

@@ -1,0 +1,109 @@
+//! Intake step 5 (`super`'s module doc): the solid is everything the outside cannot reach. Shells
+//! wholly inside another are dropped; several shells, or shells the repairs could not close,
+//! become one solid decided by the exterior flood fill (`robot::fill`), its surface the
+//! triangles that face the outside. Link frame, metres.
+
+use std::collections::HashMap;
+
+use super::report::MeshReport;
+use crate::robot::fill::Fill;
+use crate::robot::mesh::{ClosedMesh, MeshError};
+use crate::robot::solid::Solid;
+use crate::robot::surface::ExactSurface;
+
+/// The vertices a shell uses, renumbered.
+pub(super) fn compact(
+    vertices: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let mut map = HashMap::new();
+    let mut out = Vec::new();
+    let triangles = triangles
+        .iter()
+        .map(|t| {
+            t.map(|i| {
+                *map.entry(i).or_insert_with(|| {
+                    out.push(vertices[i as usize]);
+                    (out.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    (out, triangles)
+}
+
+/// The solid of several closed shells together: everything the outside cannot reach
+/// (`robot::fill`), with the triangles that face the outside as its surface.
+pub(super) fn filled(
+    shells: &[ClosedMesh],
+    loose: Vec<[u32; 3]>,
+    loose_vertices: &[[f32; 3]],
+    report: &mut MeshReport,
+) -> Result<ClosedMesh, MeshError> {
+    let mut vertices = loose_vertices.to_vec();
+    let mut triangles = loose;
+    for s in shells {
+        let base = vertices.len() as u32;
+        vertices.extend_from_slice(&s.vertices);
+        triangles.extend(s.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+    let closed = shells
+        .iter()
+        .map(|s| ExactSurface::new(&s.vertices, &s.triangles))
+        .collect();
+    let (fill, facing) = Fill::new(&vertices, &triangles, closed)
+        .ok_or_else(|| MeshError::Load("parry3d refuses the mesh's triangles".into()))?;
+    if fill.encloses_nothing() {
+        return Err(MeshError::EnclosesNothing {
+            open_shells: report.open_shells,
+        });
+    }
+    let kept: Vec<[u32; 3]> = triangles
+        .iter()
+        .zip(&facing)
+        .filter_map(|(t, f)| f.then_some(*t))
+        .collect();
+    report.fill_voxel_m = Some(fill.voxel_m);
+    report.inner_triangles = triangles.len() - kept.len();
+    let (vertices, kept) = compact(&vertices, &kept);
+    let mesh = ClosedMesh {
+        vertices,
+        triangles: kept,
+        volume_m3: fill.volume_m3(),
+        fill: Some(std::sync::Arc::new(fill)),
+    };
+    // The packing's solid takes it: checked here, never panicked on later.
+    Solid::try_new(&mesh)?;
+    Ok(mesh)
+}
+
+/// Drops the shells that lie wholly inside another shell (see the module doc for the test).
+pub(super) fn drop_inner(
+    mut shells: Vec<(ClosedMesh, Solid)>,
+    report: &mut MeshReport,
+) -> Vec<ClosedMesh> {
+    // Largest first: an inner shell is enclosed by a larger one.
+    shells.sort_by(|a, b| b.0.volume_m3.total_cmp(&a.0.volume_m3));
+    let mut kept: Vec<(ClosedMesh, Solid)> = Vec::new();
+    for (shell, solid) in shells {
+        let (lo, hi) = shell.bounds();
+        let inside = kept.iter().any(|(outer, outer_solid)| {
+            let (olo, ohi) = outer.bounds();
+            (0..3).all(|k| olo[k] <= lo[k] && hi[k] <= ohi[k])
+                && shell
+                    .vertices
+                    .iter()
+                    .all(|&v| outer_solid.signed_distance(v).0 > 0.0)
+                && shell
+                    .triangles
+                    .iter()
+                    .all(|t| !outer_solid.meets_triangle(t.map(|i| shell.vertices[i as usize])))
+        });
+        if inside {
+            report.inner_shells += 1;
+        } else {
+            kept.push((shell, solid));
+        }
+    }
+    kept.into_iter().map(|(m, _)| m).collect()
+}

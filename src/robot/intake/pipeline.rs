@@ -1,0 +1,147 @@
+//! The intake's steps in order (`super`'s module doc numbers them): a triangle soup in the link
+//! frame, metres → the closed meshes the packing takes (one per outer shell, or one filled solid),
+//! and its [`MeshReport`].
+
+use super::enclosed::{compact, drop_inner, filled};
+use super::holes::close_holes;
+use super::report::MeshReport;
+use super::shells::{orient, EdgeUse};
+use super::weld::{drop_repeated, weld, WELD_RELATIVE};
+use crate::geometry::{mesh_volume, triangle_area, widen};
+use crate::robot::mesh::{check_soup, extent, ClosedMesh, MeshError};
+use crate::robot::solid::Solid;
+
+/// The closed meshes (one per outer shell) of a triangle soup, and what it took.
+pub fn intake(
+    vertices: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+) -> Result<(Vec<ClosedMesh>, MeshReport), MeshError> {
+    let mut report = MeshReport {
+        triangles_in: triangles.len(),
+        ..MeshReport::default()
+    };
+    check_soup(vertices, triangles)?;
+    if let Some(bad) = triangles
+        .iter()
+        .flatten()
+        .find(|&&i| i as usize >= vertices.len())
+    {
+        return Err(MeshError::Load(format!(
+            "triangle index {bad} out of range"
+        )));
+    }
+    let extent = extent(vertices);
+    report.weld_tolerance_m = (extent * WELD_RELATIVE).max(f64::MIN_POSITIVE);
+    let (welded, mut tris) = weld(vertices, triangles, report.weld_tolerance_m, &mut report);
+    let min_area = (extent * extent * 1e-14).max(f64::MIN_POSITIVE);
+    tris.retain(|t| {
+        let keep = t[0] != t[1]
+            && t[1] != t[2]
+            && t[0] != t[2]
+            && triangle_area(
+                widen(welded[t[0] as usize]),
+                widen(welded[t[1] as usize]),
+                widen(welded[t[2] as usize]),
+            ) > min_area;
+        report.degenerate_triangles += usize::from(!keep);
+        keep
+    });
+    let tris = drop_repeated(tris, &mut report);
+    if tris.is_empty() {
+        // Every face was degenerate or had its back face: a sheet, nothing inside.
+        return Err(MeshError::ZeroVolume { volume_m3: 0.0 });
+    }
+    let edges = EdgeUse::count(&tris);
+    report.open_edges = edges.uses.values().filter(|u| u.len() == 1).count();
+    report.non_manifold_edges = edges.uses.values().filter(|u| u.len() > 2).count();
+    let mut shells = Vec::new();
+    // Triangles of shells the repairs could not close: the flood fill takes them as they are.
+    let mut loose: Vec<[u32; 3]> = Vec::new();
+    let mut all_vertices = welded;
+    for shell in edges.shells(tris.len()) {
+        let mut shell_tris: Vec<[u32; 3]> = shell.iter().map(|&t| tris[t]).collect();
+        let closed = orient(&mut shell_tris).and_then(|turned| {
+            report.shells_reoriented += usize::from(turned);
+            close_holes(&mut all_vertices, &mut shell_tris, &mut report, min_area)
+        });
+        if closed.is_err() {
+            report.open_shells += 1;
+            loose.extend(shell.iter().map(|&t| tris[t]));
+            continue;
+        }
+        let (verts, mut shell_tris) = compact(&all_vertices, &shell_tris);
+        let volume = mesh_volume(&verts, &shell_tris);
+        if volume.abs() <= extent.powi(3) * 1e-9 {
+            report.empty_shells += 1;
+            continue;
+        }
+        if volume < 0.0 {
+            report.shells_reoriented += 1;
+            for t in &mut shell_tris {
+                t.swap(1, 2);
+            }
+        }
+        // The strict constructor and parry3d's oriented mesh (the packing's inside test) must
+        // both take the shell; one they refuse goes to the fill instead.
+        match ClosedMesh::new(verts, shell_tris.clone(), "")
+            .and_then(|m| Solid::try_new(&m).map(|s| (m, s)))
+        {
+            Ok(shell) => shells.push(shell),
+            Err(_) => {
+                report.open_shells += 1;
+                loose.extend(shell.iter().map(|&t| tris[t]));
+            }
+        }
+    }
+    report.shells = shells.len() + report.empty_shells + report.open_shells;
+    if shells.is_empty() && loose.is_empty() {
+        return Err(MeshError::ZeroVolume { volume_m3: 0.0 });
+    }
+    let shells = drop_inner(shells, &mut report);
+    if shells.len() == 1 && loose.is_empty() {
+        return Ok((shells, report));
+    }
+    Ok((
+        vec![filled(&shells, loose, &all_vertices, &mut report)?],
+        report,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A box whose triangle [1, 2, 3] is split at a point `m` of its edge 1–2 while its
+    /// neighbour [0, 2, 1] is not: exactly on the edge a T-junction, off it a small hole.
+    fn split_box(off: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let b = crate::robot::mesh::tessellate_box([0.1, 0.1, 0.1]);
+        let mut vertices = b.vertices;
+        let (v1, v2, v0) = (vertices[1], vertices[2], vertices[0]);
+        vertices.push(std::array::from_fn(|k| {
+            0.5 * (v1[k] + v2[k]) + off * (v0[k] - 0.5 * (v1[k] + v2[k]))
+        }));
+        let mut triangles = b.triangles;
+        let i = triangles.iter().position(|t| *t == [1, 2, 3]).unwrap();
+        triangles[i] = [1, 8, 3];
+        triangles.push([8, 2, 3]);
+        (vertices, triangles)
+    }
+
+    #[test]
+    fn a_t_junction_is_sewn_and_a_small_hole_fanned_both_closed() {
+        let (v, t) = split_box(0.0);
+        let (meshes, report) = intake(&v, &t).unwrap();
+        assert_eq!((report.open_edges, report.cracks_sewn), (3, 1));
+        assert_eq!((report.holes_closed, report.open_shells), (0, 0));
+        assert_eq!(meshes.len(), 1);
+        assert!(meshes[0].fill.is_none(), "one closed shell, not the fill");
+        assert!((meshes[0].volume_m3 - 1e-3).abs() < 1e-9);
+        // Off the edge by 1 % of the way to vertex 0: a hole of area, not a crack.
+        let (v, t) = split_box(0.01);
+        let (meshes, report) = intake(&v, &t).unwrap();
+        assert_eq!((report.cracks_sewn, report.holes_closed), (0, 1));
+        assert_eq!((report.open_shells, meshes.len()), (0, 1));
+        assert!(meshes[0].fill.is_none());
+        assert!((meshes[0].volume_m3 - 1e-3).abs() < 1e-9);
+    }
+}

@@ -1,0 +1,119 @@
+//! What the intake did to one mesh file, counted per step (`super`'s module doc numbers them):
+//! the pieces read, vertices welded, triangles dropped, holes closed or sewn, shells reoriented,
+//! nested, emptied or filled. The log's one line per mesh and `--json`'s per-element report.
+
+/// What the intake did to one mesh file.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct MeshReport {
+    /// Pieces the file holds (COLLADA geometry instances, STL solids, OBJ groups), all read.
+    pub pieces: usize,
+    /// What the reader noted (geometries the scene leaves out, a unit applied, ...).
+    pub notes: Vec<String>,
+    pub triangles_in: usize,
+    /// Vertices closer than this were merged, m.
+    pub weld_tolerance_m: f64,
+    /// Vertices merged with another that was not bit-identical (CAD noise).
+    pub welded_vertices: usize,
+    pub degenerate_triangles: usize,
+    pub repeated_triangles: usize,
+    /// Edges used by one triangle, before the holes were closed.
+    pub open_edges: usize,
+    /// Edges used by three or more triangles.
+    pub non_manifold_edges: usize,
+    pub holes_closed: usize,
+    /// Holes of no area (T-junctions) sewn by splitting the triangle across them.
+    pub cracks_sewn: usize,
+    /// Diameter of the largest hole closed, m.
+    pub largest_hole_m: f64,
+    pub shells: usize,
+    /// Shells whose triangles were turned to agree with their neighbours, or turned outward.
+    pub shells_reoriented: usize,
+    /// Shells wholly inside another (a hollow part's inner walls): the solid fills them.
+    pub inner_shells: usize,
+    /// Shells enclosing no volume, dropped.
+    pub empty_shells: usize,
+    /// Shells still not closed and manifold after the repairs: their triangles go to the fill.
+    pub open_shells: usize,
+    /// The voxel of the exterior flood fill, m, when the shells were filled as one solid
+    /// (gaps narrower than it are taken as closed).
+    pub fill_voxel_m: Option<f64>,
+    /// Triangles inside the filled solid (not facing the outside), dropped.
+    pub inner_triangles: usize,
+}
+
+impl MeshReport {
+    /// Whether the mesh was taken as it is (one closed shell, nothing welded but identical
+    /// vertices, nothing dropped, closed or turned).
+    pub fn clean(&self) -> bool {
+        self.welded_vertices == 0
+            && self.degenerate_triangles == 0
+            && self.repeated_triangles == 0
+            && self.open_edges == 0
+            && self.non_manifold_edges == 0
+            && self.shells <= 1
+            && self.shells_reoriented == 0
+            && self.empty_shells == 0
+            && self.cracks_sewn == 0
+            && self.open_shells == 0
+    }
+
+    /// One line: what the mesh needed.
+    pub fn summary(&self) -> String {
+        let mut line = self.repairs();
+        if self.pieces > 1 {
+            line = format!("{} pieces, {line}", self.pieces);
+        }
+        for n in &self.notes {
+            line.push_str("; ");
+            line.push_str(n);
+        }
+        line
+    }
+
+    fn repairs(&self) -> String {
+        if self.clean() {
+            return format!(
+                "closed, {} triangles (weld tolerance {:.1e} m)",
+                self.triangles_in, self.weld_tolerance_m
+            );
+        }
+        let mut parts = vec![format!(
+            "{} triangles, weld tolerance {:.1e} m",
+            self.triangles_in, self.weld_tolerance_m
+        )];
+        let mut say = |n: usize, what: &str| {
+            if n > 0 {
+                parts.push(format!("{n} {what}"));
+            }
+        };
+        say(self.welded_vertices, "near-identical vertices welded");
+        say(self.degenerate_triangles, "degenerate triangles dropped");
+        say(self.repeated_triangles, "repeated triangles dropped");
+        say(self.open_edges, "open edges");
+        say(self.non_manifold_edges, "non-manifold edges");
+        say(self.shells_reoriented, "shells reoriented");
+        say(self.inner_shells, "inner shells filled (hollow part)");
+        say(self.empty_shells, "empty shells dropped");
+        say(self.cracks_sewn, "T-junction cracks sewn");
+        say(
+            self.open_shells,
+            "shells not closed by the repairs (taken by the flood fill)",
+        );
+        if let Some(v) = self.fill_voxel_m {
+            parts.push(format!(
+                "filled by an exterior flood fill ({:.2} mm voxels; {} inner triangles dropped)",
+                v * 1e3,
+                self.inner_triangles
+            ));
+        }
+        if self.holes_closed > 0 {
+            parts.push(format!(
+                "{} holes closed (largest {:.2} mm)",
+                self.holes_closed,
+                self.largest_hole_m * 1e3
+            ));
+        }
+        parts.push(format!("{} shells", self.shells));
+        parts.join(", ")
+    }
+}
