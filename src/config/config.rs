@@ -10,8 +10,9 @@ use yaml_rust2::Yaml;
 
 use super::entries::Entries;
 use super::error::ConfigError;
+use super::params::scalar_yaml;
 use super::sources::{SourceConfig, StrayFilter};
-use super::values::{scalar_yaml, Values};
+use super::values::Values;
 use super::{poses, query, separation, shapes, sources};
 use crate::cloud::exclusion::ExclusionVolume;
 use crate::ist::BuildOptions;

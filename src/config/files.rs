@@ -18,8 +18,8 @@ use yaml_rust2::{Yaml, YamlLoader};
 
 use super::config::Config;
 use super::error::ConfigError;
-use super::params::PARAMETERS;
-use super::values::{flatten, scalar_yaml};
+use super::params::{scalar_yaml, PARAMETERS};
+use super::values::flatten;
 
 /// Whether the params-file key `key` selects the node whose fully qualified name is `fqn`.
 pub fn key_matches(key: &str, fqn: &str) -> bool {

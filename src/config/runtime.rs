@@ -28,8 +28,8 @@ use yaml_rust2::Yaml;
 use super::config::Config;
 use super::entries::LISTS;
 use super::error::ConfigError;
-use super::params::{ParamDecl, PARAMETERS};
-use super::values::{scalar_yaml, Values};
+use super::params::{scalar_yaml, ParamDecl, PARAMETERS};
+use super::values::Values;
 
 /// One parameter of a config: its name, its declaration and its value (given, or the declared
 /// default; `Yaml::Null` for none).

@@ -3,18 +3,11 @@
 
 use std::collections::BTreeMap;
 
-use yaml_rust2::{Yaml, YamlLoader};
+use yaml_rust2::Yaml;
 
 use super::error::ConfigError;
-use super::params::PARAMETERS;
+use super::params::{scalar_yaml, PARAMETERS};
 use crate::choice::Choice;
-
-pub(super) fn scalar_yaml(text: &str) -> Yaml {
-    YamlLoader::load_from_str(text)
-        .ok()
-        .and_then(|d| d.into_iter().next())
-        .unwrap_or(Yaml::Null)
-}
 
 /// Flattens nested maps into dotted names.
 pub(super) fn flatten(prefix: &str, y: &Yaml, out: &mut BTreeMap<String, Yaml>) {
