@@ -15,7 +15,8 @@ use ist_monitor::bag::read_messages;
 use ist_monitor::monitor::Monitor;
 use ist_monitor::stats::Spread;
 
-use crate::cli::{monitor_from_config, ConfigArgs};
+use crate::args::ConfigArgs;
+use crate::setup::monitor_from_config;
 
 #[derive(Args)]
 pub struct BenchMonitorArgs {
@@ -28,7 +29,7 @@ pub struct BenchMonitorArgs {
     #[arg(long)]
     shared: Option<PathBuf>,
     /// Timed frames per variant.
-    #[arg(long, default_value_t = 200, value_parser = crate::cli::parse_count)]
+    #[arg(long, default_value_t = 200, value_parser = crate::args::parse_count)]
     runs: usize,
 }
 
