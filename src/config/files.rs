@@ -16,8 +16,10 @@ use std::path::{Path, PathBuf};
 
 use yaml_rust2::{Yaml, YamlLoader};
 
-use super::values::{flatten, scalar_yaml};
-use super::{Config, ConfigError, PARAMETERS};
+use super::config::Config;
+use super::error::ConfigError;
+use super::params::{scalar_yaml, PARAMETERS};
+use super::values::flatten;
 
 /// Whether the params-file key `key` selects the node whose fully qualified name is `fqn`.
 pub fn key_matches(key: &str, fqn: &str) -> bool {
@@ -85,7 +87,7 @@ fn sections(path: &Path, text: &str) -> Result<Vec<(String, Yaml)>, ConfigError>
 }
 
 /// The first section of a parameters file, `(key, ros__parameters)`: what `--config` takes.
-pub(super) fn first_section(path: &Path, text: &str) -> Result<(String, Yaml), ConfigError> {
+fn first_section(path: &Path, text: &str) -> Result<(String, Yaml), ConfigError> {
     Ok(sections(path, text)?.swap_remove(0))
 }
 
@@ -146,16 +148,33 @@ pub struct ParameterSources {
 }
 
 impl Config {
+    /// Reads a parameters file (its first section, whatever its key, which names the node),
+    /// then applies `overrides` (`name`, YAML value).
+    pub fn load(path: &Path, overrides: &[(String, String)]) -> Result<Self, ConfigError> {
+        Self::parse(&read(path)?, path, overrides)
+    }
+
+    /// As [`Config::load`], from the text of the file at `path`.
+    pub fn parse(
+        text: &str,
+        path: &Path,
+        overrides: &[(String, String)],
+    ) -> Result<Self, ConfigError> {
+        let (key, section) = first_section(path, text)?;
+        let (namespace, node_name) = key_name(&key);
+        let mut values = BTreeMap::new();
+        flatten("", &section, &mut values);
+        for (name, value) in overrides {
+            values.insert(name.clone(), scalar_yaml(value));
+        }
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::from_values(&node_name, &namespace, Some(base), values)
+    }
+
     /// The configuration from `sources`: the declared defaults, then `--config`'s values, then
     /// each `--params-file`'s matching sections, then `-p`. A parameters file with no section
     /// for this node is not an error (rcl skips it too) but is logged.
     pub fn from_sources(sources: &ParameterSources) -> Result<Self, ConfigError> {
-        let read = |path: &Path| {
-            std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-                path: path.to_owned(),
-                source,
-            })
-        };
         let mut values = BTreeMap::new();
         let (mut namespace, mut node) = ("/".to_owned(), "ist_monitor".to_owned());
         let mut base = PathBuf::from(".");
@@ -210,9 +229,16 @@ impl Config {
     }
 }
 
+fn read(path: &Path) -> Result<String, ConfigError> {
+    std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
+
 /// The namespace and node name a `--config` file's key gives (`/ns/name`; `/**` and other
 /// patterns name the node `ist_monitor` at the root).
-pub(super) fn key_name(key: &str) -> (String, String) {
+fn key_name(key: &str) -> (String, String) {
     if key.contains('*') {
         return ("/".to_owned(), "ist_monitor".to_owned());
     }
@@ -291,7 +317,7 @@ mod tests {
         );
         assert_eq!(
             c.robot_description,
-            Some(super::super::RobotSource::File(sub.join("robot.urdf")))
+            Some(crate::config::RobotSource::File(sub.join("robot.urdf")))
         );
         assert_eq!(c.package_paths[0].dir, sub.join("meshes"));
         // Another node in another namespace takes only the wildcard section.

@@ -2,6 +2,17 @@
 //! table that the loader checks names against, `ist_monitor params` prints and `config/README.md`
 //! shows.
 
+use yaml_rust2::{Yaml, YamlLoader};
+
+/// A YAML value from its text: a declared default, or a `-p` override (`Null` where the text is
+/// not YAML).
+pub(super) fn scalar_yaml(text: &str) -> Yaml {
+    YamlLoader::load_from_str(text)
+        .ok()
+        .and_then(|d| d.into_iter().next())
+        .unwrap_or(Yaml::Null)
+}
+
 /// One declared parameter. `default` is YAML text; `~` means "no value" (optional).
 #[derive(Debug, Clone, Copy)]
 pub struct ParamDecl {
@@ -188,9 +199,8 @@ impl ParamDecl {
     /// list of doubles. An empty list holds strings unless the unit names a quantity.
     /// `None` for a parameter without a default (`~`): its type is that of the value given.
     pub fn kind(&self) -> Option<ParamKind> {
-        use yaml_rust2::Yaml;
         let quantity = self.is_quantity();
-        match super::values::scalar_yaml(self.default) {
+        match scalar_yaml(self.default) {
             Yaml::Null => None,
             Yaml::Boolean(_) => Some(ParamKind::Bool),
             Yaml::Integer(_) => Some(ParamKind::Integer),

@@ -25,8 +25,11 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use yaml_rust2::Yaml;
 
-use super::values::{scalar_yaml, Values};
-use super::{Config, ConfigError, ParamDecl, PARAMETERS};
+use super::config::Config;
+use super::entries::LISTS;
+use super::error::ConfigError;
+use super::params::{scalar_yaml, ParamDecl, PARAMETERS};
+use super::values::Values;
 
 /// One parameter of a config: its name, its declaration and its value (given, or the declared
 /// default; `Yaml::Null` for none).
@@ -36,14 +39,6 @@ pub struct Parameter {
     pub decl: &'static ParamDecl,
     pub value: Yaml,
 }
-
-/// The lists whose entries declare parameters of their own, with the declarations' prefix.
-const LISTS: [(&str, &str); 4] = [
-    ("sources", "<source>."),
-    ("static_transforms", "<transform>."),
-    ("exclusion_volumes", "<volume>."),
-    ("attached_objects", "<object>."),
-];
 
 impl Config {
     /// Every parameter of this config, in the declarations' order (each list entry's

@@ -13,42 +13,39 @@ use std::sync::{Arc, Mutex, OnceLock, Weak};
 
 use nalgebra::Isometry3;
 
+use super::entries::names;
+use super::error::ConfigError;
+use super::poses::transform;
 use super::values::Values;
-use super::ConfigError;
+use crate::choice::Choice;
 use crate::cloud::exclusion::{ExclusionVolume, MeshGrid, VolumeShape};
 use crate::geometry::{Primitive, Shape};
-use crate::msg::{Quaternion, Transform, Vector3};
 use crate::robot::attach::AttachedObject;
 
-/// The names of one list entry's parameters: `("<name>.rest", "<template>.rest")`.
-pub(super) fn names(entry: &str, template: &str, rest: &str) -> (String, String) {
-    (format!("{entry}.{rest}"), format!("{template}.{rest}"))
+/// What `shape` names: a primitive as URDF gives one, or a mesh file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ShapeKind {
+    Box,
+    Sphere,
+    Cylinder,
+    Mesh,
 }
 
-/// The `translation` ([x, y, z]) and `rotation` (quaternion [x, y, z, w], not zero) of list
-/// entry `entry` (declared as `template`): static transforms, volumes and objects.
-pub(super) fn transform(v: &Values, entry: &str, template: &str) -> Result<Transform, ConfigError> {
-    let (tr, trt) = names(entry, template, "translation");
-    let (rot, rott) = names(entry, template, "rotation");
-    let [x, y, z] = v.numbers(&tr, &trt)?[..] else {
-        return Err(Values::bad(&tr, "expected [x, y, z]"));
-    };
-    let [qx, qy, qz, qw] = v.numbers(&rot, &rott)?[..] else {
-        return Err(Values::bad(&rot, "expected [x, y, z, w]"));
-    };
-    let rotation = Quaternion {
-        x: qx,
-        y: qy,
-        z: qz,
-        w: qw,
-    };
-    if rotation.to_unit().is_none() {
-        return Err(Values::bad(&rot, "the quaternion is zero"));
+impl Choice for ShapeKind {
+    const ALL: &'static [Self] = &[
+        ShapeKind::Box,
+        ShapeKind::Sphere,
+        ShapeKind::Cylinder,
+        ShapeKind::Mesh,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            ShapeKind::Box => "box",
+            ShapeKind::Sphere => "sphere",
+            ShapeKind::Cylinder => "cylinder",
+            ShapeKind::Mesh => "mesh",
+        }
     }
-    Ok(Transform {
-        translation: Vector3 { x, y, z },
-        rotation,
-    })
 }
 
 /// Resolves a mesh file's name to a path.
@@ -76,8 +73,8 @@ fn placed(
         Ok(x)
     };
     let (shape_name, shape_t) = n("shape");
-    let shape: Shape = match v.string(&shape_name, &shape_t)?.as_str() {
-        "mesh" => {
+    let shape: Shape = match v.choice(&shape_name, &shape_t)? {
+        ShapeKind::Mesh => {
             let (name, t) = n("mesh");
             let file = resolve(&v.string(&name, &t)?).map_err(|e| Values::bad(&name, e))?;
             if let Err(e) = std::fs::metadata(&file) {
@@ -90,7 +87,7 @@ fn placed(
             };
             Shape::Mesh { file, scale }
         }
-        "box" => {
+        ShapeKind::Box => {
             let (name, t) = n("size");
             let size = v.numbers(&name, &t)?;
             match size[..] {
@@ -105,21 +102,15 @@ fn placed(
                 }
             }
         }
-        "sphere" => Primitive::Sphere {
+        ShapeKind::Sphere => Primitive::Sphere {
             radius: positive("radius")?,
         }
         .into(),
-        "cylinder" => Primitive::Cylinder {
+        ShapeKind::Cylinder => Primitive::Cylinder {
             radius: positive("radius")?,
             length: positive("length")?,
         }
         .into(),
-        other => {
-            return Err(Values::bad(
-                &shape_name,
-                format!("'{other}' (expected box, sphere, cylinder or mesh)"),
-            ))
-        }
     };
     let pose = transform(v, entry, template)?
         .to_isometry()

@@ -3,16 +3,11 @@
 
 use std::collections::BTreeMap;
 
-use yaml_rust2::{Yaml, YamlLoader};
+use yaml_rust2::Yaml;
 
-use super::{ConfigError, PARAMETERS};
-
-pub(super) fn scalar_yaml(text: &str) -> Yaml {
-    YamlLoader::load_from_str(text)
-        .ok()
-        .and_then(|d| d.into_iter().next())
-        .unwrap_or(Yaml::Null)
-}
+use super::error::ConfigError;
+use super::params::{scalar_yaml, PARAMETERS};
+use crate::choice::Choice;
 
 /// Flattens nested maps into dotted names.
 pub(super) fn flatten(prefix: &str, y: &Yaml, out: &mut BTreeMap<String, Yaml>) {
@@ -121,6 +116,12 @@ impl Values {
     pub(super) fn string(&self, name: &str, template: &str) -> Result<String, ConfigError> {
         self.opt_string(name, template)?
             .ok_or_else(|| Self::bad(name, "a value is required"))
+    }
+    /// One of the values of `T`, by name; an error names the parameter and lists `T`'s names.
+    pub(super) fn choice<T: Choice>(&self, name: &str, template: &str) -> Result<T, ConfigError> {
+        let text = self.string(name, template)?;
+        T::parse(&text)
+            .ok_or_else(|| Self::bad(name, format!("'{text}' (expected {})", T::names())))
     }
     pub(super) fn strings(&self, name: &str) -> Result<Vec<String>, ConfigError> {
         self.strings_of(name, name)

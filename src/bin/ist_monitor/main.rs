@@ -7,14 +7,20 @@
 //! - `bench/`: `bench packing`, `bench query` (error against run time, with its plots) and
 //!   `bench gpu`, over the real scenes of `../shared` (`bench/scenes.rs`, which the criterion
 //!   benches and the tests include too).
+//! - `args.rs`, `choice.rs` and `setup.rs`: the options and parsers (a flag from a library
+//!   `Choice`), and the tree build and monitor with their progress lines, that `cli/` and
+//!   `bench/` share (neither imports the other's).
 //! - `demo.rs`: where the demo robot, bag and config are found at run time (nothing about the
 //!   checkout is compiled in).
 //!
 //! `main` prints one error chain and exits non-zero.
 
+mod args;
 mod bench;
+mod choice;
 mod cli;
 mod demo;
+mod setup;
 
 fn main() -> std::process::ExitCode {
     runtime_dir();

@@ -11,17 +11,20 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Result};
+use nalgebra::Isometry3;
 use serde::Serialize;
 
 use ist_monitor::cloud::depth::{DepthView, PinholeCamera};
 use ist_monitor::ist::BuildOptions;
 use ist_monitor::msg::Image;
 use ist_monitor::query::gpu::{GpuOptions, HOST_STEPS};
-use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, QueryOptions, WorkCounts};
+use ist_monitor::query::{
+    Backend, Engine, LinkSelection, Mode, QueryOptions, QueryResult, WorkCounts,
+};
 use ist_monitor::stats::Spread;
 
 use super::scenes::{load_scenario, ScenarioName};
-use crate::cli::cached_trees;
+use crate::setup::cached_trees;
 
 /// Arguments of `bench gpu`.
 #[derive(clap::Args)]
@@ -40,7 +43,7 @@ pub struct BenchGpuArgs {
     #[arg(long, value_enum, default_value_t = Mode::Certified)]
     mode: Mode,
     /// Timed queries per size and backend (the median is reported).
-    #[arg(long, default_value_t = 20, value_parser = crate::cli::parse_count)]
+    #[arg(long, default_value_t = 20, value_parser = crate::args::parse_count)]
     runs: usize,
     /// Tree cache folder (default as for `build`).
     #[arg(long)]
@@ -194,57 +197,93 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         bandwidth / 1e9
     );
     let case = &scenario.cases[0];
-    let base = &case.points;
-    let cloud = |n: usize| -> Vec<[f32; 3]> {
-        (0..n)
-            .map(|i| {
-                let p = base[i % base.len()];
-                let copy = (i / base.len()) as f32;
-                [p[0], p[1], p[2] + 0.001 * copy]
-            })
-            .collect()
-    };
-    let poses = &case.link_poses;
-    let sensor = case.root_from_sensor;
     // The Kinect cloud is organized (640 wide): a size that is whole rows is queried as one, in
     // tiles on both backends.
     let width = case.width.filter(|&w| w > 0);
     if args.depth && width != Some(640) {
         bail!("--depth: the Kinect cloud is not 640 points wide");
     }
-    let mut made = Vec::new();
-    let mut query = |engine: &mut Engine, input: Input, options: &QueryOptions| match input {
-        Input::Cloud(points) => {
-            let width = width.filter(|w| points.len().is_multiple_of(*w));
-            engine.query_image(points, width, &sensor, poses, options)
-        }
-        // The CPU makes the points (and then measures them); the GPU takes the image.
-        Input::Depth(depth) => engine.query_depth(depth, &mut made, &sensor, poses, options),
+    let mut timer = Timer {
+        engine: &mut engine,
+        sensor: case.root_from_sensor,
+        poses: &case.link_poses,
+        width,
+        made: Vec::new(),
+        mode: args.mode,
     };
-    let mut time = |input: Input, backend: Backend, runs: usize| -> Result<Timed> {
+    let mut inputs = Inputs {
+        base: &case.points,
+        depth: args.depth,
+        points: Vec::new(),
+        image: None,
+    };
+    let rows = sizes(&args, &mut timer, &mut inputs, bandwidth)?;
+    let crossover = sweep(&args, &mut timer, &mut inputs)?;
+    if let Some(path) = &args.json {
+        std::fs::write(
+            path,
+            serde_json::to_string_pretty(
+                &serde_json::json!({"rows": rows, "crossover": crossover}),
+            )?,
+        )?;
+    }
+    Ok(())
+}
+
+/// The queries of the bench: the engine, at the Kinect case's pose.
+struct Timer<'a> {
+    engine: &'a mut Engine,
+    sensor: Isometry3<f64>,
+    poses: &'a [Isometry3<f64>],
+    /// The cloud's row width, where it is organized.
+    width: Option<usize>,
+    /// The points the CPU makes from a depth image.
+    made: Vec<[f32; 3]>,
+    mode: Mode,
+}
+
+impl Timer<'_> {
+    fn query(&mut self, input: Input, options: &QueryOptions) -> Result<QueryResult> {
+        let (sensor, poses) = (&self.sensor, self.poses);
+        Ok(match input {
+            Input::Cloud(points) => {
+                let width = self.width.filter(|w| points.len().is_multiple_of(*w));
+                self.engine
+                    .query_image(points, width, sensor, poses, options)?
+            }
+            // The CPU makes the points (and then measures them); the GPU takes the image.
+            Input::Depth(depth) => {
+                self.engine
+                    .query_depth(depth, &mut self.made, sensor, poses, options)?
+            }
+        })
+    }
+
+    /// `runs` timed queries of `input` on `backend`, after one untimed.
+    fn time(&mut self, input: Input, backend: Backend, runs: usize) -> Result<Timed> {
         let options = QueryOptions {
-            mode: args.mode,
+            mode: self.mode,
             backend,
             ..QueryOptions::default()
         };
         let n = input.len();
         // One untimed query: shader compilation, buffer growth, caches.
-        let first = query(&mut engine, input, &options)?;
+        let first = self.query(input, &options)?;
         if first.backend != backend {
             bail!(
                 "{n} points: the {backend:?} query ran on {:?} (RUST_LOG=debug says why)",
                 first.backend
             );
         }
-        let work = engine.last_work();
+        let work = self.engine.last_work();
         let (mut wall, mut kernel) = (Vec::new(), Vec::new());
         let mut passes: Vec<(&'static str, Vec<f64>)> = Vec::new();
         for _ in 0..runs {
             let start = Instant::now();
-            let r = query(&mut engine, input, &options)?;
+            let r = self.query(input, &options)?;
             wall.push(start.elapsed().as_secs_f64() * 1e3);
             if backend == Backend::Gpu {
-                if let Some(g) = engine.gpu() {
+                if let Some(g) = self.engine.gpu() {
                     kernel.extend(g.last_kernel_s.map(|s| s * 1e3));
                     let host = g.last_host_s;
                     for (name, s) in HOST_STEPS
@@ -273,7 +312,57 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             work,
             steps: passes,
         })
-    };
+    }
+}
+
+/// The inputs of each size: the Kinect cloud tiled with 1 mm offsets, or its depth image.
+struct Inputs<'a> {
+    base: &'a [[f32; 3]],
+    depth: bool,
+    points: Vec<[f32; 3]>,
+    image: Option<Image<'static>>,
+}
+
+impl Inputs<'_> {
+    /// Makes the input of `n` points (or pixels); then [`Inputs::view`] and [`Input::of`].
+    fn make(&mut self, n: usize) {
+        if self.depth {
+            self.image = Some(depth_image(self.base, n));
+        } else {
+            let base = self.base;
+            self.points = (0..n)
+                .map(|i| {
+                    let p = base[i % base.len()];
+                    let copy = (i / base.len()) as f32;
+                    [p[0], p[1], p[2] + 0.001 * copy]
+                })
+                .collect();
+        }
+    }
+
+    /// The depth image's view with the Kinect's intrinsics (`None` for clouds).
+    fn view(&self) -> Result<Option<DepthView<'_>>> {
+        Ok(match &self.image {
+            Some(i) => Some(DepthView::new(i, &kinect_camera(i.height as usize), None)?),
+            None => None,
+        })
+    }
+}
+
+impl<'a> Input<'a> {
+    /// The cloud, or the depth image's view where there is one.
+    fn of(points: &'a [[f32; 3]], view: Option<&'a DepthView<'a>>) -> Self {
+        view.map_or(Input::Cloud(points), Input::Depth)
+    }
+}
+
+/// The table: each of `--sizes` on both backends, with the upload floor at `bandwidth` (B/s).
+fn sizes(
+    args: &BenchGpuArgs,
+    timer: &mut Timer,
+    inputs: &mut Inputs,
+    bandwidth: f64,
+) -> Result<Vec<GpuRow>> {
     let mut rows = Vec::new();
     println!(
         "{:>10} {:>24} {:>24} {:>24} {:>9} {:>8} {:>10}",
@@ -292,24 +381,13 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             w.blocks_culled, w.blocks, w.items, w.descents, w.nodes
         )
     };
-    let input = |n: usize, points: &mut Vec<[f32; 3]>, image: &mut Option<Image<'static>>| {
-        if args.depth {
-            *image = Some(depth_image(base, n));
-        } else {
-            *points = cloud(n);
-        }
-    };
-    let (mut points, mut image) = (Vec::new(), None);
     for &n in &args.sizes {
-        input(n, &mut points, &mut image);
-        let view = match &image {
-            Some(i) => Some(DepthView::new(i, &kinect_camera(i.height as usize), None)?),
-            None => None,
-        };
-        let input = view.as_ref().map_or(Input::Cloud(&points), Input::Depth);
+        inputs.make(n);
+        let view = inputs.view()?;
+        let input = Input::of(&inputs.points, view.as_ref());
         let (n, bytes) = (input.len(), input.bytes());
-        let cpu = time(input, Backend::Cpu, args.runs)?;
-        let gpu = time(input, Backend::Gpu, args.runs)?;
+        let cpu = timer.time(input, Backend::Cpu, args.runs)?;
+        let gpu = timer.time(input, Backend::Gpu, args.runs)?;
         let (dc, cpu_work) = (cpu.distance, cpu.work);
         let (dg, gpu_work, kernel, passes) = (gpu.distance, gpu.work, gpu.kernel, gpu.steps);
         let (cpu, gpu) = (cpu.wall, gpu.wall);
@@ -346,10 +424,16 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
         }
         rows.push(row);
     }
-    // The sweep alternates the two backends in rounds of a quarter of the runs each, so that
-    // the machine's drift falls on both alike; the crossover is the smallest size from which
-    // the GPU wins at every size of the sweep, not only the first it wins at (at parity the
-    // first win is a coin's throw).
+    Ok(rows)
+}
+
+/// The crossover sweep over `--crossover`, and the setting it gives.
+///
+/// The sweep alternates the two backends in rounds of a quarter of the runs each, so that the
+/// machine's drift falls on both alike; the crossover is the smallest size from which the GPU
+/// wins at every size of the sweep, not only the first it wins at (at parity the first win is
+/// a coin's throw).
+fn sweep(args: &BenchGpuArgs, timer: &mut Timer, inputs: &mut Inputs) -> Result<Option<usize>> {
     let (parameter, unit) = if args.depth {
         ("gpu_min_depth_pixels", "pixels")
     } else {
@@ -357,18 +441,15 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
     };
     let mut sweep = Vec::new();
     for &n in &args.crossover {
-        input(n, &mut points, &mut image);
-        let view = match &image {
-            Some(i) => Some(DepthView::new(i, &kinect_camera(i.height as usize), None)?),
-            None => None,
-        };
-        let input = view.as_ref().map_or(Input::Cloud(&points), Input::Depth);
+        inputs.make(n);
+        let view = inputs.view()?;
+        let input = Input::of(&inputs.points, view.as_ref());
         let n = input.len();
         let (mut cpu, mut gpu) = (Vec::new(), Vec::new());
         let round = args.runs.div_ceil(4);
         while cpu.len() < args.runs {
-            cpu.extend(time(input, Backend::Cpu, round)?.wall);
-            gpu.extend(time(input, Backend::Gpu, round)?.wall);
+            cpu.extend(timer.time(input, Backend::Cpu, round)?.wall);
+            gpu.extend(timer.time(input, Backend::Gpu, round)?.wall);
         }
         let (c, g) = (Spread::of(cpu).median, Spread::of(gpu).median);
         println!(
@@ -386,15 +467,7 @@ pub fn bench_gpu(args: BenchGpuArgs) -> Result<()> {
             "the GPU does not win at the sweep's largest size: keep backend auto off the GPU here ({parameter} above it)"
         ),
     }
-    if let Some(path) = &args.json {
-        std::fs::write(
-            path,
-            serde_json::to_string_pretty(
-                &serde_json::json!({"rows": rows, "crossover": crossover}),
-            )?,
-        )?;
-    }
-    Ok(())
+    Ok(crossover)
 }
 
 /// The smallest size of a sweep (`(size, GPU won)`, in ascending size) from which the GPU wins

@@ -16,7 +16,8 @@ use ist_monitor::cloud::pointcloud2;
 use ist_monitor::monitor::{Frame, Monitor};
 use ist_monitor::stats::Spread;
 
-use crate::cli::{monitor_from_config, ConfigArgs};
+use crate::args::ConfigArgs;
+use crate::setup::monitor_from_config;
 
 #[derive(Args)]
 pub struct BenchMonitorArgs {
@@ -29,7 +30,7 @@ pub struct BenchMonitorArgs {
     #[arg(long)]
     shared: Option<PathBuf>,
     /// Timed frames per variant.
-    #[arg(long, default_value_t = 200, value_parser = crate::cli::parse_count)]
+    #[arg(long, default_value_t = 200, value_parser = crate::args::parse_count)]
     runs: usize,
 }
 

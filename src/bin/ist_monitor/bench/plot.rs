@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 
 use ist_monitor::monitor::replay::ReplayFrame;
 
-use super::query::Row;
+use super::rows::Row;
 use super::scenes::ScenarioName;
 
 /// Where a sans-serif TrueType font is looked for when none is given, preferred names first.

@@ -18,14 +18,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use serde::Serialize;
-
 use ist_monitor::ist::BuildOptions;
 use ist_monitor::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptions, QueryResult};
-use ist_monitor::stats::Spread;
 
-use super::scenes::{load_scenario, Case, ScenarioName};
-use crate::cli::cached_trees;
+use super::rows::{print_table, row, Row};
+use super::scenes::{load_scenario, Case, Scenario, ScenarioName};
+use crate::setup::cached_trees;
 
 #[derive(clap::Args)]
 pub struct BenchQueryArgs {
@@ -70,29 +68,11 @@ pub struct BenchQueryArgs {
     backend: Backend,
     /// The trees of the node-settings rows: most spheres per link (parameter max_spheres;
     /// equal to --node-start-spheres for a fixed budget).
-    #[arg(long, default_value = crate::cli::param("max_spheres"))]
+    #[arg(long, default_value = crate::args::param("max_spheres"))]
     node_max_spheres: u32,
     /// The trees of the node-settings rows: the budget a link starts with (start_spheres).
-    #[arg(long, default_value = crate::cli::param("start_spheres"))]
+    #[arg(long, default_value = crate::args::param("start_spheres"))]
     node_start_spheres: u32,
-}
-
-/// One line of the table.
-#[derive(Debug, Clone, Serialize)]
-pub struct Row {
-    pub scenario: ScenarioName,
-    /// "fast", "certified", "exact", or a peer.
-    pub method: String,
-    pub per_link: bool,
-    pub budget: Option<u32>,
-    pub median_ms: f64,
-    pub p10_ms: f64,
-    pub p90_ms: f64,
-    pub p99_ms: f64,
-    /// Against the exact reference, over poses (None without peers).
-    pub max_error_mm: Option<f64>,
-    pub mean_error_mm: Option<f64>,
-    pub runs: usize,
 }
 
 fn time<T>(runs: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, T) {
@@ -104,37 +84,6 @@ fn time<T>(runs: usize, mut f: impl FnMut() -> T) -> (Vec<f64>, T) {
         samples.push(t.elapsed().as_secs_f64() * 1e3);
     }
     (samples, out)
-}
-
-fn row(
-    scenario: ScenarioName,
-    method: &str,
-    per_link: bool,
-    budget: Option<u32>,
-    samples: Vec<f64>,
-    errors: &[f64],
-) -> Row {
-    let runs = samples.len();
-    let Spread {
-        median: m,
-        p10: lo,
-        p90: hi,
-        p99,
-    } = Spread::of(samples);
-    Row {
-        scenario,
-        method: method.into(),
-        per_link,
-        budget,
-        median_ms: m,
-        p10_ms: lo,
-        p90_ms: hi,
-        p99_ms: p99,
-        max_error_mm: (!errors.is_empty()).then(|| errors.iter().fold(0.0, |a: f64, &b| a.max(b))),
-        mean_error_mm: (!errors.is_empty())
-            .then(|| errors.iter().sum::<f64>() / errors.len() as f64),
-        runs,
-    }
 }
 
 /// Every case timed `runs` times with `options` (one untimed query first): the samples of all
@@ -225,7 +174,6 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
         args.peer_runs
     );
     let demo = crate::demo::dir()?;
-    let cache_dir = args.cache_dir.as_deref();
     let mut rows = Vec::new();
     for &name in &args.scenarios {
         let shared = if name.needs_shared() {
@@ -234,200 +182,7 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
             PathBuf::new()
         };
         let scenario = load_scenario(&shared, &demo, name)?;
-        let cases = &scenario.cases;
-        let first = &cases[0].points;
-        let valid = first
-            .iter()
-            .filter(|p| ist_monitor::query::is_valid_point(**p))
-            .count();
-        println!(
-            "\n== {name:?}: {} ({} links), {} case(s) of {} points ({valid} valid in the first)",
-            scenario.model.name,
-            scenario.model.links.len(),
-            cases.len(),
-            first.len(),
-        );
-        let mut scenario_rows = Vec::new();
-        // The floor and the exact peers do not depend on the budget: measured with the
-        // node's trees (default: the node's default budget; peer (b) uses only the meshes).
-        let mut node_build = BuildOptions::default();
-        node_build.packing.max_spheres = args.node_max_spheres.max(1);
-        node_build.packing.start_spheres = args.node_start_spheres.max(1);
-        let default_trees = cached_trees(&scenario.model, &node_build, cache_dir)?;
-        let mut engine = Engine::new(&scenario.model, &default_trees, &LinkSelection::default())?;
-        let mut floor = Vec::new();
-        for case in cases {
-            floor.extend(time(args.runs, || peers::touch_every_point(&case.points)).0);
-        }
-        scenario_rows.push(row(
-            name,
-            "floor (touch every point)",
-            false,
-            None,
-            floor,
-            &[],
-        ));
-        // The exact distance per case: the generator's truth, or peer (a) (peer (b) on the
-        // stress scenes).
-        // (all cases or none, so that reference[c] is case c's).
-        let mut reference: Vec<f64> = cases
-            .iter()
-            .map(|c| c.truth_m)
-            .collect::<Option<_>>()
-            .unwrap_or_default();
-        let peers = !args.no_peers && !scenario.robot_in_view;
-        if peers {
-            let slow = name.needs_shared();
-            let (mut ta, mut tb) = (Vec::new(), Vec::new());
-            for case in cases {
-                let (points, sensor, lp) = (&case.points, &case.root_from_sensor, &case.link_poses);
-                let a = if slow {
-                    let (s, a) = time(args.peer_runs, || {
-                        peers::exact_every_point(&engine, points, sensor, lp)
-                    });
-                    ta.extend(s);
-                    Some(a.context("no valid point")?)
-                } else {
-                    None
-                };
-                let (s, b) = time(args.runs, || {
-                    peers::exact_shared_bound(&engine, points, sensor, lp)
-                });
-                tb.extend(s);
-                let b = b.context("no valid point")?;
-                let exact = a.as_ref().unwrap_or(&b);
-                println!(
-                    "  {}: exact {:.4} m on {} (point {}); peer (b) {:.4} m",
-                    case.name,
-                    exact.distance,
-                    engine.links()[exact.link].name,
-                    exact.point,
-                    b.distance
-                );
-                if (exact.distance - b.distance).abs() > 1e-5 {
-                    bail!(
-                        "peer (b) {} differs from peer (a) {}",
-                        b.distance,
-                        exact.distance
-                    );
-                }
-                reference.push(exact.distance as f64);
-            }
-            if slow {
-                scenario_rows.push(row(
-                    name,
-                    "(a) parry exact, every point",
-                    false,
-                    None,
-                    ta,
-                    &[],
-                ));
-            }
-            scenario_rows.push(row(
-                name,
-                "(b) parry exact, shared bound",
-                false,
-                None,
-                tb,
-                &[],
-            ));
-        }
-        // The node's settings (self-filter on), at the default (grown) budget.
-        for (label, options) in node_settings(args.backend) {
-            let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
-            let mut errors = Vec::new();
-            for (r, &exact) in results.iter().zip(&reference) {
-                if let Some(n) = &r.nearest {
-                    errors.push(error_mm(options.mode, n, exact));
-                }
-            }
-            scenario_rows.push(row(
-                name,
-                &format!("{label}, self-filter"),
-                options.per_link,
-                // The default budget grows per link: the largest link's.
-                default_trees.iter().map(|t| t.quality.budget as u32).max(),
-                samples,
-                &errors,
-            ));
-        }
-        if scenario.robot_in_view {
-            print_table(&scenario_rows);
-            rows.extend(scenario_rows);
-            continue;
-        }
-        for &budget in &args.budgets {
-            let mut options = BuildOptions::default();
-            options.packing.max_spheres = budget;
-            options.packing.start_spheres = budget;
-            let trees = cached_trees(&scenario.model, &options, cache_dir)?;
-            let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
-            for &mode in &args.modes {
-                for per_link in [false, true] {
-                    let options = QueryOptions {
-                        mode,
-                        per_link,
-                        per_link_range_m: f32::INFINITY,
-                        self_filter_padding_m: None,
-                        backend: args.backend,
-                        ..QueryOptions::default()
-                    };
-                    let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
-                    let mut errors = Vec::new();
-                    for (c, r) in results.iter().enumerate() {
-                        let n = r.nearest.as_ref().context("no nearest point")?;
-                        if let Some(&exact) = reference.get(c) {
-                            errors.push(error_mm(mode, n, exact));
-                        }
-                    }
-                    scenario_rows.push(row(
-                        name,
-                        &format!("{mode:?}").to_lowercase(),
-                        per_link,
-                        Some(budget),
-                        samples,
-                        &errors,
-                    ));
-                }
-            }
-            if peers && budget <= args.brute_force_max_budget && name.needs_shared() {
-                let mut samples = Vec::new();
-                let mut errors = Vec::new();
-                for (c, case) in cases.iter().enumerate() {
-                    let (s, r) = time(args.peer_runs, || {
-                        peers::brute_force_spheres(
-                            &engine,
-                            &case.points,
-                            &case.root_from_sensor,
-                            &case.link_poses,
-                        )
-                    });
-                    samples.extend(s);
-                    let r = r.context("no valid point")?;
-                    errors.push(1e3 * (r.distance as f64 - reference[c]));
-                }
-                scenario_rows.push(row(
-                    name,
-                    "(c) brute force, all spheres",
-                    false,
-                    Some(budget),
-                    samples,
-                    &errors,
-                ));
-            }
-        }
-        print_table(&scenario_rows);
-        if let Some(prefix) = &args.plot {
-            let path = PathBuf::from(format!(
-                "{}_{}.png",
-                prefix.display(),
-                format!("{name:?}").to_lowercase()
-            ));
-            super::plot::error_against_time(&path, args.font.as_deref(), name, &scenario_rows)
-                .with_context(|| format!("plot {}", path.display()))?;
-            println!("plot: {}", path.display());
-        }
-        rows.extend(scenario_rows);
+        rows.extend(bench_scenario(&args, name, &scenario)?);
     }
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&rows)?)
@@ -435,38 +190,238 @@ pub fn bench_query(args: BenchQueryArgs) -> Result<()> {
     }
     Ok(())
 }
-fn print_table(rows: &[Row]) {
-    let floor = rows
+
+/// One scene's rows: the floor, the exact peers, the node's settings and (without the robot
+/// in view) the sweep over budgets; printed, and plotted when asked.
+fn bench_scenario(
+    args: &BenchQueryArgs,
+    name: ScenarioName,
+    scenario: &Scenario,
+) -> Result<Vec<Row>> {
+    let cases = &scenario.cases;
+    let first = &cases[0].points;
+    let valid = first
         .iter()
-        .find(|r| r.method.starts_with("floor"))
-        .map(|r| r.median_ms);
+        .filter(|p| ist_monitor::query::is_valid_point(**p))
+        .count();
     println!(
-        "{:<52} {:>8} {:>6} {:>10} {:>17} {:>8} {:>8} {:>13} {:>13}",
-        "method",
-        "per-link",
-        "budget",
-        "median ms",
-        "[p10, p90] ms",
-        "p99 ms",
-        "× floor",
-        "max err mm",
-        "mean err mm"
+        "\n== {name:?}: {} ({} links), {} case(s) of {} points ({valid} valid in the first)",
+        scenario.model.name,
+        scenario.model.links.len(),
+        cases.len(),
+        first.len(),
     );
-    for r in rows {
-        let f = |v: Option<f64>| v.map(|v| format!("{v:.4}")).unwrap_or_else(|| "-".into());
-        println!(
-            "{:<52} {:>8} {:>6} {:>10.3} {:>17} {:>8.3} {:>8.1} {:>13} {:>13}",
-            r.method,
-            if r.per_link { "yes" } else { "no" },
-            r.budget
-                .map(|b| b.to_string())
-                .unwrap_or_else(|| "-".into()),
-            r.median_ms,
-            format!("[{:.3}, {:.3}]", r.p10_ms, r.p90_ms),
-            r.p99_ms,
-            floor.map_or(f64::NAN, |f| r.median_ms / f),
-            f(r.max_error_mm),
-            f(r.mean_error_mm)
-        );
+    let mut scenario_rows = Vec::new();
+    // The floor and the exact peers do not depend on the budget: measured with the
+    // node's trees (default: the node's default budget; peer (b) uses only the meshes).
+    let mut node_build = BuildOptions::default();
+    node_build.packing.max_spheres = args.node_max_spheres.max(1);
+    node_build.packing.start_spheres = args.node_start_spheres.max(1);
+    let default_trees = cached_trees(&scenario.model, &node_build, args.cache_dir.as_deref())?;
+    let mut engine = Engine::new(&scenario.model, &default_trees, &LinkSelection::default())?;
+    let mut floor = Vec::new();
+    for case in cases {
+        floor.extend(time(args.runs, || peers::touch_every_point(&case.points)).0);
     }
+    scenario_rows.push(row(
+        name,
+        "floor (touch every point)",
+        false,
+        None,
+        floor,
+        &[],
+    ));
+    // The exact distance per case: the generator's truth, or peer (a) (peer (b) on the
+    // stress scenes).
+    // (all cases or none, so that reference[c] is case c's).
+    let mut reference: Vec<f64> = cases
+        .iter()
+        .map(|c| c.truth_m)
+        .collect::<Option<_>>()
+        .unwrap_or_default();
+    let peers = !args.no_peers && !scenario.robot_in_view;
+    if peers {
+        scenario_rows.extend(exact_peers(args, name, cases, &engine, &mut reference)?);
+    }
+    // The node's settings (self-filter on), at the default (grown) budget.
+    for (label, options) in node_settings(args.backend) {
+        let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
+        let mut errors = Vec::new();
+        for (r, &exact) in results.iter().zip(&reference) {
+            if let Some(n) = &r.nearest {
+                errors.push(error_mm(options.mode, n, exact));
+            }
+        }
+        scenario_rows.push(row(
+            name,
+            &format!("{label}, self-filter"),
+            options.per_link,
+            // The default budget grows per link: the largest link's.
+            default_trees.iter().map(|t| t.quality.budget as u32).max(),
+            samples,
+            &errors,
+        ));
+    }
+    if scenario.robot_in_view {
+        print_table(&scenario_rows);
+        return Ok(scenario_rows);
+    }
+    for &budget in &args.budgets {
+        scenario_rows.extend(budget_rows(
+            args, name, scenario, budget, &reference, peers,
+        )?);
+    }
+    print_table(&scenario_rows);
+    if let Some(prefix) = &args.plot {
+        let path = PathBuf::from(format!(
+            "{}_{}.png",
+            prefix.display(),
+            format!("{name:?}").to_lowercase()
+        ));
+        super::plot::error_against_time(&path, args.font.as_deref(), name, &scenario_rows)
+            .with_context(|| format!("plot {}", path.display()))?;
+        println!("plot: {}", path.display());
+    }
+    Ok(scenario_rows)
+}
+
+/// The exact peers on every case, each case's exact distance appended to `reference`:
+/// peer (a) (every point and link; only on the stress scenes) and peer (b) (shared bound),
+/// which must agree.
+fn exact_peers(
+    args: &BenchQueryArgs,
+    name: ScenarioName,
+    cases: &[Case],
+    engine: &Engine,
+    reference: &mut Vec<f64>,
+) -> Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    let slow = name.needs_shared();
+    let (mut ta, mut tb) = (Vec::new(), Vec::new());
+    for case in cases {
+        let (points, sensor, lp) = (&case.points, &case.root_from_sensor, &case.link_poses);
+        let a = if slow {
+            let (s, a) = time(args.peer_runs, || {
+                peers::exact_every_point(engine, points, sensor, lp)
+            });
+            ta.extend(s);
+            Some(a.context("no valid point")?)
+        } else {
+            None
+        };
+        let (s, b) = time(args.runs, || {
+            peers::exact_shared_bound(engine, points, sensor, lp)
+        });
+        tb.extend(s);
+        let b = b.context("no valid point")?;
+        let exact = a.as_ref().unwrap_or(&b);
+        println!(
+            "  {}: exact {:.4} m on {} (point {}); peer (b) {:.4} m",
+            case.name,
+            exact.distance,
+            engine.links()[exact.link].name,
+            exact.point,
+            b.distance
+        );
+        if (exact.distance - b.distance).abs() > 1e-5 {
+            bail!(
+                "peer (b) {} differs from peer (a) {}",
+                b.distance,
+                exact.distance
+            );
+        }
+        reference.push(exact.distance as f64);
+    }
+    if slow {
+        rows.push(row(
+            name,
+            "(a) parry exact, every point",
+            false,
+            None,
+            ta,
+            &[],
+        ));
+    }
+    rows.push(row(
+        name,
+        "(b) parry exact, shared bound",
+        false,
+        None,
+        tb,
+        &[],
+    ));
+    Ok(rows)
+}
+
+/// Every mode with per-link minima off and on at one fixed `budget`, and peer (c) (brute force
+/// over the spheres) where it is asked for and affordable.
+fn budget_rows(
+    args: &BenchQueryArgs,
+    name: ScenarioName,
+    scenario: &Scenario,
+    budget: u32,
+    reference: &[f64],
+    peers: bool,
+) -> Result<Vec<Row>> {
+    let cases = &scenario.cases;
+    let mut rows = Vec::new();
+    let mut options = BuildOptions::default();
+    options.packing.max_spheres = budget;
+    options.packing.start_spheres = budget;
+    let trees = cached_trees(&scenario.model, &options, args.cache_dir.as_deref())?;
+    let mut engine = Engine::new(&scenario.model, &trees, &LinkSelection::default())?;
+    for &mode in &args.modes {
+        for per_link in [false, true] {
+            let options = QueryOptions {
+                mode,
+                per_link,
+                per_link_range_m: f32::INFINITY,
+                self_filter_padding_m: None,
+                backend: args.backend,
+                ..QueryOptions::default()
+            };
+            let (samples, results) = time_cases(&mut engine, cases, args.runs, &options)?;
+            let mut errors = Vec::new();
+            for (c, r) in results.iter().enumerate() {
+                let n = r.nearest.as_ref().context("no nearest point")?;
+                if let Some(&exact) = reference.get(c) {
+                    errors.push(error_mm(mode, n, exact));
+                }
+            }
+            rows.push(row(
+                name,
+                &format!("{mode:?}").to_lowercase(),
+                per_link,
+                Some(budget),
+                samples,
+                &errors,
+            ));
+        }
+    }
+    if peers && budget <= args.brute_force_max_budget && name.needs_shared() {
+        let mut samples = Vec::new();
+        let mut errors = Vec::new();
+        for (c, case) in cases.iter().enumerate() {
+            let (s, r) = time(args.peer_runs, || {
+                peers::brute_force_spheres(
+                    &engine,
+                    &case.points,
+                    &case.root_from_sensor,
+                    &case.link_poses,
+                )
+            });
+            samples.extend(s);
+            let r = r.context("no valid point")?;
+            errors.push(1e3 * (r.distance as f64 - reference[c]));
+        }
+        rows.push(row(
+            name,
+            "(c) brute force, all spheres",
+            false,
+            Some(budget),
+            samples,
+            &errors,
+        ));
+    }
+    Ok(rows)
 }

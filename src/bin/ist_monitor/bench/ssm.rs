@@ -12,14 +12,15 @@ use ist_monitor::monitor::replay::{self, Clock, ReplayFrame};
 use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
 use ist_monitor::stats::Spread;
 
-use crate::cli::{monitor_from_config, ConfigArgs};
+use crate::args::ConfigArgs;
+use crate::setup::monitor_from_config;
 
 #[derive(Args)]
 pub struct BenchSsmArgs {
     #[command(flatten)]
     config: ConfigArgs,
     /// Clouds of the generated approach (10 Hz).
-    #[arg(long, default_value_t = 60, value_parser = crate::cli::parse_count)]
+    #[arg(long, default_value_t = 60, value_parser = crate::args::parse_count)]
     frames: usize,
     /// Depth image width and height, pixels.
     #[arg(long, default_value_t = 128)]
@@ -27,7 +28,7 @@ pub struct BenchSsmArgs {
     #[arg(long, default_value_t = 96)]
     height: u32,
     /// Replays of the bag timed (every frame of every replay is a sample).
-    #[arg(long, default_value_t = 5, value_parser = crate::cli::parse_count)]
+    #[arg(long, default_value_t = 5, value_parser = crate::args::parse_count)]
     runs: usize,
     /// Write the plot of the first replay to this PNG.
     #[arg(long)]

@@ -1,5 +1,5 @@
 //! `build` (pack, build, cache and report the trees of a robot) and `poses` (forward
-//! kinematics), and the tree build with a progress bar that every command shares.
+//! kinematics).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -10,9 +10,10 @@ use serde::Serialize;
 
 use ist_monitor::ist::cache::TreeCache;
 use ist_monitor::ist::{self, BuildOptions, LinkTree, Origin};
-use ist_monitor::robot::{LinkSelection, RobotModel};
+use ist_monitor::robot::{LinkGeometry, LinkSelection, RobotModel};
 
-use super::args::{parse_joint, RobotArgs, TreeArgs};
+use crate::args::{parse_joint, RobotArgs, TreeArgs};
+use crate::setup::build_trees;
 
 #[derive(Args)]
 pub struct BuildArgs {
@@ -50,37 +51,6 @@ pub struct PosesArgs {
     /// Joint values, NAME=VALUE,... (radians or metres); joints not named are 0.
     #[arg(long, value_delimiter = ',', value_parser = parse_joint)]
     joints: Vec<(String, f64)>,
-}
-
-/// The trees of every link, built or loaded from `cache`, with a progress bar on a terminal.
-pub fn build_trees(
-    model: &RobotModel,
-    options: &BuildOptions,
-    cache: Option<&TreeCache>,
-) -> Result<Vec<(LinkTree, Origin)>> {
-    let bar = indicatif::ProgressBar::new(model.links.len() as u64).with_message("links");
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} {msg} {pos}/{len} [{elapsed}] {wide_bar}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    let trees = ist::build_robot(model, options, cache, &|_| bar.inc(1))?;
-    bar.finish_and_clear();
-    Ok(trees)
-}
-
-/// [`build_trees`] through the cache in `dir` (or the default cache folder), trees only.
-pub fn cached_trees(
-    model: &RobotModel,
-    options: &BuildOptions,
-    dir: Option<&Path>,
-) -> Result<Vec<LinkTree>> {
-    let cache = TreeCache::at(dir);
-    Ok(build_trees(model, options, Some(&cache))?
-        .into_iter()
-        .map(|(t, _)| t)
-        .collect())
 }
 
 #[derive(Serialize)]
@@ -137,35 +107,58 @@ pub fn build(args: BuildArgs) -> Result<()> {
     let trees = build_trees(&model, &options, cache.as_ref())?;
     let total_s = start.elapsed().as_secs_f64();
     if args.validate && !args.json {
-        for ((tree, origin), geometry) in trees.iter().zip(&model.links) {
-            println!("link {}:", geometry.name);
-            for e in &geometry.elements {
-                println!(
-                    "  element {} ({}): {}, {} triangles, {:.3e} m³",
-                    e.index,
-                    e.source,
-                    match &e.mesh.fill {
-                        Some(f) => format!(
-                            "filled (inside by exterior flood fill, {:.2} mm voxels; the \
-                             triangles facing the outside)",
-                            f.voxel_m * 1e3
-                        ),
-                        None => "closed (inside by its orientation)".into(),
-                    },
-                    e.mesh.triangles.len(),
-                    e.mesh.volume_m3
-                );
-            }
-            for i in &geometry.intake {
-                println!("  mesh {}: {}", i.file.display(), i.report.summary());
-            }
-            if let Some(v) = geometry.hull_of_volume_m3 {
-                println!(
-                    "  convex hull of {v:.3e} m³ of mesh: distances to it are lower bounds of the \
-                     link's, its distance is the certified lower bound"
-                );
-            }
+        print_validation(&model, &trees);
+    }
+    let rows: Vec<LinkRow> = trees
+        .iter()
+        .zip(&model.links)
+        .map(|((t, origin), geometry)| link_row(t, *origin, geometry, &options))
+        .collect();
+    if let Some(path) = &args.export_spheres {
+        export_spheres(path, &trees)?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({ "links": rows }))?
+        );
+        return Ok(());
+    }
+    print_table(&model, &rows, total_s);
+    Ok(())
+}
+
+/// With `--validate`: per link, what its meshes needed and what its validation checked.
+fn print_validation(model: &RobotModel, trees: &[(LinkTree, Origin)]) {
+    for ((tree, origin), geometry) in trees.iter().zip(&model.links) {
+        println!("link {}:", geometry.name);
+        for e in &geometry.elements {
             println!(
+                "  element {} ({}): {}, {} triangles, {:.3e} m³",
+                e.index,
+                e.source,
+                match &e.mesh.fill {
+                    Some(f) => format!(
+                        "filled (inside by exterior flood fill, {:.2} mm voxels; the \
+                             triangles facing the outside)",
+                        f.voxel_m * 1e3
+                    ),
+                    None => "closed (inside by its orientation)".into(),
+                },
+                e.mesh.triangles.len(),
+                e.mesh.volume_m3
+            );
+        }
+        for i in &geometry.intake {
+            println!("  mesh {}: {}", i.file.display(), i.report.summary());
+        }
+        if let Some(v) = geometry.hull_of_volume_m3 {
+            println!(
+                "  convex hull of {v:.3e} m³ of mesh: distances to it are lower bounds of the \
+                     link's, its distance is the certified lower bound"
+            );
+        }
+        println!(
                 "  checked ({}): {} spheres inside the solid (centre inside by ray winding \
                  number or flood fill, radius within the f64 distance to the surface), no overlap \
                  beyond {tol:.0e} m, every node bounds its children; h {:.3} mm certified (+{tol:.0e} m) \
@@ -180,72 +173,68 @@ pub fn build(args: BuildArgs) -> Result<()> {
                 tree.quality.file_gap_sampled_m * 1e3,
                 tol = ist::VALIDATION_TOLERANCE_M,
             );
-        }
     }
-    let rows: Vec<LinkRow> = trees
-        .iter()
-        .zip(&model.links)
-        .map(|((t, origin), geometry)| {
-            let cached = *origin == Origin::Cache;
-            let mut warnings = Vec::new();
-            if t.quality.coverage > 1.0 {
-                warnings.push(format!(
-                    "coverage {:.1} % above 100 %: the link's elements overlap, and so do their \
+}
+
+/// A link's row, with a warning where its packing fell short of the options.
+fn link_row<'a>(
+    t: &'a LinkTree,
+    origin: Origin,
+    geometry: &'a LinkGeometry,
+    options: &BuildOptions,
+) -> LinkRow<'a> {
+    let cached = origin == Origin::Cache;
+    let mut warnings = Vec::new();
+    if t.quality.coverage > 1.0 {
+        warnings.push(format!(
+            "coverage {:.1} % above 100 %: the link's elements overlap, and so do their \
                      spheres",
-                    100.0 * t.quality.coverage
-                ));
-            }
-            if t.quality.gap_m > options.packing.target_gap_m as f64 {
-                warnings.push(format!(
-                    "h {:.3} mm above the target {:.3} mm at a budget of {} spheres ({})",
-                    1e3 * t.quality.gap_m,
-                    1e3 * options.packing.target_gap_m,
-                    t.quality.budget,
-                    if t.quality.budget >= options.packing.max_spheres as usize {
-                        "the cap max_spheres"
-                    } else {
-                        "the packing found no room for more spheres of min_radius"
-                    }
-                ));
-            }
-            LinkRow {
-                name: &t.link,
-                spheres: t.quality.spheres,
-                budget: t.quality.budget,
-                coverage: t.quality.coverage,
-                gap_m: t.quality.gap_m,
-                gap_sampled_m: t.quality.gap_sampled_m,
-                file_gap_sampled_m: t.quality.file_gap_sampled_m,
-                build_s: (!cached).then_some(t.quality.build_s),
-                validated: true,
-                validate_s: (!cached).then_some(t.quality.validate_s),
-                tree_volume_m3: t.quality.tree_volume_m3,
-                origin: *origin,
-                from_cache: cached,
-                warnings,
-                intake: geometry
-                    .intake
-                    .iter()
-                    .map(|i| IntakeRow {
-                        element: i.element,
-                        file: i.file.display().to_string(),
-                        summary: i.report.summary(),
-                        report: &i.report,
-                    })
-                    .collect(),
-            }
-        })
-        .collect();
-    if let Some(path) = &args.export_spheres {
-        export_spheres(path, &trees)?;
+            100.0 * t.quality.coverage
+        ));
     }
-    if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({ "links": rows }))?
-        );
-        return Ok(());
+    if t.quality.gap_m > options.packing.target_gap_m as f64 {
+        warnings.push(format!(
+            "h {:.3} mm above the target {:.3} mm at a budget of {} spheres ({})",
+            1e3 * t.quality.gap_m,
+            1e3 * options.packing.target_gap_m,
+            t.quality.budget,
+            if t.quality.budget >= options.packing.max_spheres as usize {
+                "the cap max_spheres"
+            } else {
+                "the packing found no room for more spheres of min_radius"
+            }
+        ));
     }
+    LinkRow {
+        name: &t.link,
+        spheres: t.quality.spheres,
+        budget: t.quality.budget,
+        coverage: t.quality.coverage,
+        gap_m: t.quality.gap_m,
+        gap_sampled_m: t.quality.gap_sampled_m,
+        file_gap_sampled_m: t.quality.file_gap_sampled_m,
+        build_s: (!cached).then_some(t.quality.build_s),
+        validated: true,
+        validate_s: (!cached).then_some(t.quality.validate_s),
+        tree_volume_m3: t.quality.tree_volume_m3,
+        origin,
+        from_cache: cached,
+        warnings,
+        intake: geometry
+            .intake
+            .iter()
+            .map(|i| IntakeRow {
+                element: i.element,
+                file: i.file.display().to_string(),
+                summary: i.report.summary(),
+                report: &i.report,
+            })
+            .collect(),
+    }
+}
+
+/// The table of the links (the default output).
+fn print_table(model: &RobotModel, rows: &[LinkRow], total_s: f64) {
     println!(
         "robot {} ({}), {} links",
         model.name,
@@ -256,7 +245,7 @@ pub fn build(args: BuildArgs) -> Result<()> {
         "{:<24} {:>8} {:>9} {:>8} {:>9} {:>10} {:>7}",
         "link", "spheres", "coverage", "h [mm]", "build [s]", "valid. [s]", "from"
     );
-    for r in &rows {
+    for r in rows {
         println!(
             "{:<24} {:>8} {:>8.1}% {:>8.3} {:>9} {:>10} {:>7}{}",
             r.name,
@@ -284,7 +273,6 @@ pub fn build(args: BuildArgs) -> Result<()> {
             ""
         }
     );
-    Ok(())
 }
 
 fn export_spheres(path: &Path, trees: &[(LinkTree, Origin)]) -> Result<()> {

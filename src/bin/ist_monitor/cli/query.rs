@@ -10,8 +10,8 @@ use clap::Args;
 use ist_monitor::cloud;
 use ist_monitor::query::{Engine, Mode, Outcome};
 
-use super::args::{parse_joint, parse_pose, QueryParams, TreeArgs};
-use super::build::cached_trees;
+use crate::args::{parse_joint, parse_pose, QueryParams, TreeArgs};
+use crate::setup::cached_trees;
 
 #[derive(Args)]
 pub struct QueryArgs {

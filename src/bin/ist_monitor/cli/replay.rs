@@ -7,15 +7,16 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 
 use ist_monitor::bag::writer::Compression;
+use ist_monitor::choice::Choice;
 use ist_monitor::cloud::depth::DepthEncoding;
-use ist_monitor::config::Config;
 use ist_monitor::monitor::replay;
-use ist_monitor::monitor::Monitor;
 use ist_monitor::query::Backend;
 use ist_monitor::scenario::{self, ScenarioParams, SceneKind};
 
-use super::args::{ConfigArgs, RobotArgs};
+use crate::args::{ConfigArgs, RobotArgs};
+use crate::choice::choice;
 use crate::demo;
+use crate::setup::monitor_from_config;
 
 #[derive(Args)]
 pub struct ReplayArgs {
@@ -50,7 +51,11 @@ pub struct GenerateArgs {
     #[arg(long)]
     out: PathBuf,
     /// The obstacle: a person walking up to the arm, or a shelf the arm reaches over.
-    #[arg(long, value_enum, default_value_t = SceneKind::Person)]
+    #[arg(
+        long,
+        value_parser = choice::<SceneKind>().help(SceneKind::about),
+        default_value = SceneKind::Person.name()
+    )]
     scene: SceneKind,
     /// Clouds to record (10 Hz).
     #[arg(long, default_value_t = ScenarioParams::default().frames)]
@@ -84,20 +89,9 @@ pub struct GenerateArgs {
     depth: Option<String>,
 }
 
-/// The monitor of a config, with a progress line while its trees are built or loaded.
-pub fn monitor_from_config(config: Config) -> Result<Monitor> {
-    let bar = indicatif::ProgressBar::new_spinner();
-    let monitor = Monitor::new(config, &|link| {
-        bar.set_message(format!("inner sphere trees: {link}"));
-        bar.tick();
-    });
-    bar.finish_and_clear();
-    Ok(monitor?)
-}
-
 pub fn replay(args: ReplayArgs) -> Result<()> {
     let backend = (args.backend.iter())
-        .map(|b| ("backend".to_string(), super::args::enum_name(b)))
+        .map(|b| ("backend".to_string(), crate::args::enum_name(b)))
         .collect::<Vec<_>>();
     let config = args.config.load(demo::CONFIG, &backend)?;
     let bag = demo::or_demo(&args.bag, demo::BAG)?;

@@ -10,7 +10,7 @@ use clap::Args;
 use ist_monitor::config::ParameterSources;
 use ist_monitor::node;
 
-use super::args::{parse_positive, parse_seconds};
+use crate::args::{parse_positive, parse_seconds};
 use crate::demo;
 
 #[derive(Args)]

@@ -1,4 +1,4 @@
-//! Options shared by several subcommands, and their parsers. Options that are also node
+//! Options shared by several subcommands and benches, and their parsers. Options that are also node
 //! parameters take their default from the library's parameter table
 //! ([`ist_monitor::config::PARAMETERS`]) and go through the same validation as a params file.
 

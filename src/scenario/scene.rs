@@ -1,0 +1,156 @@
+//! The scenes of the generator: what each shows (a person walking up, a shelf reached over, the
+//! approach and back, a work table), the arm's joint trajectory along `s` ∈ [0, 1] and the
+//! shapes of the environment at `s` in the robot's root frame (m), which the renderer casts
+//! its rays against.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use parry3d::math::Vector;
+use parry3d::query::{Ray, RayCast};
+use parry3d::shape::{Capsule, Cuboid};
+
+use crate::choice::Choice;
+
+/// The scenes the generator knows, each described by [`SceneKind::about`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneKind {
+    Person,
+    Shelf,
+    Approach,
+    Table,
+}
+
+impl Choice for SceneKind {
+    const ALL: &'static [Self] = &[
+        SceneKind::Person,
+        SceneKind::Shelf,
+        SceneKind::Approach,
+        SceneKind::Table,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            SceneKind::Person => "person",
+            SceneKind::Shelf => "shelf",
+            SceneKind::Approach => "approach",
+            SceneKind::Table => "table",
+        }
+    }
+}
+
+/// The table of [`SceneKind::Table`]: its centre in the root frame and its edge lengths, m.
+pub const TABLE_CENTER: [f64; 3] = [0.35, 0.45, 0.275];
+pub const TABLE_SIZE: [f64; 3] = [0.5, 0.5, 0.55];
+
+impl SceneKind {
+    /// What the scene shows, one line (`generate --help` lists them).
+    pub fn about(self) -> &'static str {
+        match self {
+            SceneKind::Person => {
+                "A person-sized capsule walks up to the arm while it swings toward them"
+            }
+            SceneKind::Shelf => "The arm reaches over a box standing in front of it",
+            SceneKind::Approach => {
+                "The person walks up to the arm while it swings toward them, and both go back: \
+                 the approach and the recovery of the speed and separation monitor"
+            }
+            SceneKind::Table => {
+                "The person scene with a 0.5 m work table beside the arm, which the gripper \
+                 passes above: a fixture for exclusion volumes"
+            }
+        }
+    }
+
+    /// Where along the walk-up the scene is at `s` ∈ [0, 1]: the approach scene goes out and
+    /// back.
+    fn progress(self, s: f64) -> f64 {
+        match self {
+            SceneKind::Approach => 1.0 - (2.0 * s - 1.0).abs(),
+            _ => s,
+        }
+    }
+}
+
+/// The joint trajectory of a scene at `s` ∈ [0, 1] (eased), as `name = value` pairs.
+pub(super) fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
+    let ease = 0.5 - 0.5 * (std::f64::consts::PI * scene.progress(s)).cos();
+    let (from, to): ([f64; 7], [f64; 7]) = match scene {
+        // pan, lift, elbow, wrist_1, wrist_2, wrist_3, finger
+        SceneKind::Person | SceneKind::Approach | SceneKind::Table => (
+            [0.9, 0.2, 1.1, 0.6, 0.0, 0.0, 0.015],
+            [-0.95, 0.55, 0.95, 0.5, 0.8, 0.3, 0.005],
+        ),
+        SceneKind::Shelf => (
+            [0.3, -0.2, 1.6, 0.9, 0.0, 0.0, 0.02],
+            [0.05, 0.56, 0.92, 0.95, 0.4, 0.0, 0.01],
+        ),
+    };
+    let names = [
+        "shoulder_pan",
+        "shoulder_lift",
+        "elbow",
+        "wrist_1",
+        "wrist_2",
+        "wrist_3",
+        "finger_left_joint",
+    ];
+    names
+        .iter()
+        .zip(from.iter().zip(&to))
+        .map(|(n, (a, b))| (n.to_string(), a + ease * (b - a)))
+        .collect()
+}
+
+/// The environment of a scene: shapes with their world poses at `s` ∈ [0, 1].
+pub(super) fn obstacles(
+    scene_kind: SceneKind,
+    s: f64,
+) -> Vec<(Box<dyn RayCast + Send + Sync>, Isometry3<f64>)> {
+    // A wall 1.4 m behind the robot, seen past it.
+    let wall: Box<dyn RayCast + Send + Sync> = Box::new(Cuboid::new(Vector::new(0.05, 2.0, 1.2)));
+    let wall_pose = Isometry3::translation(-1.4, 0.0, 1.2);
+    let obstacle: (Box<dyn RayCast + Send + Sync>, Isometry3<f64>) = match scene_kind {
+        SceneKind::Person | SceneKind::Approach | SceneKind::Table => {
+            // Radius 0.18 m, 1.7 m tall, walking from 1.1 m to 0.58 m beside the base (the
+            // approach scene: from 1.2 m, and back).
+            let (walk, from) = match scene_kind {
+                SceneKind::Approach => (scene_kind.progress(s), -1.2),
+                _ => ((s * 1.2).min(1.0), -1.1),
+            };
+            let y = from + walk * (-from - 0.58);
+            (
+                Box::new(Capsule::new_z(0.67, 0.18)),
+                Isometry3::translation(0.1, y, 0.85),
+            )
+        }
+        SceneKind::Shelf => (
+            Box::new(Cuboid::new(Vector::new(0.15, 0.25, 0.2))),
+            Isometry3::translation(0.62, 0.05, 0.2),
+        ),
+    };
+    let mut scene = vec![(wall, wall_pose), obstacle];
+    if scene_kind == SceneKind::Table {
+        let [x, y, z] = TABLE_SIZE.map(|e| 0.5 * e);
+        let [cx, cy, cz] = TABLE_CENTER;
+        scene.push((
+            Box::new(Cuboid::new(Vector::new(x as f32, y as f32, z as f32))),
+            Isometry3::translation(cx, cy, cz),
+        ));
+    }
+    scene
+}
+
+/// Where the ray from `o` along `d` first meets `shape` at `pose`, within `max` (m).
+pub(super) fn ray_hit(
+    shape: &(dyn RayCast + Send + Sync),
+    pose: &Isometry3<f64>,
+    o: &Point3<f64>,
+    d: &Vector3<f64>,
+    max: f64,
+) -> Option<f64> {
+    let lo = pose.inverse_transform_point(o);
+    let ld = pose.inverse_transform_vector(d);
+    let ray = Ray::new(
+        Vector::new(lo.x as f32, lo.y as f32, lo.z as f32),
+        Vector::new(ld.x as f32, ld.y as f32, ld.z as f32),
+    );
+    shape.cast_local_ray(&ray, max as f32, true).map(f64::from)
+}
