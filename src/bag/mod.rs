@@ -8,41 +8,12 @@
 //!   profile, readable by Foxglove, rosbags and `ros2 bag`; optionally the rosbag2 folder's
 //!   `metadata.yaml`.
 
+mod error;
 pub mod reader;
+mod truth;
 pub mod writer;
 
+pub use error::BagError;
 pub use reader::{read_messages, BagMessage};
+pub use truth::{APPROACH_TRUTH_TOPIC, GROUND_TRUTH_TOPIC, MARGIN_TRUTH_TOPIC};
 pub use writer::BagWriter;
-
-use std::path::PathBuf;
-
-/// Where bags of the scenario generator carry the exact minimum distance of every frame
-/// (`std_msgs/Float64`, at the cloud's log time).
-pub const GROUND_TRUTH_TOPIC: &str = "/ground_truth/min_distance";
-
-/// Where they carry the robot's approach speed at its closest point (`std_msgs/Float64`, m/s,
-/// positive towards the obstacle).
-pub const APPROACH_TRUTH_TOPIC: &str = "/ground_truth/approach_speed";
-
-/// Where they carry the separation margin with the default SSM parameters (`std_msgs/Float64`,
-/// m: the exact distance minus the protective separation distance).
-pub const MARGIN_TRUTH_TOPIC: &str = "/ground_truth/separation_margin";
-
-#[derive(Debug, thiserror::Error)]
-pub enum BagError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: MCAP: {message}")]
-    Mcap { path: PathBuf, message: String },
-    #[error("{path}: metadata.yaml: {message}")]
-    Metadata { path: PathBuf, message: String },
-    #[error("{path}: topic {topic}: {message}")]
-    Topic {
-        path: PathBuf,
-        topic: String,
-        message: String,
-    },
-}

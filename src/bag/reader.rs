@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use yaml_rust2::YamlLoader;
 
-use super::BagError;
+use super::error::BagError;
 
 /// One message of a bag.
 #[derive(Debug, Clone)]

@@ -17,9 +17,10 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
+use crate::choice::Choice;
 use crate::msg::{self, RosMessage};
 
-use super::BagError;
+use super::error::BagError;
 
 /// Chunk compression.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -27,6 +28,18 @@ pub enum Compression {
     None,
     Zstd,
     Lz4,
+}
+
+impl Choice for Compression {
+    const ALL: &'static [Self] = &[Compression::None, Compression::Zstd, Compression::Lz4];
+
+    fn name(self) -> &'static str {
+        match self {
+            Compression::None => "none",
+            Compression::Zstd => "zstd",
+            Compression::Lz4 => "lz4",
+        }
+    }
 }
 
 struct Topic {

@@ -34,7 +34,8 @@ use rayon::prelude::*;
 
 use crate::msg::{CameraInfo, Image};
 
-use super::{CloudError, RangeLimits};
+use super::error::CloudError;
+use super::points::{RangeLimits, MAX_POINTS};
 
 /// How a depth image stores its depths.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -177,10 +178,10 @@ fn layout(image: &Image, camera: &PinholeCamera) -> Result<Layout, CloudError> {
         b => return Err(error(format!("field is_bigendian: {b} (0 or 1)"))),
     };
     let (width, height) = (image.width as usize, image.height as usize);
-    if (width as u64) * (height as u64) > super::MAX_POINTS {
+    if (width as u64) * (height as u64) > MAX_POINTS {
         return Err(error(format!(
             "fields width/height: {width}×{height} pixels, more than {}",
-            super::MAX_POINTS
+            MAX_POINTS
         )));
     }
     let step = image.step as usize;

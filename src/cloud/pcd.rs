@@ -13,7 +13,9 @@ use std::path::Path;
 
 use pcd_rs::record::{DynRecord, Field};
 
-use super::{header_line, read, Cloud, CloudError, MAX_POINTS};
+use super::error::CloudError;
+use super::header::{header_line, read};
+use super::points::{Cloud, MAX_POINTS};
 
 /// The largest LZF inflation: a back reference of 3 bytes gives at most 264 bytes.
 const LZF_MAX_RATIO: u64 = 88;

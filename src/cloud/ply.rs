@@ -4,7 +4,10 @@
 
 use std::path::Path;
 
-use super::{header_line, read, Cloud, CloudError, Scalar, MAX_POINTS};
+use super::error::CloudError;
+use super::header::{header_line, read};
+use super::points::{Cloud, MAX_POINTS};
+use super::scalar::Scalar;
 
 pub fn load(path: &Path) -> Result<Cloud, CloudError> {
     parse(&read(path)?).map_err(|message| CloudError::Ply {

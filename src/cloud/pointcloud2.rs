@@ -17,7 +17,9 @@ use rayon::prelude::*;
 
 use crate::msg::{self, PointCloud2, PointField};
 
-use super::{Cloud, CloudError, Scalar};
+use super::error::CloudError;
+use super::points::Cloud;
+use super::scalar::Scalar;
 
 /// Decodes a CDR payload (with its encapsulation header) into the message, borrowing its data.
 pub fn decode(payload: &[u8]) -> Result<PointCloud2<'_>, CloudError> {

@@ -26,7 +26,8 @@ use std::collections::VecDeque;
 
 use serde::{Deserialize, Serialize};
 
-use super::IstNode;
+use super::link_tree::IstNode;
+use crate::choice::Choice;
 use crate::geometry::{add, dist, scale, sub, widen, P3};
 use crate::packing::InnerSphere;
 
@@ -40,6 +41,17 @@ const NEURAL_GAS_EPOCHS: usize = 20;
 pub enum TreeBuilder {
     NeuralGas,
     MedianSplit,
+}
+
+impl Choice for TreeBuilder {
+    const ALL: &'static [Self] = &[TreeBuilder::NeuralGas, TreeBuilder::MedianSplit];
+
+    fn name(self) -> &'static str {
+        match self {
+            TreeBuilder::NeuralGas => "neural-gas",
+            TreeBuilder::MedianSplit => "median-split",
+        }
+    }
 }
 
 /// Builds the tree over `spheres`, reordering them; returns the nodes and the spheres.

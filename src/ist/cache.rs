@@ -12,7 +12,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{BuildOptions, IstNode, LinkQuality, LinkTree};
+use super::link_tree::{IstNode, LinkQuality, LinkTree};
+use super::options::BuildOptions;
 use crate::packing::InnerSphere;
 use crate::robot::LinkGeometry;
 

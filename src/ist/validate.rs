@@ -26,7 +26,7 @@
 
 use rayon::prelude::*;
 
-use super::{IstNode, LinkTree};
+use super::link_tree::{IstNode, LinkTree};
 use crate::geometry::{dist, widen, P3};
 use crate::packing::InnerSphere;
 use crate::robot::exact::ExactSolid;

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::ros_message;
+use super::message::ros_message;
 
 /// `builtin_interfaces/msg/Time`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]

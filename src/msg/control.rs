@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::ros_message;
+use super::message::ros_message;
 
 /// `control_msgs/msg/SpeedScalingFactor`: 1 runs a trajectory at its own speed, 0 pauses it;
 /// negative values are not allowed. `joint_trajectory_controller` takes it on

@@ -2,7 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{ros_message, Header};
+use super::builtin::Header;
+use super::message::ros_message;
 
 /// `diagnostic_msgs/msg/KeyValue`.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -3,7 +3,8 @@
 use nalgebra::{Isometry3, Quaternion as NaQuaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
-use super::{ros_message, Header};
+use super::builtin::Header;
+use super::message::ros_message;
 
 /// `geometry_msgs/msg/Vector3`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

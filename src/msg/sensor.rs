@@ -4,7 +4,8 @@ use std::borrow::Cow;
 
 use serde::{Deserialize, Serialize};
 
-use super::{ros_message, Header};
+use super::builtin::Header;
+use super::message::ros_message;
 
 /// `sensor_msgs/msg/PointField`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

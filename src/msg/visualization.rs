@@ -4,7 +4,10 @@ use std::borrow::Cow;
 
 use serde::{Deserialize, Serialize};
 
-use super::{ros_message, ColorRgba, CompressedImage, Duration, Header, Point, Pose, Vector3};
+use super::builtin::{ColorRgba, Duration, Header};
+use super::geometry::{Point, Pose, Vector3};
+use super::message::ros_message;
+use super::sensor::CompressedImage;
 
 /// `visualization_msgs/msg/UVCoordinate`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

@@ -7,7 +7,7 @@
 //! `b + max_radius(level)` of p: spheres of very different sizes each stay cheap to find.
 //! Cost per query: a few dozen cells per non-empty level once b is of the order of the spheres.
 
-use super::InnerSphere;
+use super::sphere::InnerSphere;
 
 const NONE: u32 = u32::MAX;
 

@@ -173,6 +173,13 @@ impl MeshGrid {
     }
 }
 
+impl PartialEq for MeshGrid {
+    /// The same file, scale and padding: the same volume.
+    fn eq(&self, other: &Self) -> bool {
+        (&self.file, self.scale, self.padding_m) == (&other.file, other.scale, other.padding_m)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,61 @@
+//! What the IST stage hands on, per link and in the link frame: the tree's nodes (`IstNode`,
+//! the GPU's layout as it is), its inner spheres, and the measured quality of the packing.
+
+use bytemuck::{Pod, Zeroable};
+use serde::{Deserialize, Serialize};
+
+use crate::packing::InnerSphere;
+
+/// A node of an inner sphere tree: a sphere bounding its children, which are
+/// `child_count` consecutive entries from `first_child` of the node array, or of the sphere
+/// array when `children_are_spheres` is 1. WGSL mirror (32 bytes): `Node` in
+/// `shaders/traverse.wgsl`, checked member by member against `query::layout::MIRRORS`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+pub struct IstNode {
+    pub center: [f32; 3],
+    pub radius: f32,
+    pub first_child: u32,
+    pub child_count: u32,
+    pub children_are_spheres: u32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<IstNode>() == 32);
+
+/// Measured quality of a link's packing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LinkQuality {
+    pub spheres: usize,
+    /// The sphere budget the link was packed with: `start_spheres`, doubled while its h was
+    /// above `target_gap_m`, up to `max_spheres`.
+    pub budget: usize,
+    /// Sphere volume / mesh volume.
+    pub coverage: f64,
+    /// Certified upper bound of the surface gap h, m (tessellation error of primitives
+    /// included): the bound `validate` confirmed, in f64, on the packed surface and on the
+    /// mesh files' own triangles.
+    pub gap_m: f64,
+    /// Largest sampled surface-to-spheres distance, m (h lies in [gap_sampled_m, gap_m]).
+    pub gap_sampled_m: f64,
+    pub mesh_volume_m3: f64,
+    /// Sum of the node sphere volumes, m³.
+    pub tree_volume_m3: f64,
+    /// Wall time of the build (packing, gap and tree), s; 0 for a tree from the cache (the
+    /// cache stores no times).
+    pub build_s: f64,
+    /// Wall time of its validation (`validate`), s; 0 for a tree from the cache, which was
+    /// validated before it was stored.
+    pub validate_s: f64,
+    /// Largest distance sampled from the mesh files' own triangles, outside the solid, to the
+    /// spheres, m (validation certified it at most `gap_m` + 1e-6 m).
+    pub file_gap_sampled_m: f64,
+}
+
+/// The inner sphere tree of one link.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkTree {
+    pub link: String,
+    pub nodes: Vec<IstNode>,
+    pub spheres: Vec<InnerSphere>,
+    pub quality: LinkQuality,
+}
