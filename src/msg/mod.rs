@@ -41,6 +41,3 @@ pub use owned::{decode_owned, Owned, OwnedMessage};
 pub use sensor::*;
 pub use type_hash::{hashed_description, service_hash, type_hash};
 pub use visualization::*;
-
-/// `type_hash` reads the definitions through here.
-use definition::OWN_DEFINITIONS;

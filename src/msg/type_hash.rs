@@ -24,7 +24,7 @@
 
 use sha2::{Digest, Sha256};
 
-use super::OWN_DEFINITIONS;
+use super::definition::OWN_DEFINITIONS;
 
 /// A field's type as `type_description_interfaces/FieldType` states it.
 struct FieldType {
