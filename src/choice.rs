@@ -14,6 +14,12 @@ pub trait Choice: Copy + Sized + 'static {
     /// The value's name as parameters, config files and flags spell it.
     fn name(self) -> &'static str;
 
+    /// What the value means, one line without a closing full stop (`--help` lists it beside
+    /// the name); empty where the name says it all.
+    fn about(self) -> &'static str {
+        ""
+    }
+
     /// The value that `text` names, if any.
     fn parse(text: &str) -> Option<Self> {
         Self::ALL.iter().copied().find(|c| c.name() == text)

@@ -12,13 +12,21 @@ const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/layout_check.py
 /// The checker's exit status and report on the tree at `root`; None where python3 is missing
 /// outside CI (the test then skips, saying so).
 fn check(root: &std::path::Path) -> Option<(bool, String)> {
-    match Command::new("python3").arg(SCRIPT).arg("--root").arg(root).output() {
+    match Command::new("python3")
+        .arg(SCRIPT)
+        .arg("--root")
+        .arg(root)
+        .output()
+    {
         Ok(out) => Some((
             out.status.success(),
-            String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr),
+            String::from_utf8_lossy(&out.stdout).into_owned()
+                + &String::from_utf8_lossy(&out.stderr),
         )),
         Err(e) if std::env::var_os("CI").is_none() => {
-            common::skip(&format!("python3 could not be started ({e}) and CI is not set"));
+            common::skip(&format!(
+                "python3 could not be started ({e}) and CI is not set"
+            ));
             None
         }
         Err(e) => panic!("CI is set but python3 could not be started: {e}"),
@@ -45,10 +53,19 @@ fn the_checker_finds_each_kind_of_breach() {
     let long_fn = format!("fn long() {{\n{}}}\n", "    let _ = 1;\n".repeat(151));
     write(
         "area/mod.rs",
-        format!("mod a;\nmod b;\npub struct Face;\n{}", "// filler\n".repeat(150)),
+        format!(
+            "mod a;\nmod b;\npub struct Face;\n{}",
+            "// filler\n".repeat(150)
+        ),
     );
-    write("area/a.rs", format!("use super::b::B;\npub struct A;\n{long_fn}"));
-    write("area/b.rs", "use super::a::A;\nuse super::Face;\npub struct B;\n".into());
+    write(
+        "area/a.rs",
+        format!("use super::b::B;\npub struct A;\n{long_fn}"),
+    );
+    write(
+        "area/b.rs",
+        "use super::a::A;\nuse super::Face;\npub struct B;\n".into(),
+    );
     write("area/big.rs", "// filler\n".repeat(701));
     write("area/mod.rs", {
         let face = std::fs::read_to_string(src.join("area/mod.rs")).expect("mod.rs");

@@ -23,7 +23,7 @@ use crate::msg::{self, RosMessage};
 use super::error::BagError;
 
 /// Chunk compression.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Compression {
     None,
     Zstd,

@@ -21,17 +21,7 @@ pub(super) struct Thresholds {
 /// The query options, and the thresholds read among them (the per-link range defaults to
 /// `warn_distance + hysteresis`).
 pub(super) fn query_options(v: &Values) -> Result<(QueryOptions, Thresholds), ConfigError> {
-    let mode = match v.string("mode", "mode")?.as_str() {
-        "fast" => Mode::Fast,
-        "certified" => Mode::Certified,
-        "exact" => Mode::Exact,
-        other => {
-            return Err(Values::bad(
-                "mode",
-                format!("'{other}' (expected fast, certified or exact)"),
-            ))
-        }
-    };
+    let mode = v.choice::<Mode>("mode", "mode")?;
     let max_distance_m = match v.raw("max_distance", "max_distance") {
         Yaml::Real(s) if s == ".inf" => f64::INFINITY,
         _ => v.distance("max_distance", "max_distance")?,
@@ -51,17 +41,7 @@ pub(super) fn query_options(v: &Values) -> Result<(QueryOptions, Thresholds), Co
             Yaml::Real(s) if s == ".inf" => f32::INFINITY,
             _ => v.distance("per_link_range", "per_link_range")? as f32,
         },
-        backend: match v.string("backend", "backend")?.as_str() {
-            "cpu" => Backend::Cpu,
-            "gpu" => Backend::Gpu,
-            "auto" => Backend::Auto,
-            other => {
-                return Err(Values::bad(
-                    "backend",
-                    format!("'{other}' (expected cpu, gpu or auto)"),
-                ))
-            }
-        },
+        backend: v.choice::<Backend>("backend", "backend")?,
         gpu_min_points: v.whole("gpu_min_points")?,
         gpu_min_depth_pixels: v.whole("gpu_min_depth_pixels")?,
     };

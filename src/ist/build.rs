@@ -36,7 +36,7 @@ pub const BRANCHING: usize = 4;
 const NEURAL_GAS_EPOCHS: usize = 20;
 
 /// How a node's spheres are split among its children.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TreeBuilder {
     NeuralGas,

@@ -10,8 +10,8 @@ use std::time::Instant;
 use super::clock::NodeClock;
 use super::error::{lock, Result};
 use super::transport::RosNode;
-use ros2_client::qos::QosProfile;
 use crate::msg::{Image, OwnedMessage, PointCloud2};
+use ros2_client::qos::QosProfile;
 
 /// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer
 /// numbers its own samples, so two publishers on one topic are followed separately.

@@ -23,21 +23,21 @@ use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
+use super::clock::NodeClock;
+use super::error::{lock, Result};
 use super::inputs::{forward, source_task, Shared, Slot, SourceMessage};
 use super::parameters::Safety;
 use super::publishers::Publishers;
-use super::clock::NodeClock;
-use super::error::{lock, Result};
 use super::publishers::PANIC_AFTER_ENV;
 use super::qos::{RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS};
 use super::ros_args::input_topic;
 use super::socket::{mib, warn_burst};
 use super::transport::{RosNode, Transport};
 use super::up::log_up;
-use ros2_client::qos::{History, QosProfile};
 use crate::config::{Config, SourceConfig, SourceKind};
 use crate::monitor::{Heard, Monitor, Outputs};
 use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
+use ros2_client::qos::{History, QosProfile};
 
 /// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
 /// through the monitor, the fused outputs published, silent sources reported, and the fused

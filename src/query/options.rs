@@ -21,15 +21,12 @@ pub const DEFAULT_GPU_MIN_POINTS: usize = 5_000_000;
 /// `ist_monitor bench gpu --depth`).
 pub const DEFAULT_GPU_MIN_DEPTH_PIXELS: usize = 99_840;
 
-/// What the query computes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+/// What the query computes (each mode's meaning: its [`Choice::about`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
-    /// Distance to the inner spheres: an upper bound.
     Fast,
-    /// Upper bound and certified lower bound `max(0, d − h)`.
     Certified,
-    /// Exact distance to the collision meshes.
     Exact,
 }
 
@@ -68,14 +65,12 @@ pub struct QueryOptions {
     pub gpu_min_depth_pixels: usize,
 }
 
-/// Where a query runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+/// Where a query runs (`auto`'s rule: its [`Choice::about`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Backend {
     Cpu,
     Gpu,
-    /// The GPU for clouds of at least `gpu_min_points` and depth images of at least
-    /// `gpu_min_depth_pixels` on a hardware GPU, else the CPU.
     Auto,
 }
 
@@ -152,6 +147,14 @@ impl Choice for Mode {
             Mode::Exact => "exact",
         }
     }
+
+    fn about(self) -> &'static str {
+        match self {
+            Mode::Fast => "Distance to the inner spheres: an upper bound",
+            Mode::Certified => "Upper bound and certified lower bound `max(0, d − h)`",
+            Mode::Exact => "Exact distance to the collision meshes",
+        }
+    }
 }
 
 impl Choice for Backend {
@@ -164,25 +167,30 @@ impl Choice for Backend {
             Backend::Auto => "auto",
         }
     }
+
+    fn about(self) -> &'static str {
+        match self {
+            Backend::Cpu | Backend::Gpu => "",
+            Backend::Auto => {
+                "The GPU for clouds of at least `gpu_min_points` and depth images of at least \
+                 `gpu_min_depth_pixels` on a hardware GPU, else the CPU"
+            }
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::ValueEnum;
 
-    /// The names are the command line's until the binary builds its flags from `Choice`.
+    /// Each name parses back to its value, in the order the errors list them.
     #[test]
-    fn choices_are_named_as_the_command_line_names_them() {
-        assert_eq!(Mode::ALL, Mode::value_variants());
-        assert_eq!(Backend::ALL, Backend::value_variants());
+    fn choices_are_named_as_the_parameters_name_them() {
         for m in Mode::ALL {
-            assert_eq!(m.to_possible_value().unwrap().get_name(), m.name());
-        }
-        for b in Backend::ALL {
-            assert_eq!(b.to_possible_value().unwrap().get_name(), b.name());
+            assert_eq!(Mode::parse(m.name()), Some(*m));
         }
         assert_eq!(Mode::parse("certified"), Some(Mode::Certified));
+        assert_eq!(Mode::names(), "fast, certified or exact");
         assert_eq!(Backend::names(), "cpu, gpu or auto");
     }
 }

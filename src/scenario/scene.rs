@@ -10,7 +10,7 @@ use parry3d::shape::{Capsule, Cuboid};
 
 use crate::choice::Choice;
 
-/// The scenes the generator knows, each described by [`SceneKind::about`].
+/// The scenes the generator knows, each described by its [`Choice::about`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SceneKind {
     Person,
@@ -34,15 +34,9 @@ impl Choice for SceneKind {
             SceneKind::Table => "table",
         }
     }
-}
 
-/// The table of [`SceneKind::Table`]: its centre in the root frame and its edge lengths, m.
-pub const TABLE_CENTER: [f64; 3] = [0.35, 0.45, 0.275];
-pub const TABLE_SIZE: [f64; 3] = [0.5, 0.5, 0.55];
-
-impl SceneKind {
-    /// What the scene shows, one line (`generate --help` lists them).
-    pub fn about(self) -> &'static str {
+    /// What the scene shows (`generate --help` lists them).
+    fn about(self) -> &'static str {
         match self {
             SceneKind::Person => {
                 "A person-sized capsule walks up to the arm while it swings toward them"
@@ -58,7 +52,13 @@ impl SceneKind {
             }
         }
     }
+}
 
+/// The table of [`SceneKind::Table`]: its centre in the root frame and its edge lengths, m.
+pub const TABLE_CENTER: [f64; 3] = [0.35, 0.45, 0.275];
+pub const TABLE_SIZE: [f64; 3] = [0.5, 0.5, 0.55];
+
+impl SceneKind {
     /// Where along the walk-up the scene is at `s` ∈ [0, 1]: the approach scene goes out and
     /// back.
     fn progress(self, s: f64) -> f64 {

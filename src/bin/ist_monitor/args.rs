@@ -13,7 +13,9 @@ use ist_monitor::packing::PackingParams;
 use ist_monitor::query::{Backend, Mode};
 use ist_monitor::robot::{LinkSelection, PackagePath, RobotModel};
 
+use crate::choice::choice;
 use crate::demo;
+use ist_monitor::choice::Choice;
 
 /// A ROS 2 parameters file and `-p` overrides, as `replay`, `bench ssm` and `bench monitor`
 /// take them.
@@ -95,7 +97,7 @@ pub struct PackingArgs {
     #[arg(long, default_value = param("target_gap"))]
     target_gap: f32,
     /// Hierarchy build.
-    #[arg(long, value_enum, default_value_t = BuildOptions::default().tree)]
+    #[arg(long, value_parser = choice::<TreeBuilder>(), default_value = BuildOptions::default().tree.name())]
     tree: TreeBuilder,
 }
 
@@ -150,7 +152,7 @@ pub struct TreeArgs {
 pub struct QueryParams {
     /// fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or
     /// exact (distance to the collision meshes).
-    #[arg(long, value_enum, default_value = param("mode"))]
+    #[arg(long, value_parser = choice::<Mode>(), default_value = param("mode"))]
     pub mode: Mode,
     /// Drop points farther than this from the robot's bounding box, m (.inf keeps all).
     #[arg(long, default_value = param("max_distance"))]
@@ -180,7 +182,7 @@ pub struct QueryParams {
     pub convex_hull_links: Vec<String>,
     /// cpu, gpu, or auto (on a hardware GPU, the GPU for clouds from --gpu-min-points points
     /// and depth images from --gpu-min-depth-pixels pixels on).
-    #[arg(long, value_enum, default_value = param("backend"))]
+    #[arg(long, value_parser = choice::<Backend>(), default_value = param("backend"))]
     pub backend: Backend,
     /// Crossover of --backend auto for clouds, in points.
     #[arg(long, default_value = param("gpu_min_points"))]
@@ -200,7 +202,7 @@ impl QueryParams {
         };
         let range = self.per_link_range.clone();
         [
-            ("mode", enum_name(&self.mode)),
+            ("mode", self.mode.name().to_owned()),
             ("max_distance", self.max_distance.clone()),
             ("self_filter_padding", self.self_filter_padding.clone()),
             ("self_filter", (!self.no_self_filter).to_string()),
@@ -208,7 +210,7 @@ impl QueryParams {
             ("links", list(&self.links)),
             ("exclude_links", list(&self.exclude_links)),
             ("convex_hull_links", list(&self.convex_hull_links)),
-            ("backend", enum_name(&self.backend)),
+            ("backend", self.backend.name().to_owned()),
             ("gpu_min_points", self.gpu_min_points.to_string()),
             (
                 "gpu_min_depth_pixels",
@@ -225,13 +227,6 @@ impl QueryParams {
     pub fn config(&self) -> Result<Config> {
         Ok(Config::from_overrides(&self.overrides())?)
     }
-}
-
-/// The command-line (and parameter) name of an enum value.
-pub fn enum_name<T: clap::ValueEnum>(v: &T) -> String {
-    v.to_possible_value()
-        .map(|p| p.get_name().to_owned())
-        .unwrap_or_default()
 }
 
 /// Parses a count of at least 1.

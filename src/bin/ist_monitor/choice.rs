@@ -4,37 +4,28 @@
 //! "invalid value … [possible values: …]" error).
 
 use std::ffi::OsStr;
+use std::marker::PhantomData;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::error::ErrorKind;
 
 use ist_monitor::choice::Choice;
 
-/// The parser of a flag that picks one value of `T` by name.
+/// The parser of a flag that picks one value of `T` by name; `--help` lists each value with its
+/// [`Choice::about`].
 #[derive(Clone, Copy)]
-pub struct ChoiceParser<T> {
-    /// Each value's line under `--help`'s "Possible values".
-    help: Option<fn(T) -> &'static str>,
-}
+pub struct ChoiceParser<T>(PhantomData<fn() -> T>);
 
 /// The parser of a flag that takes one of `T`'s names.
 pub fn choice<T: Choice + Send + Sync>() -> ChoiceParser<T> {
-    ChoiceParser { help: None }
+    ChoiceParser(PhantomData)
 }
 
 impl<T: Choice> ChoiceParser<T> {
-    /// With a line of help for each value (`--help` then lists them one a line).
-    pub fn help(self, help: fn(T) -> &'static str) -> Self {
-        Self { help: Some(help) }
-    }
-
     fn values(&self) -> impl Iterator<Item = PossibleValue> + '_ {
-        T::ALL.iter().map(|&c| {
-            let value = PossibleValue::new(c.name());
-            match self.help {
-                Some(help) => value.help(help(c)),
-                None => value,
-            }
+        T::ALL.iter().map(|&c| match c.about() {
+            "" => PossibleValue::new(c.name()),
+            about => PossibleValue::new(c.name()).help(about),
         })
     }
 }

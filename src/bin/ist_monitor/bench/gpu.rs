@@ -24,7 +24,9 @@ use ist_monitor::query::{
 use ist_monitor::stats::Spread;
 
 use super::scenes::{load_scenario, ScenarioName};
+use crate::choice::choice;
 use crate::setup::cached_trees;
+use ist_monitor::choice::Choice;
 
 /// Arguments of `bench gpu`.
 #[derive(clap::Args)]
@@ -40,7 +42,7 @@ pub struct BenchGpuArgs {
     /// size of the sweep is printed).
     #[arg(long, value_delimiter = ',', default_values_t = [1_000usize, 10_000, 100_000, 307_200, 1_000_000, 2_000_000, 5_000_000])]
     crossover: Vec<usize>,
-    #[arg(long, value_enum, default_value_t = Mode::Certified)]
+    #[arg(long, value_parser = choice::<Mode>(), default_value = Mode::Certified.name())]
     mode: Mode,
     /// Timed queries per size and backend (the median is reported).
     #[arg(long, default_value_t = 20, value_parser = crate::args::parse_count)]

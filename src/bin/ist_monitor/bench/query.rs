@@ -23,7 +23,9 @@ use ist_monitor::query::{peers, Backend, Engine, LinkSelection, Mode, QueryOptio
 
 use super::rows::{print_table, row, Row};
 use super::scenes::{load_scenario, Case, Scenario, ScenarioName};
+use crate::choice::choice;
 use crate::setup::cached_trees;
+use ist_monitor::choice::Choice;
 
 #[derive(clap::Args)]
 pub struct BenchQueryArgs {
@@ -35,7 +37,7 @@ pub struct BenchQueryArgs {
     /// Sphere budgets per link.
     #[arg(long, value_delimiter = ',', default_values_t = [64u32, 256, 1024, 4096, 8192, 16384])]
     budgets: Vec<u32>,
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Mode::Fast, Mode::Certified, Mode::Exact])]
+    #[arg(long, value_parser = choice::<Mode>(), value_delimiter = ',', default_values = Mode::ALL.iter().map(|m| m.name()))]
     modes: Vec<Mode>,
     /// Timed queries per pose and setting (the median is reported).
     #[arg(long, default_value_t = 20)]
@@ -64,7 +66,7 @@ pub struct BenchQueryArgs {
     #[arg(long)]
     json: Option<PathBuf>,
     /// Where the engine's queries run (the peers always run on the CPU).
-    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    #[arg(long, value_parser = choice::<Backend>(), default_value = Backend::Cpu.name())]
     backend: Backend,
     /// The trees of the node-settings rows: most spheres per link (parameter max_spheres;
     /// equal to --node-start-spheres for a fixed budget).

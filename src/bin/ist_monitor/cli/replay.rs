@@ -28,15 +28,15 @@ pub struct ReplayArgs {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Chunk compression of --out.
-    #[arg(long, value_enum, default_value_t = Compression::Zstd)]
+    #[arg(long, value_parser = choice::<Compression>(), default_value = Compression::Zstd.name())]
     out_compression: Compression,
     /// Where the queries run: cpu, gpu or auto (the same as -p backend:=...).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<Backend>())]
     backend: Option<Backend>,
     /// What each cloud's stamp is checked against: the message's log time (as the node's
     /// clock), or the cloud's own stamp, which turns the stale/future check off — for bags whose
     /// log times are not when the data was taken.
-    #[arg(long, value_enum, default_value_t = replay::Clock::Log)]
+    #[arg(long, value_parser = choice::<replay::Clock>(), default_value = replay::Clock::Log.name())]
     clock: replay::Clock,
     /// Print the frames and the summary as JSON.
     #[arg(long)]
@@ -53,7 +53,7 @@ pub struct GenerateArgs {
     /// The obstacle: a person walking up to the arm, or a shelf the arm reaches over.
     #[arg(
         long,
-        value_parser = choice::<SceneKind>().help(SceneKind::about),
+        value_parser = choice::<SceneKind>(),
         default_value = SceneKind::Person.name()
     )]
     scene: SceneKind,
@@ -76,7 +76,7 @@ pub struct GenerateArgs {
     #[arg(long, default_value_t = ScenarioParams::default().seed)]
     seed: u64,
     /// Chunk compression of the bag.
-    #[arg(long, value_enum, default_value_t = Compression::Zstd)]
+    #[arg(long, value_parser = choice::<Compression>(), default_value = Compression::Zstd.name())]
     compression: Compression,
     /// Bytes per point: 16 (x y z) or 32 (x y z, rgb), as RGB-D drivers publish.
     #[arg(long, default_value_t = 16)]
@@ -91,7 +91,7 @@ pub struct GenerateArgs {
 
 pub fn replay(args: ReplayArgs) -> Result<()> {
     let backend = (args.backend.iter())
-        .map(|b| ("backend".to_string(), crate::args::enum_name(b)))
+        .map(|b| ("backend".to_string(), b.name().to_owned()))
         .collect::<Vec<_>>();
     let config = args.config.load(demo::CONFIG, &backend)?;
     let bag = demo::or_demo(&args.bag, demo::BAG)?;

@@ -11,13 +11,14 @@ use ist_monitor::config::ParameterSources;
 use ist_monitor::node;
 
 use crate::args::{parse_positive, parse_seconds};
+use crate::choice::choice;
 use crate::demo;
 
 #[derive(Args)]
 pub struct NodeArgs {
     /// Middleware: dds or zenoh (default: from RMW_IMPLEMENTATION, rmw_zenoh_cpp for zenoh;
     /// DDS when unset).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<node::Transport>())]
     transport: Option<node::Transport>,
     /// ROS 2 parameters file (default: config/demo_arm.yaml).
     #[arg(long)]
@@ -33,7 +34,7 @@ pub struct NodeArgs {
 pub struct PlayArgs {
     /// Middleware: dds or zenoh (default: from RMW_IMPLEMENTATION, rmw_zenoh_cpp for zenoh;
     /// DDS when unset).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<node::Transport>())]
     transport: Option<node::Transport>,
     /// Bag: a .mcap file or a rosbag2 folder (default: the bundled demo bag).
     bag: Option<PathBuf>,
@@ -62,7 +63,7 @@ pub struct PlayArgs {
 pub struct RecordArgs {
     /// Middleware: dds or zenoh (default: from RMW_IMPLEMENTATION, rmw_zenoh_cpp for zenoh;
     /// DDS when unset).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = choice::<node::Transport>())]
     transport: Option<node::Transport>,
     /// Output MCAP (.mcap file, or a rosbag2 folder).
     #[arg(long)]
