@@ -282,7 +282,7 @@ fn point_at(i: u32) -> vec3<f32> {
     return vec3<f32>(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
 }
 
-// Point `lane` of block `b` (cpu/blocks.rs Tiling): a run of BLOCK points, or row lane / SUB,
+// Point `lane` of block `b` (layout.rs Tiling): a run of BLOCK points, or row lane / SUB,
 // column lane % SUB of a tile; NO_POINT past the cloud's end or the image's edge.
 fn block_point(b: u32, lane: u32) -> u32 {
     if params.width == 0u {
