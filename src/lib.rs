@@ -5,12 +5,14 @@
 //! ```text
 //! robot ─▶ packing ─▶ ist ─▶ query ─▶ separation ─▶ config ─▶ monitor ─▶ node
 //! (URDF,   (inner     (tree,  (CPU and  (SSM: speed   (params)  (pipeline,  (ROS 2 node,
-//!  meshes,  spheres,   cache)  GPU over   scaling)              outputs,    play, record)
-//!  FK)      gap h)             one layout)                      replay)
-//!                                                                 ▲
-//! msg ─▶ bag (MCAP in/out) ─▶ cloud (PCD, PLY, PointCloud2) ──────┤
-//!  │                                                              │
-//!  └───▶ tf (TF buffer, joint states and their velocities) ───────┘
+//!  meshes,  spheres,   cache)  GPU over   scaling)              sources,    play, record)
+//!  FK)      gap h)             one layout)                      fusion,
+//!   │                            ▲                               outputs,
+//!   │                            │ depth images                  replay)
+//!   ▼                            │                                 ▲
+//! msg ─▶ bag (MCAP in/out) ─▶ cloud (PCD, PLY, PointCloud2, ──────┤
+//!  │                          depth images, exclusion volumes)     │
+//!  └───▶ tf (TF buffer, joint states and their velocities) ────────┘
 //! ```
 //!
 //! - `robot` (URDF, collision meshes, kinematics) → `packing` (Protosphere inner spheres, the
@@ -18,14 +20,20 @@
 //!   → `query` (the layout shared with the GPU, posing, the CPU traversal, the GPU host, exact
 //!   refinement and one result assembly for both) → `separation` (speed and separation
 //!   monitoring: the speed-scaling factor from the per-link distances and the link velocities)
-//!   → `config` (the parameters, each declared
-//!   once) → `monitor` (the per-cloud pipeline, faults and levels, the output table, replay) →
-//!   `node` (the live ROS 2 node, and the `play` and `record` tools);
+//!   → `config` (the parameters, each declared once) → `monitor` (each source's state, the
+//!   per-frame pipeline, the fusion that decides the cell's level and the outputs that render
+//!   it, replay) → `node` (the live ROS 2 node, and the `play` and `record` tools);
 //! - `msg` (the ROS 2 messages) → `bag` (rosbag2 MCAP in and out) → `cloud` (PCD, PLY,
-//!   PointCloud2 with one encoder, depth images) and `msg` → `tf` (TF buffer, joint states),
-//!   both into `monitor`;
-//! - beside them: `geometry` (mesh helpers, under `robot`), `scenario` (the bag generator, on
-//!   the meshes, clouds and bags), `stats` (percentiles of timings).
+//!   PointCloud2 with one encoder, depth images, exclusion volumes: these take `robot`'s meshes)
+//!   and `msg` → `tf` (TF buffer, joint states), both into `monitor`; `query` unprojects depth
+//!   images with `cloud::depth`;
+//! - beside them: `geometry` (mesh helpers, under `robot`), `choice` (the enums a parameter or a
+//!   flag picks by name), `stats` (percentiles of timings), and behind the default feature
+//!   `fixtures` the test fixtures: `scenario` (the bag generator, on the meshes, clouds and
+//!   bags) and `query::peers` (the reference methods the benchmarks and tests compare against).
+//!
+//! Each folder's `mod.rs` is its face (its doc, its modules, what it re-exports); a file imports
+//! its siblings, never its parent (`tools/layout_check.py`).
 //!
 //! The `ist_monitor` command, its benchmarks and the demo paths live on top, in the binary
 //! (`src/bin/ist_monitor/`); nothing here knows the command line or the checkout.
