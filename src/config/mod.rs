@@ -16,8 +16,9 @@
 //! `sources`, `poses` (static transforms, fixed joints), `shapes` (exclusion volumes, attached
 //! objects), `separation` (speed and separation monitoring). `files`: parameters files as a
 //! node reads them; `runtime`: a running node's parameters and their changes. `error`: the one
-//! error.
+//! error. `choices`: the enums the parameters name a value of (source type and QoS, shapes).
 
+mod choices;
 #[allow(clippy::module_inception)]
 mod config;
 mod entries;
@@ -32,9 +33,11 @@ mod shapes;
 mod sources;
 mod values;
 
+pub use choices::SourceKind;
 pub use config::{parse_override, Config, RobotSource};
 pub use error::ConfigError;
 pub use files::{key_matches, ParameterSources};
+pub use params::OneOf;
 pub use params::{default_of, markdown_table, ParamDecl, ParamKind, PARAMETERS};
 pub use runtime::Parameter;
-pub use sources::{camera_info_beside, SourceConfig, SourceKind, StrayFilter};
+pub use sources::{camera_info_beside, SourceConfig, StrayFilter};

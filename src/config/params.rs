@@ -4,6 +4,10 @@
 
 use yaml_rust2::{Yaml, YamlLoader};
 
+use super::choices::{ShapeKind, SourceKind, SourceQos};
+use crate::choice::Choice;
+use crate::query::{Backend, Mode};
+
 /// A YAML value from its text: a declared default, or a `-p` override (`Null` where the text is
 /// not YAML).
 pub(super) fn scalar_yaml(text: &str) -> Yaml {
@@ -23,6 +27,34 @@ pub struct ParamDecl {
     /// Settable at run time (the node's `set_parameters` services); every other parameter is
     /// read-only once the node runs.
     pub settable: bool,
+    /// For a parameter that names one value of an enum: that enum's names. The config reads
+    /// such a parameter only through its declaration (`Values::choice`), and the node's
+    /// parameter descriptor lists the names.
+    pub one_of: Option<OneOf>,
+}
+
+/// The values a parameter may name: those of a [`Choice`], taken from the enum itself.
+#[derive(Debug, Clone, Copy)]
+pub struct OneOf {
+    /// "a, b or c".
+    pub names: fn() -> String,
+    /// Whether a text names one of them.
+    pub accepts: fn(&str) -> bool,
+}
+
+fn accepts<T: Choice>(text: &str) -> bool {
+    T::parse(text).is_some()
+}
+
+/// `decl`, naming one value of `T`.
+const fn one_of<T: Choice>(decl: ParamDecl) -> ParamDecl {
+    ParamDecl {
+        one_of: Some(OneOf {
+            names: T::names,
+            accepts: accepts::<T>,
+        }),
+        ..decl
+    }
 }
 
 /// A parameter set at start only.
@@ -38,6 +70,7 @@ const fn p(
         unit,
         doc,
         settable: false,
+        one_of: None,
     }
 }
 
@@ -63,13 +96,13 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("robot_description", "~", "path", "the robot: a URDF file (relative paths are relative to this file), a package:// URI (resolved through package_paths, ROS_PACKAGE_PATH, AMENT_PREFIX_PATH) or the URDF text itself; required unless robot_description_topic is set"),
     p("robot_description_topic", "~", "topic", "without robot_description: the node takes the URDF from this std_msgs/String topic (transient local, as robot_state_publisher publishes /robot_description) and reports 'not monitoring' until it arrives"),
     p("package_paths", "[]", "NAME=DIR", "where package://NAME is found"),
-    p("mode", "certified", "", "fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or exact (distance to the collision meshes)"),
+    one_of::<Mode>(p("mode", "certified", "", "fast (inner-sphere distance, an upper bound), certified (also the lower bound d − h) or exact (distance to the collision meshes)")),
     p("max_distance", "2.0", "m", "points farther than this from the robot's bounding box are culled"),
     p("self_filter", "true", "", "drop cloud points on the robot itself"),
     p("self_filter_padding", "0.01", "m", "a point this close to the robot is the robot"),
     p("per_link", "true", "", "also compute the minimum of every link"),
     p("per_link_range", "~", "m", "per-link minima are measured up to this distance; a link farther away is reported as farther than a certified bound, which costs far less (default: warn_distance + hysteresis; .inf: every link measured)"),
-    p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points and depth images of at least gpu_min_depth_pixels on a hardware GPU"),
+    one_of::<Backend>(p("backend", "auto", "", "cpu, gpu, or auto: the GPU for clouds of at least gpu_min_points and depth images of at least gpu_min_depth_pixels on a hardware GPU")),
     p("gpu_min_points", "5000000", "points", "crossover of backend auto for clouds (measure it with `ist_monitor bench gpu`)"),
     p("gpu_min_depth_pixels", "99840", "pixels", "crossover of backend auto for depth images, which the GPU unprojects itself (measure it with `ist_monitor bench gpu --depth`)"),
     p("links", "[]", "", "only these links (empty: all links with collision geometry)"),
@@ -96,14 +129,14 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("heartbeat_period", "0.1", "s", "the node publishes the cell's fused state at least this often, also when no cloud arrives, so that a subscriber can tell a quiet monitor from a dead one (> 0)"),
     p("output_deadline", "0.5", "s", "the QoS deadline offered on every output published each heartbeat (all but ~/min_distance, which only carries a known distance; ~/speed_scaling with the separation monitor on): a DDS subscriber that requests this deadline or a longer one is matched, and its middleware tells it when no message came within it (a node killed without its last word, or hung). 0: none (infinite). At least heartbeat_period. Over zenoh only announced: rmw_zenoh enforces no deadline"),
     p("sources", "[camera]", "", "names of the point cloud sources"),
-    p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)"),
+    one_of::<SourceKind>(p("<source>.type", "pointcloud", "", "pointcloud (sensor_msgs/PointCloud2) or depth_image (sensor_msgs/Image 16UC1 in mm or 32FC1 in m, with its sensor_msgs/CameraInfo; points made as depth_image_proc makes them)")),
     p("<source>.topic", "/camera/depth/points", "topic", "the source's PointCloud2 or depth Image topic"),
     p("<source>.camera_info_topic", "~", "topic", "depth_image: the CameraInfo topic (default: camera_info beside the image topic, as image_transport pairs them)"),
     rt("<source>.enabled", "true", "", "whether the source is used"),
     p("<source>.source_timeout", "0.5", "s", "no cloud for this long, or a cloud stamped longer ago than this, is a fault (as Nav2's collision monitor)"),
     p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
     p("<source>.max_range", "~", "m", "points farther from the sensor than this are dropped (default: none)"),
-    p("<source>.qos", "sensor_data", "", "sensor_data (best effort) or reliable"),
+    one_of::<SourceQos>(p("<source>.qos", "sensor_data", "", "sensor_data (best effort) or reliable")),
     p("static_transforms", "[]", "", "names of static transforms given here, for bags and setups without /tf_static"),
     p("<transform>.parent_frame", "~", "frame", "parent frame of the static transform"),
     p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),
@@ -111,7 +144,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("<transform>.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "parent_from_child rotation as a quaternion x y z w"),
     rt("exclusion_volumes", "[]", "", "names of exclusion volumes: known objects of the cell (a table, a fixture, a conveyor) whose points are dropped before the query, counted per volume in the diagnostics (points_excluded.<volume>) and drawn in RViz. A person inside one is not seen"),
     rt("<volume>.frame", "~", "frame", "the TF frame (or robot link) the volume is fixed in; required. It is looked up at each cloud's stamp as the sensor's frame is: a missing transform is a fault"),
-    rt("<volume>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation; or mesh (mesh, scale, padding)"),
+    one_of::<ShapeKind>(rt("<volume>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation; or mesh (mesh, scale, padding)")),
     rt("<volume>.mesh", "~", "path", "mesh: the mesh file (STL, OBJ, DAE, PLY; relative to the parameters file, or a package:// URI) in the volume's frame; its solid is taken as a robot link's mesh is (closed, filled)"),
     rt("<volume>.scale", "[1.0, 1.0, 1.0]", "", "mesh: scale per axis (each > 0), as a URDF mesh's"),
     rt("<volume>.padding", "0.0", "m", "mesh: points within this distance of the mesh's solid are dropped too. Judged on a grid of signed distances (at most 128 voxels a side): a point beyond the padding never is, one within it less a voxel diagonal always is (the log gives the voxel)"),
@@ -123,7 +156,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     rt("<volume>.sources", "[]", "", "the sources whose points it drops (empty: every source)"),
     rt("attached_objects", "[]", "", "names of attached objects: shapes fixed to a robot link that the URDF lacks (a held part, a tool). Each joins the robot as a link of its own, named after it: packed and certified like any link, its points self-filtered, its distance to the world measured and published under its name. Set at run time (a part grasped or released), the robot's trees are rebuilt on a thread of their own, and the node reports ERROR, 'not monitoring', with the safety stop until they are ready"),
     rt("<object>.link", "~", "link", "the robot link it is fixed to; required"),
-    rt("<object>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation; or mesh (mesh, scale)"),
+    one_of::<ShapeKind>(rt("<object>.shape", "box", "", "box (size), sphere (radius) or cylinder (radius, length; axis z), centred on translation; or mesh (mesh, scale)")),
     rt("<object>.mesh", "~", "path", "mesh: the mesh file (STL, OBJ, DAE, PLY; relative to the parameters file, or a package:// URI) in the object's frame, taken in as a robot link's mesh"),
     rt("<object>.scale", "[1.0, 1.0, 1.0]", "", "mesh: scale per axis (each > 0), as a URDF mesh's"),
     rt("<object>.size", "~", "m", "box: edge lengths [x, y, z]"),
@@ -212,6 +245,28 @@ impl ParamDecl {
                 None => ParamKind::Strings,
             }),
             _ => Some(ParamKind::String),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A parameter that names an enum's value is declared with a default that is one of them.
+    #[test]
+    fn every_named_value_default_is_one_of_its_names() {
+        let named: Vec<&ParamDecl> = PARAMETERS.iter().filter(|d| d.one_of.is_some()).collect();
+        assert!(named.iter().any(|d| d.name == "mode"), "mode names a Mode");
+        for d in named {
+            let one_of = d.one_of.expect("filtered");
+            assert!(
+                (one_of.accepts)(d.default),
+                "{}: default '{}' is not one of {}",
+                d.name,
+                d.default,
+                (one_of.names)()
+            );
         }
     }
 }

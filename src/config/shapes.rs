@@ -13,40 +13,14 @@ use std::sync::{Arc, Mutex, OnceLock, Weak};
 
 use nalgebra::Isometry3;
 
+use super::choices::ShapeKind;
 use super::entries::names;
 use super::error::ConfigError;
 use super::poses::transform;
 use super::values::Values;
-use crate::choice::Choice;
 use crate::cloud::exclusion::{ExclusionVolume, MeshGrid, VolumeShape};
 use crate::geometry::{Primitive, Shape};
 use crate::robot::attach::AttachedObject;
-
-/// What `shape` names: a primitive as URDF gives one, or a mesh file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum ShapeKind {
-    Box,
-    Sphere,
-    Cylinder,
-    Mesh,
-}
-
-impl Choice for ShapeKind {
-    const ALL: &'static [Self] = &[
-        ShapeKind::Box,
-        ShapeKind::Sphere,
-        ShapeKind::Cylinder,
-        ShapeKind::Mesh,
-    ];
-    fn name(self) -> &'static str {
-        match self {
-            ShapeKind::Box => "box",
-            ShapeKind::Sphere => "sphere",
-            ShapeKind::Cylinder => "cylinder",
-            ShapeKind::Mesh => "mesh",
-        }
-    }
-}
 
 /// Resolves a mesh file's name to a path.
 pub(super) type Resolve<'a> = dyn Fn(&str) -> Result<PathBuf, String> + 'a;

@@ -2,10 +2,10 @@
 //! (a cloud or a depth image with its CameraInfo), on which topic and QoS, its range limits and
 //! its timeout; and the stray-point filter applied to every source's points.
 
+use super::choices::{SourceKind, SourceQos};
 use super::entries::names;
 use super::error::ConfigError;
 use super::values::Values;
-use crate::choice::Choice;
 
 /// A point cloud source.
 #[derive(Debug, Clone, PartialEq)]
@@ -45,42 +45,6 @@ impl StrayFilter {
                 .distance("stray_filter.cluster_radius", "stray_filter.cluster_radius")?,
             max_rejected: v.count("stray_filter.max_rejected")?,
         })
-    }
-}
-
-/// What a source publishes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SourceKind {
-    /// `sensor_msgs/PointCloud2`.
-    PointCloud,
-    /// `sensor_msgs/Image` depth images with their `sensor_msgs/CameraInfo`.
-    DepthImage,
-}
-
-impl Choice for SourceKind {
-    const ALL: &'static [Self] = &[SourceKind::PointCloud, SourceKind::DepthImage];
-    fn name(self) -> &'static str {
-        match self {
-            SourceKind::PointCloud => "pointcloud",
-            SourceKind::DepthImage => "depth_image",
-        }
-    }
-}
-
-/// A source's QoS (`<source>.qos`): best effort, as sensors publish, or reliable.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum SourceQos {
-    SensorData,
-    Reliable,
-}
-
-impl Choice for SourceQos {
-    const ALL: &'static [Self] = &[SourceQos::SensorData, SourceQos::Reliable];
-    fn name(self) -> &'static str {
-        match self {
-            SourceQos::SensorData => "sensor_data",
-            SourceQos::Reliable => "reliable",
-        }
     }
 }
 

@@ -118,7 +118,12 @@ impl Values {
             .ok_or_else(|| Self::bad(name, "a value is required"))
     }
     /// One of the values of `T`, by name; an error names the parameter and lists `T`'s names.
+    /// Only a parameter declared with those values (`params::one_of`) is read so.
     pub(super) fn choice<T: Choice>(&self, name: &str, template: &str) -> Result<T, ConfigError> {
+        let declared = PARAMETERS.iter().find(|d| d.name == template);
+        if declared.and_then(|d| d.one_of).is_none() {
+            return Err(Self::bad(name, "declared without the values it names"));
+        }
         let text = self.string(name, template)?;
         T::parse(&text)
             .ok_or_else(|| Self::bad(name, format!("'{text}' (expected {})", T::names())))

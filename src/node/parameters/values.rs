@@ -165,6 +165,9 @@ pub(super) fn descriptor(p: &Parameter) -> raw::ParameterDescriptor {
     if !p.decl.unit.is_empty() {
         constraints.push(format!("unit: {}", p.decl.unit));
     }
+    if let Some(one_of) = p.decl.one_of {
+        constraints.push(format!("one of {}", (one_of.names)()));
+    }
     constraints.push(if p.decl.settable {
         "settable at run time (checked as at start; nothing that weakens protection while the \
          safety stop is raised)"

@@ -1,0 +1,68 @@
+//! The enums the parameters name one value of, beyond those of the areas below (`mode` and
+//! `backend` are the query's): what a source is and how it is subscribed to, and what shape an
+//! exclusion volume or attached object has. Each is a [`Choice`], declared with its parameter
+//! (`params::one_of`) and read through that declaration (`Values::choice`).
+
+use crate::choice::Choice;
+
+/// What a source publishes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SourceKind {
+    /// `sensor_msgs/PointCloud2`.
+    PointCloud,
+    /// `sensor_msgs/Image` depth images with their `sensor_msgs/CameraInfo`.
+    DepthImage,
+}
+
+impl Choice for SourceKind {
+    const ALL: &'static [Self] = &[SourceKind::PointCloud, SourceKind::DepthImage];
+    fn name(self) -> &'static str {
+        match self {
+            SourceKind::PointCloud => "pointcloud",
+            SourceKind::DepthImage => "depth_image",
+        }
+    }
+}
+
+/// A source's QoS (`<source>.qos`): best effort, as sensors publish, or reliable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum SourceQos {
+    SensorData,
+    Reliable,
+}
+
+impl Choice for SourceQos {
+    const ALL: &'static [Self] = &[SourceQos::SensorData, SourceQos::Reliable];
+    fn name(self) -> &'static str {
+        match self {
+            SourceQos::SensorData => "sensor_data",
+            SourceQos::Reliable => "reliable",
+        }
+    }
+}
+
+/// What `shape` names: a primitive as URDF gives one, or a mesh file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum ShapeKind {
+    Box,
+    Sphere,
+    Cylinder,
+    Mesh,
+}
+
+impl Choice for ShapeKind {
+    const ALL: &'static [Self] = &[
+        ShapeKind::Box,
+        ShapeKind::Sphere,
+        ShapeKind::Cylinder,
+        ShapeKind::Mesh,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            ShapeKind::Box => "box",
+            ShapeKind::Sphere => "sphere",
+            ShapeKind::Cylinder => "cylinder",
+            ShapeKind::Mesh => "mesh",
+        }
+    }
+}
