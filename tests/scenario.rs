@@ -341,3 +341,175 @@ fn the_gpu_answers_the_kinect_scene_at_every_lavapipe_width_and_on_the_portable_
         }
     }
 }
+
+/// The generator's hidden-obstacle scenes (`dark`, `shadow`, the second camera): the demo arm,
+/// `frames` frames of `scene` into a temporary bag, with `change` applied to the parameters.
+fn generate_hidden(
+    scene: ist_monitor::scenario::SceneKind,
+    frames: usize,
+    change: impl FnOnce(&mut ist_monitor::scenario::ScenarioParams),
+) -> (
+    tempfile::TempDir,
+    std::path::PathBuf,
+    ist_monitor::scenario::Generated,
+) {
+    let model = RobotModel::load(
+        std::path::Path::new(common::DEMO_URDF),
+        &[],
+        &Default::default(),
+    )
+    .unwrap();
+    let mut params = ist_monitor::scenario::ScenarioParams {
+        scene,
+        frames,
+        ..Default::default()
+    };
+    change(&mut params);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("bag");
+    let g = ist_monitor::scenario::generate(&model, &params, &out).unwrap();
+    (dir, out, g)
+}
+
+/// The payloads on `topic` of the bag at `bag`, in log-time order.
+fn payloads(bag: &std::path::Path, topic: &str) -> Vec<Vec<u8>> {
+    ist_monitor::bag::read_messages(bag, &|t, _| t == topic)
+        .unwrap()
+        .into_iter()
+        .map(|m| m.data)
+        .collect()
+}
+
+/// The clouds on `topic`, decoded.
+fn clouds(bag: &std::path::Path, topic: &str) -> Vec<Vec<[f32; 3]>> {
+    payloads(bag, topic)
+        .iter()
+        .map(|d| cloud::pointcloud2::cloud_from_cdr(d).unwrap().points)
+        .collect()
+}
+
+/// A dark person (`ScenarioParams::dark`) is the person scene with the person's pixels blank:
+/// the same draws elsewhere (every valid point of the dark bag is the person bag's, and the
+/// points lost are exactly the person's), no valid point on the person, in a cloud and in a
+/// 16UC1 image (0 there); its truth is the distance to the whole person, at most that to the
+/// lit person's points (within their range noise), and falls below 0.1 m by the end.
+#[test]
+fn generated_dark_person_returns_nothing_and_keeps_its_truth() {
+    use ist_monitor::scenario::{SceneKind, CLOUD_TOPIC, DEPTH_TOPIC};
+    let frames = 10;
+    let (_d1, lit, lit_g) = generate_hidden(SceneKind::Person, frames, |_| {});
+    let (_d2, dark, g) = generate_hidden(SceneKind::Person, frames, |p| p.dark = true);
+    assert!(
+        g.target_points.iter().all(|&n| n == 0),
+        "{:?}",
+        g.target_points
+    );
+    // The person walks into view: seen on the last frames of the lit scene.
+    assert!(lit_g.target_points[frames - 3..].iter().all(|&n| n > 500));
+    let valid = |c: &[[f32; 3]]| c.iter().filter(|p| p[0].is_finite()).count();
+    for (i, (a, b)) in clouds(&lit, CLOUD_TOPIC)
+        .iter()
+        .zip(clouds(&dark, CLOUD_TOPIC))
+        .enumerate()
+    {
+        assert_eq!(a.len(), b.len());
+        for (p, q) in a.iter().zip(&b) {
+            assert!(q[0].is_nan() || p == q, "frame {i}: {p:?} {q:?}");
+        }
+        assert_eq!(valid(a) - valid(&b), lit_g.target_points[i], "frame {i}");
+    }
+    let truth: Vec<f64> = g.truth_m.iter().map(|t| t.unwrap()).collect();
+    // The lit points carry the range noise (clipped at 2.5 σ = 2.5 mm), the shape does not.
+    for (d, lit) in truth.iter().zip(&lit_g.truth_m) {
+        assert!(*d <= lit.unwrap() + 0.0025 + 1e-5, "{d} > {lit:?}");
+    }
+    assert!(truth[0] > 0.5 && *truth.last().unwrap() < 0.1, "{truth:?}");
+    // The same as 16UC1 images: 0 wherever the person is.
+    let depth = Some(cloud::depth::DepthEncoding::Millimetres16);
+    let (_d3, lit, _) = generate_hidden(SceneKind::Person, 3, |p| p.depth = depth);
+    let (_d4, dark, g) = generate_hidden(SceneKind::Person, 3, |p| {
+        p.depth = depth;
+        p.dark = true
+    });
+    let zeros = |bag: &std::path::Path| -> Vec<usize> {
+        payloads(bag, DEPTH_TOPIC)
+            .iter()
+            .map(|d| {
+                let image = ist_monitor::msg::decode::<ist_monitor::msg::Image>(d).unwrap();
+                assert_eq!(image.encoding, "16UC1");
+                image.data.chunks(2).filter(|c| c == &[0, 0]).count()
+            })
+            .collect()
+    };
+    let (lit_zeros, dark_zeros) = (zeros(&lit), zeros(&dark));
+    assert_eq!(dark_zeros.len(), 3);
+    assert!((0..3).all(|i| dark_zeros[i] >= lit_zeros[i]));
+    assert!(
+        dark_zeros[2] > lit_zeros[2] + 500,
+        "{dark_zeros:?} {lit_zeros:?}"
+    );
+    assert!(g.target_points.iter().all(|&n| n == 0));
+}
+
+/// The shadow scene: the forearm reaching in behind the upper arm is hidden from the first
+/// camera on every frame while its truth falls from over 0.5 m to under 0.1 m; the second camera
+/// (`ScenarioParams::second_camera`) sees it on every frame, recorded on its own topics and
+/// optical frame with its CameraInfo, its link placed on /tf_static under the root, and the
+/// truth at each camera's log time.
+#[test]
+fn generated_shadow_is_hidden_from_the_first_camera_and_seen_by_the_second() {
+    use ist_monitor::bag::GROUND_TRUTH_TOPIC;
+    use ist_monitor::msg::{CameraInfo, TfMessage};
+    use ist_monitor::scenario::*;
+    let frames = 10;
+    let (_dir, bag, g) = generate_hidden(SceneKind::Shadow, frames, |p| p.second_camera = true);
+    assert!(
+        g.target_points.iter().all(|&n| n <= 2),
+        "{:?}",
+        g.target_points
+    );
+    assert!(
+        g.side_target_points.iter().all(|&n| n > 50),
+        "{:?}",
+        g.side_target_points
+    );
+    // The first camera sees the arm the forearm hides behind.
+    assert!(g.robot_points.iter().all(|&n| n > 100));
+    let truth: Vec<f64> = g.truth_m.iter().map(|t| t.unwrap()).collect();
+    assert!(truth[0] > 0.5 && *truth.last().unwrap() < 0.1, "{truth:?}");
+    assert!(truth.windows(2).all(|w| w[1] <= w[0] + 1e-9), "{truth:?}");
+    // The second camera's topics, frames and truths.
+    let side = clouds(&bag, SIDE_CLOUD_TOPIC);
+    assert_eq!(side.len(), frames);
+    assert!(side.iter().all(|c| c.len() == 128 * 96));
+    for d in payloads(&bag, SIDE_CAMERA_INFO_TOPIC) {
+        let info = ist_monitor::msg::decode::<CameraInfo>(&d).unwrap();
+        assert_eq!(info.header.frame_id, SIDE_OPTICAL_FRAME);
+        assert_eq!((info.width, info.height), (128, 96));
+    }
+    assert_eq!(payloads(&bag, SIDE_CAMERA_INFO_TOPIC).len(), frames);
+    assert_eq!(payloads(&bag, CLOUD_TOPIC).len(), frames);
+    assert_eq!(payloads(&bag, GROUND_TRUTH_TOPIC).len(), 2 * frames);
+    let tf = payloads(&bag, "/tf_static");
+    assert_eq!(tf.len(), 1);
+    let tf = ist_monitor::msg::decode::<TfMessage>(&tf[0]).unwrap();
+    let pairs: Vec<(&str, &str)> = (tf.transforms.iter())
+        .map(|t| (t.header.frame_id.as_str(), t.child_frame_id.as_str()))
+        .collect();
+    assert_eq!(
+        pairs,
+        [
+            (CAMERA_LINK, OPTICAL_FRAME),
+            ("world", SIDE_CAMERA_LINK),
+            (SIDE_CAMERA_LINK, SIDE_OPTICAL_FRAME)
+        ]
+    );
+    // config/demo_arm_two_cameras.yaml reads both cameras.
+    let config = ist_monitor::config::Config::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/demo_arm_two_cameras.yaml"),
+        &[],
+    )
+    .unwrap();
+    let topics: Vec<&str> = config.sources.iter().map(|s| s.topic.as_str()).collect();
+    assert_eq!(topics, [CLOUD_TOPIC, SIDE_CLOUD_TOPIC]);
+}

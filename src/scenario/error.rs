@@ -1,5 +1,6 @@
 //! Why a scenario cannot be generated: a robot without the camera's link or whose links the
-//! kinematics lack, joint values it refuses, or the bag and cloud encoders' errors.
+//! kinematics lack, joint values it refuses, a hidden obstacle whose distance parry3d cannot
+//! take, or the bag and cloud encoders' errors.
 
 use crate::cloud::CloudError;
 
@@ -12,6 +13,8 @@ pub enum ScenarioError {
     NotInKinematics(String),
     #[error("joint values: {0}")]
     Joints(#[from] crate::robot::RobotError),
+    #[error("the distance to the hidden obstacle: {0}")]
+    HiddenTruth(String),
     #[error(transparent)]
     Bag(#[from] crate::bag::BagError),
     #[error(transparent)]

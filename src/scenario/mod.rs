@@ -3,10 +3,13 @@
 //! A simulated depth camera — pinhole model, range noise, dropped pixels — looks at the demo
 //! robot moving along a joint trajectory and at an obstacle: a person-sized capsule that walks
 //! up to the arm (`person`; `approach`: up to the swinging arm and back; `table`: with a work
-//! table beside the arm), or a box the arm reaches over (`shelf`). Every frame is ray cast
-//! against the robot's collision meshes (the same tessellated meshes the monitor uses), the
-//! obstacle and a back wall; rays that hit nothing within the camera's range give NaN, like a
-//! real depth camera.
+//! table beside the arm), a box the arm reaches over (`shelf`), or a person's forearm reaching
+//! in behind the upper arm, hidden in its shadow as the camera sees it (`shadow`). A dark
+//! obstacle (`ScenarioParams::dark`) returns no depth; a second camera beside the arm
+//! (`ScenarioParams::second_camera`, topics under `/side_camera`) sees into the first one's
+//! shadow. Every frame is ray cast against the robot's collision meshes (the same tessellated
+//! meshes the monitor uses), the obstacle and a back wall; rays that hit nothing within the
+//! camera's range give NaN, like a real depth camera.
 //!
 //! Recorded, as rosbag2 MCAP: `/tf_static` (the camera's optical frame under the URDF's
 //! `camera_link`), `/joint_states` at 50 Hz, `/camera/depth/points` (organized PointCloud2,
@@ -22,6 +25,9 @@
 //! distance minus the protective separation distance with the default parameters
 //! (`SsmParams::default`, the cloud taken as seen at once).
 //!
+//! Where the scene hides its obstacle (dark, shadow), the truth is the exact distance to its
+//! whole shape (or to a nearer obstacle point of any camera).
+//!
 //! The truth is taken over the points that hit the obstacle or the wall; points on the robot
 //! itself are what the monitor's self-filter removes. So that the two agree, the range noise is
 //! clipped at 2.5 σ (a robot point then lies at most 2.5 σ from its surface, well inside the
@@ -34,9 +40,10 @@
 //!
 //! `scene`: the scenes, their trajectories and shapes. `params`: the settings, topics and
 //! frames. `renderer`: the camera and its frames. `truth`: the exact distance of a frame.
-//! `bag`: the bag written. `error`: why a scenario cannot be generated.
+//! `cameras`: each camera's renderer, topics and `/tf_static`. `bag`: the bag written. `error`: why a scenario cannot be generated.
 
 mod bag;
+mod cameras;
 mod error;
 mod params;
 mod renderer;
@@ -47,7 +54,9 @@ pub use bag::{generate, Generated};
 pub use error::ScenarioError;
 pub use params::{
     ScenarioParams, CAMERA_INFO_TOPIC, CAMERA_LINK, CLOUD_TOPIC, DEPTH_TOPIC, OPTICAL_FRAME,
+    SIDE_CAMERA_INFO_TOPIC, SIDE_CAMERA_LINK, SIDE_CAMERA_POSE, SIDE_CLOUD_TOPIC, SIDE_DEPTH_TOPIC,
+    SIDE_OPTICAL_FRAME,
 };
-pub use renderer::{link_from_optical, Frame, Hit, Mount, Renderer};
+pub use renderer::{link_from_optical, root_from_side_link, Frame, Hit, Mount, Renderer};
 pub use scene::{SceneKind, TABLE_CENTER, TABLE_SIZE};
 pub use truth::Witness;

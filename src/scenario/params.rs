@@ -1,6 +1,7 @@
 //! The generator's settings: the scene, the camera (image size, field of view, range, noise and
 //! dropped pixels), the seed, and how the bag is written (compression, point layout, clouds or
-//! depth images); and the topics, frames and rates the bag uses.
+//! depth images), a dark obstacle and a second camera; and the topics, frames and rates the
+//! bag uses.
 
 use super::scene::SceneKind;
 use crate::bag::writer::Compression;
@@ -29,6 +30,24 @@ pub struct ScenarioParams {
     /// Record depth images in this encoding on [`DEPTH_TOPIC`] instead of clouds: the points
     /// (and the truth) are then those `depth_image_proc` makes from the recorded image.
     pub depth: Option<DepthEncoding>,
+    /// The obstacle (person, forearm or box) returns no depth, as dark fabric to a ToF or
+    /// structured-light camera: its pixels are NaN (0 in a 16UC1 image), drawn from the noise
+    /// stream as before (the other pixels are the bright scene's). The truth is then the
+    /// distance to the obstacle's whole shape.
+    pub dark: bool,
+    /// A second depth camera beside the arm ([`SIDE_CAMERA_LINK`], placed on `/tf_static`
+    /// under the robot's root) that looks into the first one's shadow, recorded on its own
+    /// topics ([`SIDE_CLOUD_TOPIC`], [`SIDE_CAMERA_INFO_TOPIC`], [`SIDE_DEPTH_TOPIC`]) 1 ms
+    /// after the first, with the same image size, noise and holes from a stream of its own.
+    pub second_camera: bool,
+}
+
+impl ScenarioParams {
+    /// Whether the scene hides its obstacle from the first camera (dark, or in the arm's
+    /// shadow): the truth is then taken to the obstacle's whole shape as well as to the points.
+    pub fn hides_obstacle(&self) -> bool {
+        self.dark || self.scene == SceneKind::Shadow
+    }
 }
 
 impl Default for ScenarioParams {
@@ -46,6 +65,8 @@ impl Default for ScenarioParams {
             compression: Compression::Zstd,
             point_step: 16,
             depth: None,
+            dark: false,
+            second_camera: false,
         }
     }
 }
@@ -56,6 +77,24 @@ pub const CAMERA_INFO_TOPIC: &str = "/camera/depth/camera_info";
 pub const DEPTH_TOPIC: &str = "/camera/depth/image_raw";
 pub const CAMERA_LINK: &str = "camera_link";
 pub const OPTICAL_FRAME: &str = "camera_optical_frame";
+/// The second camera (`ScenarioParams::second_camera`): its topics, as the first one's under
+/// `/side_camera`, its link (on `/tf_static` under the robot's root, [`SIDE_CAMERA_POSE`]) and
+/// its optical frame (under its link, as the first camera's).
+pub const SIDE_CLOUD_TOPIC: &str = "/side_camera/depth/points";
+pub const SIDE_CAMERA_INFO_TOPIC: &str = "/side_camera/depth/camera_info";
+pub const SIDE_DEPTH_TOPIC: &str = "/side_camera/depth/image_raw";
+pub const SIDE_CAMERA_LINK: &str = "side_camera_link";
+pub const SIDE_OPTICAL_FRAME: &str = "side_camera_optical_frame";
+/// `root_from_side_camera_link`: x y z (m) and roll pitch yaw (rad, as a URDF origin). 1.4 m to
+/// the side of the arm, 0.45 m towards the wall, 0.75 m up, looking along +y and 0.25 rad
+/// down: it sees the space behind the upper arm that the first camera cannot.
+pub const SIDE_CAMERA_POSE: ([f64; 3], [f64; 3]) = (
+    [-0.45, -1.4, 0.75],
+    [0.0, 0.25, std::f64::consts::FRAC_PI_2],
+);
+/// The second camera's noise stream is the seed mixed with this (not a shift of the first
+/// one's SplitMix64 sequence).
+pub(super) const SIDE_SEED_MIX: u64 = 0xD1B5_4A32_D192_ED03;
 pub(super) const CLOUD_RATE_HZ: f64 = 10.0;
 /// Step in `s` of the central differences.
 pub(super) const DS: f64 = 1e-6;

@@ -2,16 +2,20 @@
 //! mounted on a robot link, one ray per pixel cast against the robot's collision meshes and the
 //! scene's shapes, range noise (Gaussian along the ray, clipped at 2.5 σ) and dropped pixels
 //! from one reproducible stream, and optionally the depth image a camera would record, the
-//! points then made from it as `depth_image_proc` makes them. Out: a [`Frame`], points in the
-//! optical frame (m), each labelled with what its ray hit; its truth from `truth`.
+//! points then made from it as `depth_image_proc` makes them. A dark obstacle's pixels return
+//! nothing (NaN), after the stream has drawn for them as for any pixel. Out: a [`Frame`],
+//! points in the optical frame (m), each labelled with what its ray hit; its truth from
+//! `truth` (with the hidden obstacle's whole shape where the scene hides it).
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::error::ScenarioError;
-use super::params::{ScenarioParams, CAMERA_LINK, DS};
+use parry3d::shape::TriMesh;
+
+use super::params::{ScenarioParams, CAMERA_LINK, DS, SIDE_CAMERA_POSE};
 use super::scene::{joints_at, obstacles, ray_hit};
-use super::truth::{exact_truth, Witness};
+use super::truth::{exact_truth, robot_meshes, shape_truth, Witness};
 use crate::cloud::depth::{encode_depth, points_from_depth, PinholeCamera};
 use crate::msg::{CameraInfo, Header};
 use crate::packing::Solid;
@@ -23,7 +27,8 @@ pub enum Hit {
     /// No return, or a dropped pixel.
     Nothing,
     Robot,
-    /// A shape of the scene: 0 the back wall, 1 the obstacle (person or box), 2 the table.
+    /// A shape of the scene: 0 the back wall, 1 the obstacle (person, forearm or box), 2 the
+    /// table.
     Scene(u8),
 }
 
@@ -75,6 +80,24 @@ impl Mount {
             link_from_optical: link_from_optical(),
         }
     }
+
+    /// The second camera (`ScenarioParams::second_camera`): its optical frame in the robot's
+    /// root link `root`, [`SIDE_CAMERA_POSE`] then [`link_from_optical`].
+    pub fn side(root: &str) -> Self {
+        Self {
+            link: root.into(),
+            link_from_optical: root_from_side_link() * link_from_optical(),
+        }
+    }
+}
+
+/// `root_from_side_camera_link`: [`SIDE_CAMERA_POSE`] (rpy as a URDF origin's).
+pub fn root_from_side_link() -> Isometry3<f64> {
+    let ([x, y, z], [roll, pitch, yaw]) = SIDE_CAMERA_POSE;
+    Isometry3::from_parts(
+        Translation3::new(x, y, z),
+        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+    )
 }
 
 /// One rendered depth frame.
@@ -108,6 +131,8 @@ pub struct Renderer<'a> {
     camera: usize,
     link_from_optical: Isometry3<f64>,
     solids: Vec<(usize, Vec<Solid>)>,
+    /// The meshes the hidden obstacle's truth is taken to (`ScenarioParams::hides_obstacle`).
+    meshes: Option<Vec<(usize, Vec<TriMesh>)>>,
     fx: f64,
     cx: f64,
     cy: f64,
@@ -139,12 +164,20 @@ impl<'a> Renderer<'a> {
             .collect::<Result<_, ScenarioError>>()?;
         let w = params.width as f64;
         let fx = 0.5 * w / (0.5 * params.hfov_deg.to_radians()).tan();
+        let meshes = match params.hides_obstacle() {
+            true => Some(
+                robot_meshes(model, &solids)
+                    .ok_or_else(|| ScenarioError::HiddenTruth("a mesh parry3d refuses".into()))?,
+            ),
+            false => None,
+        };
         Ok(Self {
             model,
             params: params.clone(),
             camera,
             link_from_optical: mount.link_from_optical,
             solids,
+            meshes,
             fx,
             cx: 0.5 * (w - 1.0),
             cy: 0.5 * (params.height as f64 - 1.0),
@@ -238,6 +271,13 @@ impl<'a> Renderer<'a> {
         let world_from_optical = poses[self.camera] * self.link_from_optical;
         let hits = self.cast(s, &poses, &world_from_optical);
         let mut points = self.noisy_points(&hits);
+        if self.params.dark {
+            for (p, hit) in points.iter_mut().zip(&hits) {
+                if matches!(hit, Some((_, Hit::Scene(1)))) {
+                    *p = [f32::NAN; 3];
+                }
+            }
+        }
         let depth_image = self.depth_image(&mut points)?;
         let mut obstacle = Vec::new();
         let mut robot_points = 0;
@@ -255,10 +295,9 @@ impl<'a> Renderer<'a> {
                     .push(world_from_optical * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
             }
         }
-        let (truth_m, truth_witness) = if truth {
-            exact_truth(&obstacle, &self.solids, &poses)
-        } else {
-            (None, None)
+        let (truth_m, truth_witness) = match truth {
+            true => self.truth(s, &obstacle, &poses)?,
+            false => (None, None),
         };
         Ok(Frame {
             joints: q,
@@ -272,6 +311,27 @@ impl<'a> Renderer<'a> {
             robot_points,
             hits: labels,
         })
+    }
+
+    /// The exact truth of a frame at `s`: to the obstacle points, and where the scene hides its
+    /// obstacle, to its whole shape (the nearer of the two, with its witness).
+    fn truth(
+        &self,
+        s: f64,
+        obstacle: &[Point3<f64>],
+        poses: &[Isometry3<f64>],
+    ) -> Result<(Option<f64>, Option<Witness>), ScenarioError> {
+        let (mut d, mut w) = exact_truth(obstacle, &self.solids, poses);
+        if let Some(meshes) = &self.meshes {
+            let scene = obstacles(self.params.scene, s);
+            let (shape, pose) = &scene[1];
+            let (hidden, witness) = shape_truth(shape.as_ref(), pose, meshes, poses)
+                .ok_or_else(|| ScenarioError::HiddenTruth("a shape parry3d cannot query".into()))?;
+            if d.is_none_or(|d| hidden < d) {
+                (d, w) = (Some(hidden), Some(witness));
+            }
+        }
+        Ok((d, w))
     }
 
     /// One ray per pixel at `s`: (range, what it hit), in row-major order.

@@ -1,12 +1,13 @@
 //! The scenes of the generator: what each shows (a person walking up, a shelf reached over, the
-//! approach and back, a work table), the arm's joint trajectory along `s` ∈ [0, 1] and the
-//! shapes of the environment at `s` in the robot's root frame (m), which the renderer casts
-//! its rays against.
+//! approach and back, a work table, a forearm hidden in the arm's shadow), the arm's joint
+//! trajectory along `s` ∈ [0, 1] and the shapes of the environment at `s` in the robot's root
+//! frame (m), which the renderer casts its rays against and the truth of a hidden obstacle is
+//! taken to.
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d::math::Vector;
-use parry3d::query::{Ray, RayCast};
-use parry3d::shape::{Capsule, Cuboid};
+use parry3d::query::Ray;
+use parry3d::shape::{Capsule, Cuboid, Shape};
 
 use crate::choice::Choice;
 
@@ -17,6 +18,7 @@ pub enum SceneKind {
     Shelf,
     Approach,
     Table,
+    Shadow,
 }
 
 impl Choice for SceneKind {
@@ -25,6 +27,7 @@ impl Choice for SceneKind {
         SceneKind::Shelf,
         SceneKind::Approach,
         SceneKind::Table,
+        SceneKind::Shadow,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -32,6 +35,7 @@ impl Choice for SceneKind {
             SceneKind::Shelf => "shelf",
             SceneKind::Approach => "approach",
             SceneKind::Table => "table",
+            SceneKind::Shadow => "shadow",
         }
     }
 
@@ -50,9 +54,27 @@ impl Choice for SceneKind {
                 "The person scene with a 0.5 m work table beside the arm, which the gripper \
                  passes above: a fixture for exclusion volumes"
             }
+            SceneKind::Shadow => {
+                "A person's forearm (a capsule of radius 0.04 m) reaches in along the camera's \
+                 line of sight behind the arm's upper link, hidden in the arm's shadow as the \
+                 camera sees it, up to 3 cm from it: the robot's own shadow (the truth is the \
+                 distance to the whole forearm)"
+            }
         }
     }
 }
+
+/// Where the camera's ray through the upper arm of [`SceneKind::Shadow`] starts (the camera's
+/// optical centre, from the URDF's `camera_joint`) and the point of the upper arm's axis it
+/// passes through, in the root frame (m): the hidden forearm lies along it.
+const SHADOW_EYE: [f64; 3] = [1.2, 0.0, 0.8];
+const SHADOW_THROUGH: [f64; 3] = [0.0, 0.0, 0.45];
+/// The hidden forearm: radius and length of its axis (m), and how far behind the upper arm's
+/// axis, along the ray, its near end starts and ends (m; the truth then falls from about
+/// 0.8 m to about 0.03 m: the axes' horizontal offset less both radii).
+const FOREARM_RADIUS: f64 = 0.04;
+const FOREARM_LENGTH: f64 = 0.35;
+const FOREARM_BEHIND: (f64, f64) = (0.93, 0.125);
 
 /// The table of [`SceneKind::Table`]: its centre in the root frame and its edge lengths, m.
 pub const TABLE_CENTER: [f64; 3] = [0.35, 0.45, 0.275];
@@ -82,6 +104,12 @@ pub(super) fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
             [0.3, -0.2, 1.6, 0.9, 0.0, 0.0, 0.02],
             [0.05, 0.56, 0.92, 0.95, 0.4, 0.0, 0.01],
         ),
+        // The upper arm stands still and upright (its shadow does not move); the forearm
+        // and the wrist swing above and towards the camera, out of the shadow.
+        SceneKind::Shadow => (
+            [0.0, 0.0, 1.2, 0.3, 0.0, 0.0, 0.015],
+            [0.0, 0.0, 0.9, 0.5, 0.6, 0.3, 0.005],
+        ),
     };
     let names = [
         "shoulder_pan",
@@ -100,14 +128,12 @@ pub(super) fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
 }
 
 /// The environment of a scene: shapes with their world poses at `s` ∈ [0, 1].
-pub(super) fn obstacles(
-    scene_kind: SceneKind,
-    s: f64,
-) -> Vec<(Box<dyn RayCast + Send + Sync>, Isometry3<f64>)> {
+/// The obstacle is index 1 (the renderer's `Hit::Scene(1)`).
+pub(super) fn obstacles(scene_kind: SceneKind, s: f64) -> Vec<(Box<dyn Shape>, Isometry3<f64>)> {
     // A wall 1.4 m behind the robot, seen past it.
-    let wall: Box<dyn RayCast + Send + Sync> = Box::new(Cuboid::new(Vector::new(0.05, 2.0, 1.2)));
+    let wall: Box<dyn Shape> = Box::new(Cuboid::new(Vector::new(0.05, 2.0, 1.2)));
     let wall_pose = Isometry3::translation(-1.4, 0.0, 1.2);
-    let obstacle: (Box<dyn RayCast + Send + Sync>, Isometry3<f64>) = match scene_kind {
+    let obstacle: (Box<dyn Shape>, Isometry3<f64>) = match scene_kind {
         SceneKind::Person | SceneKind::Approach | SceneKind::Table => {
             // Radius 0.18 m, 1.7 m tall, walking from 1.1 m to 0.58 m beside the base (the
             // approach scene: from 1.2 m, and back).
@@ -125,6 +151,7 @@ pub(super) fn obstacles(
             Box::new(Cuboid::new(Vector::new(0.15, 0.25, 0.2))),
             Isometry3::translation(0.62, 0.05, 0.2),
         ),
+        SceneKind::Shadow => hidden_forearm(s),
     };
     let mut scene = vec![(wall, wall_pose), obstacle];
     if scene_kind == SceneKind::Table {
@@ -138,9 +165,32 @@ pub(super) fn obstacles(
     scene
 }
 
+/// The forearm of [`SceneKind::Shadow`] at `s`: a capsule along the camera's ray through the
+/// upper arm, its near end reaching in from [`FOREARM_BEHIND`]`.0` to `.1` behind the upper
+/// arm's axis (linear, there by `s` = 5/6 as the person scene's walk). Its radius is less than
+/// the upper arm's (0.05 m) and it lies farther from the camera, so it stays inside the cone of
+/// rays the upper arm stops.
+fn hidden_forearm(s: f64) -> (Box<dyn Shape>, Isometry3<f64>) {
+    let (eye, through) = (Vector3::from(SHADOW_EYE), Vector3::from(SHADOW_THROUGH));
+    let d = (through - eye).normalize();
+    let (from, to) = FOREARM_BEHIND;
+    let behind = from + (s * 1.2).min(1.0) * (to - from);
+    // Along the ray, past the upper arm's axis by `behind`, then half the axis farther.
+    let centre = through + d * (behind + 0.5 * FOREARM_LENGTH);
+    let axis = nalgebra::UnitQuaternion::rotation_between(&Vector3::z(), &d)
+        .unwrap_or_else(nalgebra::UnitQuaternion::identity);
+    (
+        Box::new(Capsule::new_z(
+            (0.5 * FOREARM_LENGTH) as f32,
+            FOREARM_RADIUS as f32,
+        )),
+        Isometry3::from_parts(centre.into(), axis),
+    )
+}
+
 /// Where the ray from `o` along `d` first meets `shape` at `pose`, within `max` (m).
 pub(super) fn ray_hit(
-    shape: &(dyn RayCast + Send + Sync),
+    shape: &dyn Shape,
     pose: &Isometry3<f64>,
     o: &Point3<f64>,
     d: &Vector3<f64>,

@@ -50,7 +50,8 @@ pub struct GenerateArgs {
     /// Output: a rosbag2 folder (or a .mcap file); it must not exist yet.
     #[arg(long)]
     out: PathBuf,
-    /// The obstacle: a person walking up to the arm, or a shelf the arm reaches over.
+    /// The obstacle: a person walking up to the arm, a shelf the arm reaches over, or a forearm
+    /// hidden in the arm's shadow.
     #[arg(
         long,
         value_parser = choice::<SceneKind>(),
@@ -87,6 +88,16 @@ pub struct GenerateArgs {
     /// camera.topic:=/camera/depth/image_raw`.
     #[arg(long, value_name = "ENCODING")]
     depth: Option<String>,
+    /// The obstacle returns no depth (dark fabric to a ToF or structured-light camera): its
+    /// pixels are NaN, 0 in a 16UC1 image; the truth is the distance to its whole shape.
+    #[arg(long)]
+    dark: bool,
+    /// Record a second depth camera beside the arm that sees into the first one's shadow, on
+    /// /side_camera/depth/{points,camera_info,image_raw}, its frames side_camera_link (on
+    /// /tf_static under the root) and side_camera_optical_frame. Replay with
+    /// config/demo_arm_two_cameras.yaml.
+    #[arg(long)]
+    second_camera: bool,
 }
 
 pub fn replay(args: ReplayArgs) -> Result<()> {
@@ -223,6 +234,8 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
         seed: args.seed,
         compression: args.compression,
         point_step: args.point_step,
+        dark: args.dark,
+        second_camera: args.second_camera,
         ..ScenarioParams::default()
     };
     let g = scenario::generate(&model, &params, &args.out)?;
