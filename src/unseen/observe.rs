@@ -17,8 +17,11 @@
 //! than its minimum range is not seen by that view.
 //!
 //! **Fused.** A cell is unseen when no view sees it free. It is in the **self shadow** when it
-//! is unseen and some view would have seen it but for the robot: every pixel of its block that
-//! does not pass beyond it returned, in front of it, a point the self-filter took as the robot.
+//! is unseen and, in some view, a pixel of its block returned in front of it (or within the
+//! range noise) a point the self-filter took as the robot: the robot's body stood between that
+//! camera and the cell. One robot pixel in the block is enough, so that a pixel dropped inside
+//! the robot's image does not cut holes in its shadow; the price is that a hidden body's cells
+//! within a pixel of the robot's outline, behind it, count as shadow too.
 //!
 //! **Cost.** One parallel pass over the lattice's rows (rayon); per cell and view three f32
 //! additions to step the centre, one division, four depth reads. The poses are composed once
@@ -36,8 +39,7 @@ use super::view::RangeView;
 pub struct Observation {
     /// Per cell (lattice index): seen free by no view.
     pub unseen: Vec<bool>,
-    /// Per cell: unseen, and hidden from some view only by the robot's own body (a subset of
-    /// `unseen`).
+    /// Per cell: unseen, and behind the robot's own body in some view (a subset of `unseen`).
     pub self_shadow: Vec<bool>,
     /// Cells seen free by some view, over all cells.
     pub observed_fraction: f64,
@@ -53,6 +55,17 @@ impl Observation {
     /// Unseen cells.
     pub fn unseen_count(&self) -> usize {
         self.unseen.iter().filter(|&&u| u).count()
+    }
+
+    /// The unseen cells outside the robot's shadow: opened on their own (`open`), they give the
+    /// distance to unseen space that another camera, not the robot, should have seen (a cell
+    /// dropped next to the shadow then no longer opens with the shadow's bulk).
+    pub fn beyond_self_shadow(&self) -> Vec<bool> {
+        self.unseen
+            .par_iter()
+            .zip(&self.self_shadow)
+            .map(|(&u, &s)| u && !s)
+            .collect()
     }
 
     /// Forgets the unseen cells for which `drop(index, root-frame centre)` holds (they become
@@ -97,7 +110,7 @@ impl Observation {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Verdict {
     Free,
-    /// Not free, and every pixel that stopped short of the cell was the robot.
+    /// Not free, and a pixel of the block returned the robot in front of the cell.
     RobotInFront,
     Unseen,
 }
@@ -172,26 +185,24 @@ impl<'a> Placement<'a> {
         let v1 = (v0 + 1).min(self.v_max as usize);
         // Free iff r − noise > z for every pixel; a NaN range fails the comparison.
         let beyond = z + self.noise;
-        let mut free = true;
+        let (mut free, mut robot) = (true, false);
         for i in [
             v0 * self.width + u0,
             v0 * self.width + u1,
             v1 * self.width + u0,
             v1 * self.width + u1,
         ] {
-            let r = self.ranges[i];
-            if r > beyond {
+            if self.ranges[i] > beyond {
                 continue;
             }
-            if r.is_nan() || !self.robot[i] {
-                return Verdict::Unseen;
-            }
             free = false;
+            // A robot pixel has a return, here one in front of the cell (or within the noise).
+            robot |= self.robot[i];
         }
-        if free {
-            Verdict::Free
-        } else {
-            Verdict::RobotInFront
+        match (free, robot) {
+            (true, _) => Verdict::Free,
+            (false, true) => Verdict::RobotInFront,
+            (false, false) => Verdict::Unseen,
         }
     }
 }
@@ -247,5 +258,183 @@ pub fn observe(lattice: &Lattice, views: &[&RangeView]) -> Observation {
             .zip(views)
             .map(|(p, v)| p.pitch(lattice, v.max_range_m()))
             .fold(0.0, f64::max),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::depth::PinholeCamera;
+    use crate::cloud::exclusion::VolumeShape;
+    use crate::cloud::RangeLimits;
+    use crate::geometry::Primitive;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+    const W: u32 = 64;
+    const H: u32 = 48;
+
+    fn camera() -> PinholeCamera {
+        PinholeCamera {
+            width: W,
+            height: H,
+            fx: 40.0,
+            fy: 40.0,
+            cx: 31.5,
+            cy: 23.5,
+        }
+    }
+
+    /// A lattice about (0, 0, 1) in the root frame, 0.4 m wide at 5 cm.
+    fn lattice() -> Lattice {
+        Lattice::new(Isometry3::translation(0.0, 0.0, 1.0), [0.2; 3], 0.05).unwrap()
+    }
+
+    /// A view from `root_from_camera` of depth `depth(u, v)` at each pixel.
+    fn view(
+        root_from_camera: Isometry3<f64>,
+        range: Option<RangeLimits>,
+        depth: impl Fn(u32, u32) -> f32,
+    ) -> RangeView {
+        let depths: Vec<f32> = (0..W * H).map(|i| depth(i % W, i / W)).collect();
+        RangeView::new(camera(), root_from_camera, &depths, range, 0.02).unwrap()
+    }
+
+    fn depth_of(l: &Lattice, i: usize) -> f32 {
+        l.centre(i)[2]
+    }
+
+    #[test]
+    fn a_wall_shows_the_space_before_it_free() {
+        let l = lattice();
+        let far = view(Isometry3::identity(), None, |_, _| 2.0);
+        let o = observe(&l, &[&far]);
+        assert_eq!(o.unseen_count(), 0);
+        assert_eq!(o.observed_fraction, 1.0);
+        assert_eq!(o.observed_fraction_per_view, vec![1.0]);
+        assert!(
+            (o.pixel_pitch_m - 1.175 / 40.0).abs() < 1e-6,
+            "{}",
+            o.pixel_pitch_m
+        );
+        // A wall at 1 m: the cells from 1 − noise on are behind it or at it.
+        let near = view(Isometry3::identity(), None, |_, _| 1.0);
+        let o = observe(&l, &[&near]);
+        for i in 0..l.len() {
+            assert_eq!(o.unseen[i], depth_of(&l, i) >= 0.98, "cell {:?}", l.ijk(i));
+            assert!(!o.self_shadow[i]);
+        }
+        // Nearer than the minimum range: not seen.
+        let limited = view(
+            Isometry3::identity(),
+            RangeLimits::new(1.05, None),
+            |_, _| 2.0,
+        );
+        let o = observe(&l, &[&limited]);
+        for i in 0..l.len() {
+            let c = l.centre(i);
+            let r = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+            assert_eq!(o.unseen[i], r < 1.05, "cell {:?}", l.ijk(i));
+        }
+    }
+
+    #[test]
+    fn dark_pixels_and_the_image_border_see_nothing() {
+        let l = lattice();
+        // The left half of the image returns nothing.
+        let half = view(Isometry3::identity(), None, |u, _| {
+            if u < 32 {
+                f32::NAN
+            } else {
+                2.0
+            }
+        });
+        let o = observe(&l, &[&half]);
+        for i in 0..l.len() {
+            let c = l.centre(i);
+            let u = 40.0 * c[0] / c[2] + 31.5;
+            // The 2 × 2 block reaches pixel 31 from u < 32.
+            assert_eq!(o.unseen[i], u < 32.0, "cell {:?} at u = {u}", l.ijk(i));
+        }
+        // A narrow camera sees only the middle of the lattice.
+        let narrow = RangeView::new(
+            PinholeCamera {
+                fx: 400.0,
+                fy: 400.0,
+                ..camera()
+            },
+            Isometry3::identity(),
+            &vec![2.0; (W * H) as usize],
+            None,
+            0.02,
+        )
+        .unwrap();
+        let o = observe(&l, &[&narrow]);
+        assert!(o.observed_fraction > 0.0 && o.observed_fraction < 0.2);
+    }
+
+    #[test]
+    fn the_robots_shadow_is_told_apart_and_a_second_camera_closes_it() {
+        let l = lattice();
+        // The robot stands at 0.7 m in the middle of the image, the wall at 2 m elsewhere.
+        let robot = |u: u32, v: u32| (24..40).contains(&u) && (16..32).contains(&v);
+        let mut front = view(Isometry3::identity(), None, |u, v| {
+            if robot(u, v) {
+                0.7
+            } else {
+                2.0
+            }
+        });
+        let flags: Vec<bool> = (0..W * H).map(|i| robot(i % W, i / W)).collect();
+        front.set_robot_pixels(&flags).unwrap();
+        let o = observe(&l, &[&front]);
+        let shadowed = o.self_shadow.iter().filter(|&&s| s).count();
+        assert!(shadowed > 0);
+        assert_eq!(
+            shadowed,
+            o.unseen_count(),
+            "every unseen cell is behind the robot"
+        );
+        // Unflagged, the same pixels hide the cells, but not as the robot's shadow.
+        let plain = view(Isometry3::identity(), None, |u, v| {
+            if robot(u, v) {
+                0.7
+            } else {
+                2.0
+            }
+        });
+        let o2 = observe(&l, &[&plain]);
+        assert_eq!(o2.unseen, o.unseen);
+        assert!(o2.self_shadow.iter().all(|&s| !s));
+        // A camera from the side (at x = 2 m looking along −x) sees into the shadow.
+        let side_pose = Isometry3::from_parts(
+            Translation3::new(2.0, 0.0, 1.0),
+            UnitQuaternion::face_towards(&-Vector3::x(), &Vector3::y()),
+        );
+        let side = view(side_pose, None, |_, _| 4.0);
+        let o = observe(&l, &[&front, &side]);
+        assert_eq!(o.unseen_count(), 0);
+        assert_eq!(o.observed_fraction_per_view[1], 1.0);
+        assert!(o.observed_fraction_per_view[0] < 1.0);
+    }
+
+    #[test]
+    fn dropped_cells_are_forgotten() {
+        let l = lattice();
+        let dark = view(Isometry3::identity(), None, |_, _| f32::NAN);
+        let mut o = observe(&l, &[&dark]);
+        assert_eq!(o.unseen_count(), l.len());
+        let dropped = o.drop_where(&l, |_, c| c[0] < 0.0);
+        assert_eq!(dropped, l.len() / 2);
+        let ball = Placed::new(
+            &VolumeShape::Primitive(Primitive::Sphere { radius: 0.1 }),
+            &Isometry3::translation(0.1, 0.0, 1.0),
+        );
+        let counts = o.drop_excluded(&l, &[ball]);
+        assert!(counts[0] > 0);
+        for i in 0..l.len() {
+            let c = l.centre(i);
+            let inside = (c[0] - 0.1).powi(2) + c[1].powi(2) + (c[2] - 1.0).powi(2) <= 0.01;
+            assert_eq!(o.unseen[i], c[0] >= 0.0 && !inside, "cell {:?}", l.ijk(i));
+        }
     }
 }
