@@ -27,12 +27,23 @@
 //!    cells' centres less a cell diagonal and the pixel slack; `None` (NaN) when none is left.
 //!    The same over `self_shadow` tells the robot's own shadow apart.
 //!
-//! **What is guaranteed.** Given a ball of diameter `D` (the detection capability) that every
-//! pixel whose ray meets it sees nothing of (no return: a dark body; or a return in front of
-//! it), lying inside the lattice and outside what the caller dropped: [`unseen_distance`] is no
-//! more than the distance from the robot to that ball (the property test in `tests/unseen.rs`
-//! checks it over random camera poses and dropout masks, against a brute-force distance).
-//! A body some pixel does see is measured by the distance to the points.
+//! **What is guaranteed.** Take a ball of diameter `D` (the detection capability) inside the
+//! lattice and outside what the caller dropped, such that every pixel whose centre ray meets it
+//! returns nothing (a dark body). Then [`unseen_distance`] over the opened cells, and already
+//! over the opened cells inside that ball, is no more than the distance from the robot to the
+//! ball (property test in `tests/unseen.rs`: random camera poses, intrinsics, dropout masks,
+//! capabilities and resolutions, against a brute-force distance to a box robot; with no margin,
+//! or with a wider erosion, it fails). A body behind a nearer surface is unseen by the same
+//! rule (its block's pixels return in front of it); the generator's "person in the shadow"
+//! should check that end to end. A body some pixel does see is measured by the distance to the
+//! points. If the ball also keeps a pixel clear of the robot's image (no robot in front of it
+//! within a pixel of its outline), the same holds for the opening of
+//! [`Observation::beyond_self_shadow`] alone.
+//!
+//! **The robot's own shadow.** With one camera the space behind the arm is unseen and touches
+//! it, so the distance over every opened cell is about zero. `self_shadow` marks it; what the
+//! monitor does there is its policy (e.g. count the shadow only where no other camera sees it,
+//! which the fusion over views already does, and report the shadow's distance apart).
 //!
 //! **Not here yet.** The GPU path (the lattice projected in the query's submission) is not
 //! written: this is the CPU pass (rayon). Lidars without an organized scan observe nothing
