@@ -27,6 +27,9 @@
 //!   PointCloud2 with one encoder, depth images, exclusion volumes: these take `robot`'s meshes)
 //!   and `msg` → `tf` (TF buffer, joint states), both into `monitor`; `query` unprojects depth
 //!   images with `cloud::depth`;
+//! - after `query` and `cloud`: `unseen` (the space no source has seen free, as a voxel lattice
+//!   of the monitored volume, opened by the detection capability, and the certified distance to
+//!   it through the caller's query; it takes `cloud::depth` and `cloud::exclusion`);
 //! - beside them: `geometry` (mesh helpers, under `robot`), `choice` (the enums a parameter or a
 //!   flag picks by name), `stats` (percentiles of timings), and behind the default feature
 //!   `fixtures` the test fixtures: `scenario` (the bag generator, on the meshes, clouds and
@@ -55,3 +58,4 @@ pub mod scenario;
 pub mod separation;
 pub mod stats;
 pub mod tf;
+pub mod unseen;

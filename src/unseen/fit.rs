@@ -1,0 +1,165 @@
+//! The pinhole intrinsics of an organized cloud, fitted from its own points: an organized
+//! cloud (a depth camera's PointCloud2, `depth_image_proc`'s output) carries its pixel grid
+//! but not its CameraInfo, and the free-space pass needs to know which pixel a cell falls on.
+//!
+//! Each valid point `(x, y, z)` (finite, `z > 0`) of pixel `(u, v)` satisfies, for a pinhole
+//! camera in the cloud's optical frame, `u = fx·x/z + cx` and `v = fy·y/z + cy`: two
+//! independent straight-line least-squares fits (`u` on `x/z`, `v` on `y/z`), in f64 with
+//! centred sums. The fit is taken only when it is a camera: at least [`MIN_FIT_POINTS`]
+//! valid points, positive finite focal lengths, and every valid point re-projected within
+//! [`MAX_RESIDUAL_PX`] of its own pixel (a cloud moved into another frame, or one from a
+//! lidar's rings, fails that and observes nothing free). Two passes over the points.
+
+use crate::cloud::depth::PinholeCamera;
+
+use super::error::UnseenError;
+
+/// The fewest valid points a fit is made from.
+pub const MIN_FIT_POINTS: usize = 16;
+/// The largest distance (pixels) between a valid point's projection and its own pixel: half a
+/// pixel, so that the fitted camera puts every point on the pixel that measured it.
+pub const MAX_RESIDUAL_PX: f64 = 0.5;
+
+/// The pinhole camera whose pixel grid `width × height` the organized cloud `points`
+/// (row-major, the cloud's own frame: z forward) was measured on.
+pub fn fit_pinhole(
+    points: &[[f32; 3]],
+    width: u32,
+    height: u32,
+) -> Result<PinholeCamera, UnseenError> {
+    let fail = |reason: String| UnseenError::NotPinhole {
+        width,
+        height,
+        reason,
+    };
+    let w = width as usize;
+    // (u, v, x/z, y/z) of every valid point.
+    let samples = || {
+        points.iter().enumerate().filter_map(move |(i, p)| {
+            let valid = p.iter().all(|c| c.is_finite()) && p[2] > 0.0;
+            valid.then(|| {
+                let [x, y, z] = p.map(f64::from);
+                ((i % w) as f64, (i / w) as f64, x / z, y / z)
+            })
+        })
+    };
+    let (mut n, mut sum) = (0usize, [0.0f64; 4]);
+    for (u, v, a, b) in samples() {
+        n += 1;
+        for (s, x) in sum.iter_mut().zip([u, v, a, b]) {
+            *s += x;
+        }
+    }
+    if n < MIN_FIT_POINTS {
+        return Err(fail(format!(
+            "{n} valid points, fewer than {MIN_FIT_POINTS}"
+        )));
+    }
+    let mean = sum.map(|s| s / n as f64);
+    // Centred second moments: var(a), cov(a, u), var(b), cov(b, v).
+    let mut m = [0.0f64; 4];
+    for (u, v, a, b) in samples() {
+        let (du, dv, da, db) = (u - mean[0], v - mean[1], a - mean[2], b - mean[3]);
+        m[0] += da * da;
+        m[1] += da * du;
+        m[2] += db * db;
+        m[3] += db * dv;
+    }
+    let fx = m[1] / m[0];
+    let fy = m[3] / m[2];
+    if !(fx.is_finite() && fx > 0.0 && fy.is_finite() && fy > 0.0) {
+        return Err(fail(format!(
+            "focal lengths {fx:.4} and {fy:.4} px (the points span one row or column, or are \
+             not in an optical frame with z forward)"
+        )));
+    }
+    let cx = mean[0] - fx * mean[2];
+    let cy = mean[1] - fy * mean[3];
+    let worst = samples()
+        .map(|(u, v, a, b)| (fx * a + cx - u).abs().max((fy * b + cy - v).abs()))
+        .fold(0.0f64, f64::max);
+    if worst > MAX_RESIDUAL_PX {
+        return Err(fail(format!(
+            "a point re-projects {worst:.2} px from its pixel (at most {MAX_RESIDUAL_PX})"
+        )));
+    }
+    Ok(PinholeCamera {
+        width,
+        height,
+        fx,
+        fy,
+        cx,
+        cy,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The organized cloud a pinhole camera makes of a tilted plane, with holes.
+    fn plane_cloud(c: &PinholeCamera) -> Vec<[f32; 3]> {
+        let (w, h) = (c.width as usize, c.height as usize);
+        (0..w * h)
+            .map(|i| {
+                let (u, v) = ((i % w) as f64, (i / w) as f64);
+                if i % 7 == 3 {
+                    return [f32::NAN; 3];
+                }
+                let z = 1.5 + 0.002 * u - 0.001 * v;
+                [
+                    ((u - c.cx) / c.fx * z) as f32,
+                    ((v - c.cy) / c.fy * z) as f32,
+                    z as f32,
+                ]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_pinhole_clouds_intrinsics_are_found() {
+        let c = PinholeCamera {
+            width: 64,
+            height: 48,
+            fx: 60.0,
+            fy: 61.5,
+            cx: 31.7,
+            cy: 24.2,
+        };
+        let f = fit_pinhole(&plane_cloud(&c), 64, 48).unwrap();
+        assert!((f.fx - c.fx).abs() < 1e-3 && (f.fy - c.fy).abs() < 1e-3);
+        assert!((f.cx - c.cx).abs() < 1e-3 && (f.cy - c.cy).abs() < 1e-3);
+    }
+
+    #[test]
+    fn clouds_that_are_no_camera_are_refused() {
+        let c = PinholeCamera {
+            width: 16,
+            height: 8,
+            fx: 20.0,
+            fy: 20.0,
+            cx: 8.0,
+            cy: 4.0,
+        };
+        let good = plane_cloud(&c);
+        // Too few valid points.
+        let few: Vec<[f32; 3]> = good
+            .iter()
+            .enumerate()
+            .map(|(i, p)| if i < 10 { *p } else { [f32::NAN; 3] })
+            .collect();
+        assert!(fit_pinhole(&few, 16, 8)
+            .unwrap_err()
+            .to_string()
+            .contains("fewer than"));
+        // The same points in a frame with x forward.
+        let turned: Vec<[f32; 3]> = good.iter().map(|p| [p[2], -p[0], -p[1]]).collect();
+        assert!(fit_pinhole(&turned, 16, 8).is_err());
+        // Shuffled rows: points off their pixels.
+        let mut shuffled = good.clone();
+        shuffled.swap(20, 100);
+        shuffled.swap(21, 60);
+        let e = fit_pinhole(&shuffled, 16, 8).unwrap_err().to_string();
+        assert!(e.contains("re-projects"), "{e}");
+    }
+}

@@ -1,0 +1,298 @@
+//! What one source saw, as the free-space pass reads it: a [`RangeView`] is the source's pinhole
+//! pixel grid, its pose `root_from_camera` (the optical frame: z forward, x right, y down; f64),
+//! per pixel the measured depth along z (f32 m; NaN for no return) and whether the self-filter
+//! took that pixel as the robot, and the source's range noise and limits.
+//!
+//! A pixel has no return (NaN) when its depth is 0, NaN or infinite, or when its point lies
+//! outside the source's range limits (`RangeLimits`, as the monitor drops such points): such a
+//! pixel sees nothing along its whole ray. A return at depth `r` says the ray is free up to
+//! `r − range_noise_m`, whether it hit the scene or the robot (the robot flag only tells the
+//! observation pass *why* the ray stopped: `self_shadow`).
+//!
+//! Three ways in: [`RangeView::new`] from depths the caller has (the tests' renderer);
+//! [`RangeView::from_depth`] from a depth image, through `cloud::depth::DepthView` (the same
+//! decoding and range limits as the points the query measures); [`RangeView::from_organized_cloud`]
+//! from an organized cloud in its own optical frame, with the intrinsics fitted from its points
+//! (`fit`). An unorganized cloud (height 1: a lidar's points without its scan pattern), or an
+//! organized one that no pinhole camera fits, gives an error: such a source observes nothing
+//! free, and the caller leaves it out of the views. One parallel pass over the pixels.
+
+use nalgebra::Isometry3;
+use rayon::prelude::*;
+
+use crate::cloud::depth::{DepthView, PinholeCamera};
+use crate::cloud::RangeLimits;
+
+use super::error::UnseenError;
+use super::fit::fit_pinhole;
+
+/// Default range noise (m): a return at `r` is taken to show free space up to `r − 0.02`.
+/// A Kinect-class structured-light camera's depth noise is about 1.5 cm (1σ) at 3 m and grows
+/// with the square of the range (Khoshelham & Elberink 2012); ToF cameras do better. 2 cm keeps
+/// the cell at a surface unclaimed; it only ever moves a surface's own cells to unseen, and a
+/// surface that returned is measured by the distance to the points anyway.
+pub const DEFAULT_RANGE_NOISE_M: f64 = 0.02;
+
+/// What one source saw: its pixel grid, pose, depths and robot pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RangeView {
+    camera: PinholeCamera,
+    root_from_camera: Isometry3<f64>,
+    ranges: Vec<f32>,
+    robot: Vec<bool>,
+    min_range2: f32,
+    max_range_m: f32,
+    range_noise_m: f32,
+}
+
+impl RangeView {
+    /// The view of `camera` at `root_from_camera` that measured `depths` (row-major, m along z;
+    /// 0, NaN, ±∞ or outside `range`: no return), no pixel flagged as the robot.
+    pub fn new(
+        camera: PinholeCamera,
+        root_from_camera: Isometry3<f64>,
+        depths: &[f32],
+        range: Option<RangeLimits>,
+        range_noise_m: f64,
+    ) -> Result<Self, UnseenError> {
+        let w = camera.width as usize;
+        check_count("depths", depths.len(), &camera)?;
+        let (kx, ky) = (1.0 / camera.fx as f32, 1.0 / camera.fy as f32);
+        let (cx, cy) = (camera.cx as f32, camera.cy as f32);
+        let ranges = depths
+            .par_iter()
+            .enumerate()
+            .map(|(i, &z)| {
+                let p = [
+                    ((i % w) as f32 - cx) * kx * z,
+                    ((i / w) as f32 - cy) * ky * z,
+                    z,
+                ];
+                keep(p, range)
+            })
+            .collect();
+        Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
+    }
+
+    /// The view of a depth image: `depth` (checked against `camera` when it was made, with the
+    /// source's range limits) decoded pixel by pixel as the query's points are.
+    pub fn from_depth(
+        depth: &DepthView,
+        camera: &PinholeCamera,
+        root_from_camera: Isometry3<f64>,
+        range_noise_m: f64,
+    ) -> Result<Self, UnseenError> {
+        check_count("depth image pixels", depth.len(), camera)?;
+        // `point` is NaN for no return and outside the limits; a 32FC1 depth of 0 is (0, 0, 0).
+        let ranges = (0..depth.len())
+            .into_par_iter()
+            .map(|i| keep(depth.point(i), None))
+            .collect();
+        Self::with_ranges(
+            *camera,
+            root_from_camera,
+            ranges,
+            depth.range,
+            range_noise_m,
+        )
+    }
+
+    /// The view of an organized cloud: `points` (row-major `width × height`, in the cloud's
+    /// optical frame, which `root_from_camera` places), the intrinsics fitted from them
+    /// ([`super::fit::fit_pinhole`]). An unorganized cloud, or one no pinhole camera fits, is
+    /// an error: that source observes nothing free.
+    pub fn from_organized_cloud(
+        points: &[[f32; 3]],
+        width: u32,
+        height: u32,
+        root_from_camera: Isometry3<f64>,
+        range: Option<RangeLimits>,
+        range_noise_m: f64,
+    ) -> Result<Self, UnseenError> {
+        if width <= 1 || height <= 1 {
+            return Err(UnseenError::Unorganized { width, height });
+        }
+        if points.len() as u64 != u64::from(width) * u64::from(height) {
+            return Err(UnseenError::PixelCount {
+                what: "cloud points",
+                got: points.len(),
+                width,
+                height,
+            });
+        }
+        let camera = fit_pinhole(points, width, height)?;
+        let ranges = points.par_iter().map(|&p| keep(p, range)).collect();
+        Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
+    }
+
+    fn with_ranges(
+        camera: PinholeCamera,
+        root_from_camera: Isometry3<f64>,
+        ranges: Vec<f32>,
+        range: Option<RangeLimits>,
+        range_noise_m: f64,
+    ) -> Result<Self, UnseenError> {
+        if !(range_noise_m.is_finite() && range_noise_m >= 0.0) {
+            return Err(UnseenError::Length {
+                parameter: "range_noise",
+                value: range_noise_m,
+                expected: "length ≥ 0",
+            });
+        }
+        let (min2, max2) = range.map_or((0.0, f32::INFINITY), |r| r.squared());
+        Ok(Self {
+            robot: vec![false; ranges.len()],
+            camera,
+            root_from_camera,
+            ranges,
+            min_range2: min2,
+            max_range_m: max2.sqrt(),
+            range_noise_m: range_noise_m as f32,
+        })
+    }
+
+    pub fn camera(&self) -> &PinholeCamera {
+        &self.camera
+    }
+
+    pub fn root_from_camera(&self) -> &Isometry3<f64> {
+        &self.root_from_camera
+    }
+
+    /// Per pixel, the measured depth along z (m), NaN for no return.
+    pub fn ranges(&self) -> &[f32] {
+        &self.ranges
+    }
+
+    /// Per pixel, whether the self-filter took its point as the robot.
+    pub fn robot_pixels(&self) -> &[bool] {
+        &self.robot
+    }
+
+    /// The robot flags, for the caller's self-filter to set in place.
+    pub fn robot_pixels_mut(&mut self) -> &mut [bool] {
+        &mut self.robot
+    }
+
+    /// Sets the robot flags (one a pixel, row-major).
+    pub fn set_robot_pixels(&mut self, robot: &[bool]) -> Result<(), UnseenError> {
+        check_count("robot pixel flags", robot.len(), &self.camera)?;
+        self.robot.copy_from_slice(robot);
+        Ok(())
+    }
+
+    pub fn range_noise_m(&self) -> f32 {
+        self.range_noise_m
+    }
+
+    /// The squared minimum range (m², 0 when none): a cell nearer the camera is not seen.
+    pub fn min_range2(&self) -> f32 {
+        self.min_range2
+    }
+
+    /// The maximum range (m, ∞ when none): no return lies beyond it.
+    pub fn max_range_m(&self) -> f32 {
+        self.max_range_m
+    }
+}
+
+/// The depth of camera-frame point `p` if it is a return within `range`, else NaN.
+#[inline]
+fn keep(p: [f32; 3], range: Option<RangeLimits>) -> f32 {
+    let z = p[2];
+    let returned = z.is_finite() && z > 0.0 && p[0].is_finite() && p[1].is_finite();
+    if returned && range.is_none_or(|r| r.keeps(p)) {
+        z
+    } else {
+        f32::NAN
+    }
+}
+
+fn check_count(what: &'static str, got: usize, camera: &PinholeCamera) -> Result<(), UnseenError> {
+    if got as u64 == u64::from(camera.width) * u64::from(camera.height) {
+        Ok(())
+    } else {
+        Err(UnseenError::PixelCount {
+            what,
+            got,
+            width: camera.width,
+            height: camera.height,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::depth::{encode_depth, DepthEncoding};
+    use crate::msg::Header;
+
+    fn camera() -> PinholeCamera {
+        PinholeCamera {
+            width: 4,
+            height: 2,
+            fx: 100.0,
+            fy: 100.0,
+            cx: 1.5,
+            cy: 0.5,
+        }
+    }
+
+    #[test]
+    fn depth_images_decode_as_the_query_does() {
+        let depths = [1.0, 0.0, f32::NAN, 2.5, 0.2, 7.0, 1.234, 3.0];
+        for encoding in [DepthEncoding::Millimetres16, DepthEncoding::Metres32] {
+            let image = encode_depth(Header::default(), 4, 2, &depths, encoding);
+            let limits = RangeLimits::new(0.3, Some(5.0));
+            let depth = DepthView::new(&image, &camera(), limits).unwrap();
+            let view =
+                RangeView::from_depth(&depth, &camera(), Isometry3::identity(), 0.02).unwrap();
+            let r = view.ranges();
+            assert!((r[0] - 1.0).abs() < 1e-6 && (r[6] - 1.234).abs() < 1e-3);
+            // 0, NaN, nearer than 0.3 m and beyond 5 m: no return.
+            for i in [1, 2, 4, 5] {
+                assert!(r[i].is_nan(), "{encoding:?} pixel {i}: {}", r[i]);
+            }
+            assert_eq!(view.robot_pixels(), &[false; 8]);
+            assert!((view.min_range2() - 0.09).abs() < 1e-6 && view.max_range_m() == 5.0);
+        }
+    }
+
+    #[test]
+    fn bad_inputs_are_refused() {
+        let id = Isometry3::identity();
+        let e = RangeView::new(camera(), id, &[1.0; 7], None, 0.02).unwrap_err();
+        assert!(e.to_string().contains("7 values for a 4×2"), "{e}");
+        let e = RangeView::new(camera(), id, &[1.0; 8], None, -0.1).unwrap_err();
+        assert!(e.to_string().contains("range_noise"), "{e}");
+        let mut view = RangeView::new(camera(), id, &[1.0; 8], None, 0.0).unwrap();
+        assert!(view.set_robot_pixels(&[true; 3]).is_err());
+        view.set_robot_pixels(&[true; 8]).unwrap();
+        assert!(view.robot_pixels().iter().all(|&r| r));
+        let points = vec![[0.0, 0.0, 1.0]; 8];
+        let e = RangeView::from_organized_cloud(&points, 8, 1, id, None, 0.02).unwrap_err();
+        assert!(matches!(e, UnseenError::Unorganized { .. }));
+    }
+
+    #[test]
+    fn organized_clouds_give_their_depths() {
+        let points: Vec<[f32; 3]> = (0..200)
+            .map(|i| {
+                let (u, v, z) = ((i % 20) as f32, (i / 20) as f32, 2.0 + 0.01 * i as f32);
+                if i == 5 {
+                    [f32::NAN; 3]
+                } else {
+                    [(u - 9.5) / 30.0 * z, (v - 4.5) / 30.0 * z, z]
+                }
+            })
+            .collect();
+        let limits = RangeLimits::new(0.0, Some(3.5));
+        let view =
+            RangeView::from_organized_cloud(&points, 20, 10, Isometry3::identity(), limits, 0.02)
+                .unwrap();
+        assert!((view.camera().fx - 30.0).abs() < 1e-3);
+        assert!(view.ranges()[5].is_nan() && (view.ranges()[6] - 2.06).abs() < 1e-6);
+        // The last rows lie beyond 3.5 m.
+        assert!(view.ranges()[199].is_nan());
+    }
+}
