@@ -4,6 +4,7 @@
 
 mod common;
 
+use common::Rng;
 use ist_monitor::geometry::{distance_point_mesh, winding_number};
 use ist_monitor::ist::{build_link, BuildOptions, IstNode, LinkTree};
 use ist_monitor::packing::{InnerSphere, PackingParams};
@@ -18,18 +19,8 @@ use proptest::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::sync::Once;
 
-/// A small deterministic generator (xorshift64*), so that a proptest seed gives a whole scene.
-struct Rng(u64);
+/// The scene generator's own draws, beside the shared `Rng`.
 impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
     fn pose(&mut self, reach: f64) -> Isometry3<f64> {
         let axis = Vector3::new(
             self.range(-1.0, 1.0),

@@ -7,8 +7,11 @@
 //! robot (returns, flagged as the robot), the hidden ball (no return: dark) and a background
 //! plane facing the camera behind the volume, then drops pixels at random.
 
+mod common;
+
 use std::time::Instant;
 
+use common::Rng;
 use ist_monitor::cloud::depth::PinholeCamera;
 use ist_monitor::unseen::{
     observe, open, unseen_distance, Lattice, RangeView, DEFAULT_DETECTION_CAPABILITY_M,
@@ -17,18 +20,8 @@ use ist_monitor::unseen::{
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 
-/// A small deterministic generator (xorshift64*), so that a proptest seed gives a whole scene.
-struct Rng(u64);
+/// The scene generator's own draws, beside the shared `Rng`.
 impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
     fn unit(&mut self) -> Vector3<f64> {
         loop {
             let v = Vector3::new(

@@ -346,3 +346,20 @@ pub fn at_rest_args() -> Vec<String> {
 pub fn rclpy_python() -> Option<PathBuf> {
     venv_python_with("rclpy")
 }
+
+/// A small deterministic generator (xorshift64*), so that a proptest seed gives a whole scene;
+/// each test file adds the draws its scenes need (`impl Rng` there).
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+}
