@@ -83,6 +83,15 @@ struct Answers {
     latencies: Mutex<Vec<f64>>,
 }
 
+impl Answers {
+    /// A cloud or depth image stamped `stamp_ns` goes out now: its answer's latency counts from
+    /// here, and the summary counts it.
+    fn sent_at(&self, stamp_ns: i64, summary: &mut PlaySummary) {
+        lock(&self.sent).insert(stamp_ns, Instant::now());
+        summary.clouds_published += 1;
+    }
+}
+
 /// Plays `bag`; returns what was published and, with `measure`, what came back.
 pub fn play(bag: &Path, options: &PlayOptions) -> Result<PlaySummary, NodeError> {
     let known = [
@@ -244,8 +253,7 @@ fn publish(
                 data: std::borrow::Cow::Owned(c.data.into_owned()),
                 ..c
             };
-            lock(&answers.sent).insert(c.header.stamp.as_nanos(), Instant::now());
-            summary.clouds_published += 1;
+            answers.sent_at(c.header.stamp.as_nanos(), summary);
             p.publish(c)
         }
         Out::Depth(p) => {
@@ -255,8 +263,7 @@ fn publish(
                 data: std::borrow::Cow::Owned(i.data.into_owned()),
                 ..i
             };
-            lock(&answers.sent).insert(i.header.stamp.as_nanos(), Instant::now());
-            summary.clouds_published += 1;
+            answers.sent_at(i.header.stamp.as_nanos(), summary);
             p.publish(i)
         }
         Out::CameraInfo(p) => {
