@@ -66,3 +66,48 @@ impl Choice for ShapeKind {
         }
     }
 }
+
+/// What the monitor does with the space no source has seen free (`unobserved`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UnobservedPolicy {
+    /// Not computed.
+    Ignore,
+    /// Computed and published; the levels are the seen distance's.
+    Report,
+    /// The level, the stop and the speed-scaling factor take the smaller of the two distances.
+    Protect,
+}
+
+impl Choice for UnobservedPolicy {
+    const ALL: &'static [Self] = &[
+        UnobservedPolicy::Ignore,
+        UnobservedPolicy::Report,
+        UnobservedPolicy::Protect,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            UnobservedPolicy::Ignore => "ignore",
+            UnobservedPolicy::Report => "report",
+            UnobservedPolicy::Protect => "protect",
+        }
+    }
+}
+
+/// What the robot's own shadow counts as (`unobserved_self_shadow`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SelfShadow {
+    /// As any unseen space.
+    Count,
+    /// Reported on its own, left out of the unseen distance.
+    Apart,
+}
+
+impl Choice for SelfShadow {
+    const ALL: &'static [Self] = &[SelfShadow::Count, SelfShadow::Apart];
+    fn name(self) -> &'static str {
+        match self {
+            SelfShadow::Count => "count",
+            SelfShadow::Apart => "apart",
+        }
+    }
+}

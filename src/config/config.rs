@@ -13,7 +13,8 @@ use super::error::ConfigError;
 use super::params::scalar_yaml;
 use super::sources::{SourceConfig, StrayFilter};
 use super::values::Values;
-use super::{poses, query, separation, shapes, sources};
+use super::unobserved::Unobserved;
+use super::{poses, query, separation, shapes, sources, unobserved};
 use crate::cloud::exclusion::ExclusionVolume;
 use crate::ist::BuildOptions;
 use crate::msg::TransformStamped;
@@ -74,6 +75,8 @@ pub struct Config {
     pub attached_objects: Vec<AttachedObject>,
     /// Speed and separation monitoring.
     pub ssm: SsmParams,
+    /// What no source has seen free (`monitor::unobserved`).
+    pub unobserved: Unobserved,
     /// Whether the live node publishes its log on `/rosout` (`--disable-rosout-logs`; not a
     /// parameter).
     pub rosout: bool,
@@ -183,6 +186,7 @@ impl Config {
             exclusion_volumes,
             attached_objects,
             ssm: separation::ssm(&v)?,
+            unobserved: unobserved::unobserved(&v)?,
             remaps: Vec::new(),
             rosout: true,
             base: base.map(Path::to_owned),

@@ -31,9 +31,11 @@ mod runtime;
 mod separation;
 mod shapes;
 mod sources;
+mod unobserved;
 mod values;
 
-pub use choices::SourceKind;
+pub use choices::{SelfShadow, SourceKind, UnobservedPolicy};
+pub use unobserved::{MonitoredVolume, Unobserved};
 pub use config::{parse_override, Config, RobotSource};
 pub use error::ConfigError;
 pub use files::{key_matches, ParameterSources};

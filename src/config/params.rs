@@ -4,7 +4,7 @@
 
 use yaml_rust2::{Yaml, YamlLoader};
 
-use super::choices::{ShapeKind, SourceKind, SourceQos};
+use super::choices::{SelfShadow, ShapeKind, SourceKind, SourceQos, UnobservedPolicy};
 use crate::choice::Choice;
 use crate::query::{Backend, Mode};
 
@@ -137,6 +137,17 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("<source>.min_range", "0.0", "m", "points nearer the sensor than this are dropped"),
     p("<source>.max_range", "~", "m", "points farther from the sensor than this are dropped (default: none)"),
     one_of::<SourceQos>(p("<source>.qos", "sensor_data", "", "sensor_data (best effort) or reliable")),
+    p("<source>.range_noise", "0.02", "m", "unobserved space: a return at range r shows the ray free up to r − range_noise (the sensor's depth noise where the cell is; 2 cm: a Kinect-class camera at 3 m)"),
+    one_of::<UnobservedPolicy>(p("unobserved", "report", "", "what no source has seen free: ignore (not computed, costs nothing), report (its distance on ~/unseen_distance, ~/unseen_link_distances, markers and /diagnostics; levels unchanged) or protect (also the level, the safety stop and the speed-scaling factor take the smaller of the seen and the unseen distance)")),
+    one_of::<SelfShadow>(p("unobserved_self_shadow", "count", "", "the robot's own shadow (unseen space behind a link as every camera that could see it sees it): count (as any unseen space: with one camera the unseen distance is then about 0 beside the arm) or apart (reported on its own, self_shadow_distance in /diagnostics, left out of ~/unseen_distance and of protect: the stated assumption that nothing of the detection capability hides there)")),
+    p("unobserved_resolution", "0.02", "m", "the cell size of the unobserved-space grid over monitored_volume"),
+    p("detection_capability", "0.07", "m", "the diameter of the smallest body that must be caught in unobserved space (ISO 13855 / IEC 61496: 70 mm detects an arm); an unseen region that cannot hold a ball of it does not count. At least the grid's cell diagonal (3.5 cm at 2 cm)"),
+    p("monitored_volume.frame", "~", "frame", "the frame the monitored volume is fixed in (default: the robot's root link)"),
+    p("monitored_volume.size", "~", "m", "the monitored volume, a box: edge lengths [x, y, z] (default: the robot's reach plus monitored_volume.margin on every side in x and y, and from the root's z = 0 plane, taken as the floor, up to the reach plus the margin)"),
+    p("monitored_volume.translation", "[0.0, 0.0, 0.0]", "m", "frame_from_box translation x y z (the box's centre), with monitored_volume.size"),
+    p("monitored_volume.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "frame_from_box rotation as a quaternion x y z w, with monitored_volume.size"),
+    p("monitored_volume.margin", "0.3", "m", "without monitored_volume.size: what the default box adds to the robot's reach"),
+    p("unobserved_markers", "2000", "cells", "most unseen cells drawn on ~/closest_points (namespace unseen), the nearest to the robot first: where a second camera would help. 0: none"),
     p("static_transforms", "[]", "", "names of static transforms given here, for bags and setups without /tf_static"),
     p("<transform>.parent_frame", "~", "frame", "parent frame of the static transform"),
     p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),

@@ -20,6 +20,8 @@ pub struct SourceConfig {
     pub min_range_m: f64,
     pub max_range_m: Option<f64>,
     pub reliable: bool,
+    /// A return at range r shows its ray free up to r − this (m; unobserved space).
+    pub range_noise_m: f64,
 }
 
 /// The stray-point filter: a source's nearest point counts only with at least `min_points`
@@ -73,6 +75,7 @@ fn source(v: &Values, s: &str) -> Result<SourceConfig, ConfigError> {
     let (qos, q) = get("qos");
     let (kind, k) = get("type");
     let (info, i) = get("camera_info_topic");
+    let (noise, n) = get("range_noise");
     let kind: SourceKind = v.choice(&kind, &k)?;
     let topic = v.string(&topic, &t)?;
     let camera_info_topic = match kind {
@@ -101,5 +104,6 @@ fn source(v: &Values, s: &str) -> Result<SourceConfig, ConfigError> {
         min_range_m: v.distance(&min, &mi)?,
         max_range_m,
         reliable,
+        range_noise_m: v.distance(&noise, &n)?,
     })
 }

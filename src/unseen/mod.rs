@@ -65,6 +65,7 @@ mod fit;
 mod lattice;
 mod observe;
 mod opening;
+mod robot;
 mod view;
 
 pub use distance::unseen_distance;
@@ -73,4 +74,5 @@ pub use fit::{fit_pinhole, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
 pub use lattice::{Lattice, DEFAULT_RESOLUTION_M, MAX_CELLS};
 pub use observe::{observe, Observation};
 pub use opening::{open, Opened, DEFAULT_DETECTION_CAPABILITY_M};
+pub use robot::{flag_robot_pixels, place, robot_cells, PaddedSphere};
 pub use view::{RangeView, DEFAULT_RANGE_NOISE_M};
