@@ -25,12 +25,19 @@
 //!
 //! The speed-scaling factor is fused by `separation::SpeedScaler` (the minimum over sources),
 //! and is 0 while any source is in fault.
+//!
+//! **Unobserved space** (`unobserved`): the latest pass over every source's view rides along for
+//! the outputs. With `unobserved: protect` the level (and so the stop) follows the smaller of
+//! the seen and the unseen distance, a pass that failed is a fault of the cell (ERROR, no
+//! distance: what no camera sees is not known free), and the speed-scaling factor is 0 while
+//! the unseen distance holds the level at ERROR.
 
 use crate::config::Config;
 use crate::query::{Nearest, Outcome, QueryResult};
 
 use super::level::{Level, LevelTracker};
 use super::source::{Latest, Part, Source};
+use super::unobserved::Unseen;
 
 /// What the fused picture is made for: a frame of `source` stamped `stamp_ns`, or a
 /// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
@@ -68,6 +75,10 @@ pub struct Fused<'a> {
     pub parts: Vec<(usize, Part<'a>)>,
     /// The moment's source: its closest-point markers are cleared when no source has any.
     pub source: usize,
+    /// The latest pass over the unobserved space (`None` with `unobserved: ignore`).
+    pub unseen: Option<&'a Unseen>,
+    /// `protect`, and the unseen distance is below the seen one: the level follows it.
+    pub unseen_limits: bool,
 }
 
 /// The source whose conservative distance is the smallest.
@@ -103,6 +114,7 @@ impl<'a> Fused<'a> {
 pub fn fuse<'a>(
     config: &Config,
     sources: &'a [Source],
+    unseen: Option<&'a Unseen>,
     fused: &mut LevelTracker,
     moment: &Moment,
 ) -> Fused<'a> {
@@ -123,6 +135,15 @@ pub fn fuse<'a>(
         // fault, never a clean state.
         faults.push("no source is enabled: nothing watches the cell".into());
     }
+    let protect = config.unobserved.protects();
+    let unseen_distance = match unseen.map(|u| &u.outcome) {
+        Some(Ok(facts)) => facts.distance_m,
+        Some(Err(reason)) if protect => {
+            faults.push(format!("unobserved space not known: {reason}"));
+            None
+        }
+        _ => None,
+    };
     let mut picture = Fused {
         level: Level::Error,
         distance: None,
@@ -133,6 +154,8 @@ pub fn fuse<'a>(
         speed_factor: None,
         parts,
         source: moment.source,
+        unseen,
+        unseen_limits: false,
     };
     let holding = picture.contributing().any(|(_, l)| l.report.all_self);
     // The nearest source: the smallest conservative distance.
@@ -147,13 +170,20 @@ pub fn fuse<'a>(
             .and_then(|r| r.nearest.as_ref()),
     });
     let distance = nearest.as_ref().map(|n| n.distance_m);
+    // `protect`: the level follows the smaller of the two.
+    let unseen_limits = protect && matches!((distance, unseen_distance), (Some(d), Some(u)) if u < d);
+    let level_distance = if unseen_limits {
+        unseen_distance
+    } else {
+        distance
+    };
     let whole = picture.faults.is_empty();
     let mut level = if !whole {
         fused.update(None)
     } else if moment.beat {
         // A heartbeat brings no new result: the level stays as the results left it.
         fused.level()
-    } else if let Some(d) = distance {
+    } else if let Some(d) = level_distance {
         let before = fused.level();
         let level = fused.update(Some(d));
         if holding {
@@ -178,7 +208,14 @@ pub fn fuse<'a>(
     picture.per_link = per_link;
     picture.stamp_ns = stamp_ns.unwrap_or(moment.stamp_ns);
     // A source in fault allows no motion, whatever the scaler last had from it.
-    picture.speed_factor = moment.factor.map(|f| if whole { f } else { 0.0 });
+    picture.speed_factor = moment.factor.map(|f| {
+        if whole && !(unseen_limits && level == Level::Error) {
+            f
+        } else {
+            0.0
+        }
+    });
+    picture.unseen_limits = unseen_limits;
     picture
 }
 

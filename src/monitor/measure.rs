@@ -27,6 +27,7 @@ use super::fusion::Moment;
 use super::pipeline::{Frame, Monitor};
 use super::report::{published_distance, FrameFacts};
 use super::stray;
+use super::unobserved;
 
 /// What a processed cloud leaves for the separation stage.
 pub(super) struct Motion {
@@ -67,6 +68,7 @@ impl Monitor {
             .ssm
             .enabled
             .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
+        let poses = (processed.as_ref().ok()).map(|(_, m)| m.poses.clone());
         let result = processed.map(|(r, _)| r);
         let name = self.config.sources[source].name.clone();
         let fusion_start = Instant::now();
@@ -78,6 +80,13 @@ impl Monitor {
         };
         let over_budget =
             self.sources[source].frame(&self.config, &self.model.name, stamp_ns, facts);
+        // The unobserved space over every source's latest view, the robot at this frame's poses.
+        let mut unseen_s = None;
+        if let Some(poses) = poses.filter(|_| self.config.unobserved.enabled()) {
+            let unseen = self.unobserved(stamp_ns, &poses);
+            unseen_s = Some(unseen.compute_s);
+            self.unseen.last = Some(unseen);
+        }
         let moment = Moment {
             source,
             stamp_ns,
@@ -94,6 +103,7 @@ impl Monitor {
             processing_s,
             speed,
             outputs_s: fusion_start.elapsed().as_secs_f64(),
+            unseen_s,
             outputs,
         }
     }
@@ -263,6 +273,20 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
+        if self.config.unobserved.enabled() {
+            let noise = self.config.sources[source].range_noise_m;
+            let camera = self.sources[source].camera().ok();
+            let view = match &points {
+                Points::Depth { view, .. } => match camera {
+                    Some(c) => unobserved::view_of(Some((view, &c)), None, &root_from_sensor, noise),
+                    None => Err("no camera model".into()),
+                },
+                Points::Cloud { points, width } => {
+                    unobserved::view_of(None, Some((points, *width)), &root_from_sensor, noise)
+                }
+            };
+            self.sources[source].set_view(Some(view));
+        }
         let name = &self.config.sources[source].name;
         let needs_points = self.config.stray.enabled()
             || (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));

@@ -39,6 +39,8 @@ mod report;
 mod setup;
 mod source;
 mod stray;
+pub mod unobserved;
+mod unseen_outputs;
 mod watch;
 
 pub use fault::{Fault, InputError};

@@ -11,6 +11,8 @@
 //! | `~/closest_points` | `visualization_msgs/MarkerArray` | a line from the robot to the nearest obstacle point and a text with the distance, coloured by level; DELETEALL on a fault |
 //! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source (level, reason, figures), then the cell's fused one (`monitor::fusion`) |
 //! | `~/safety_stop` | `std_msgs/Bool` | true at level ERROR (below `stop_distance`, or any fault) |
+//! | `~/unseen_distance` | `sensor_msgs/Range` | `unobserved: report` or `protect`: the certified lower bound of the distance from the robot to a body of `detection_capability` that no source has seen (`monitor::unobserved`); NaN where no unseen region can hold one, or where the pass failed; stamped with the frame it was computed at |
+//! | `~/unseen_link_distances` | `sensor_msgs/JointState` | the same per link |
 //! | `~/speed_scaling` | `control_msgs/SpeedScalingFactor` | the speed and separation monitor's factor (`crate::separation`): 0 on every fault; reliable and transient local, as `joint_trajectory_controller`'s `~/speed_scaling_input` subscribes; not published with `speed_scaling.enabled: false` |
 //!
 //! Levels: OK above `warn_distance`, WARN below it, ERROR below `stop_distance` or on a fault. A
@@ -32,6 +34,7 @@ use super::fusion::{Fused, NearestSource};
 use super::level::Level;
 use super::markers::{closest_markers, shape_markers};
 use super::source::Part;
+use super::unseen_outputs::unseen_messages;
 
 /// The messages of one frame. `min_distance` is `None` when nothing may be published.
 #[derive(Debug, Clone)]
@@ -47,6 +50,9 @@ pub struct Outputs {
     pub safety_stop: Bool,
     /// `None` with the separation monitor off.
     pub speed_scaling: Option<SpeedScalingFactor>,
+    /// `None` with `unobserved: ignore` (and before the first pass).
+    pub unseen_distance: Option<Range>,
+    pub unseen_link_distances: Option<JointState>,
 }
 
 /// The node's output topics: the one table that the node publishes, `replay --out` writes and
@@ -60,6 +66,8 @@ pub enum OutputTopic {
     Diagnostics,
     SafetyStop,
     SpeedScaling,
+    UnseenDistance,
+    UnseenLinkDistances,
 }
 
 impl OutputTopic {
@@ -73,6 +81,8 @@ impl OutputTopic {
             OutputTopic::Diagnostics => "/diagnostics",
             OutputTopic::SafetyStop => "~/safety_stop",
             OutputTopic::SpeedScaling => "~/speed_scaling",
+            OutputTopic::UnseenDistance => "~/unseen_distance",
+            OutputTopic::UnseenLinkDistances => "~/unseen_link_distances",
         }
     }
 
@@ -92,13 +102,17 @@ impl OutputTopic {
             .collect()
     }
 
-    /// Whether the node publishes the topic on every heartbeat (with `ssm` the separation
-    /// monitor on): all but `~/min_distance`, which carries only a known distance. These are
-    /// the topics that can offer a QoS deadline.
-    pub fn every_beat(self, ssm: bool) -> bool {
+    /// Whether the node publishes the topic on every heartbeat under `config`: all but
+    /// `~/min_distance`, which carries only a known distance, `~/speed_scaling` with the
+    /// separation monitor off and the unseen outputs with `unobserved: ignore`. These are the
+    /// topics that can offer a QoS deadline.
+    pub fn every_beat(self, config: &Config) -> bool {
         match self {
             OutputTopic::MinDistance => false,
-            OutputTopic::SpeedScaling => ssm,
+            OutputTopic::SpeedScaling => config.ssm.enabled,
+            OutputTopic::UnseenDistance | OutputTopic::UnseenLinkDistances => {
+                config.unobserved.enabled()
+            }
             _ => true,
         }
     }
@@ -126,7 +140,7 @@ pub trait OutputVisitor {
 
 /// The table: every output topic, in publication order, with its type and the frame's message.
 fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V::Error> {
-    let (min, distance, links, markers, diagnostics, stop, speed) = match o {
+    let (min, distance, links, markers, diagnostics, stop, speed, unseen, unseen_links) = match o {
         Some(o) => (
             o.min_distance,
             Some(o.distance),
@@ -135,8 +149,10 @@ fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V:
             Some(o.diagnostics),
             Some(o.safety_stop),
             o.speed_scaling,
+            o.unseen_distance,
+            o.unseen_link_distances,
         ),
-        None => (None, None, None, None, None, None, None),
+        None => (None, None, None, None, None, None, None, None, None),
     };
     v.visit::<Float64>(OutputTopic::MinDistance, min)?;
     v.visit::<Range>(OutputTopic::Distance, distance)?;
@@ -144,7 +160,9 @@ fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V:
     v.visit::<MarkerArray<'static>>(OutputTopic::ClosestPoints, markers)?;
     v.visit::<DiagnosticArray>(OutputTopic::Diagnostics, diagnostics)?;
     v.visit::<Bool>(OutputTopic::SafetyStop, stop)?;
-    v.visit::<SpeedScalingFactor>(OutputTopic::SpeedScaling, speed)
+    v.visit::<SpeedScalingFactor>(OutputTopic::SpeedScaling, speed)?;
+    v.visit::<Range>(OutputTopic::UnseenDistance, unseen)?;
+    v.visit::<JointState>(OutputTopic::UnseenLinkDistances, unseen_links)
 }
 
 /// Walks every output topic with its type and no message (to create publishers or
@@ -208,6 +226,8 @@ impl Outputs {
                 .ssm
                 .enabled
                 .then_some(SpeedScalingFactor { factor: 0.0 }),
+            unseen_distance: None,
+            unseen_link_distances: None,
         }
     }
 
@@ -237,6 +257,15 @@ impl Outputs {
         markers.extend(shape_markers(config, header.stamp));
         let mut statuses = source_statuses(config, robot, &fused);
         statuses.push(cell_status(config, robot, &fused));
+        let unseen = (fused.unseen).map(|u| unseen_messages(config, robot, &header, u, &fused));
+        let (unseen_distance, unseen_link_distances) = match unseen {
+            Some(m) => {
+                markers.push(m.marker);
+                statuses.push(m.status);
+                (Some(m.distance), Some(m.link_distances))
+            }
+            None => (None, None),
+        };
         let level = fused.level;
         Outputs {
             level,
@@ -260,6 +289,8 @@ impl Outputs {
                 data: level == Level::Error,
             },
             speed_scaling: (fused.speed_factor).map(|factor| SpeedScalingFactor { factor }),
+            unseen_distance,
+            unseen_link_distances,
         }
     }
 
@@ -368,7 +399,7 @@ mod tests {
         }
         let mut names = Names(Vec::new());
         visit_output_topics(&mut names).unwrap();
-        assert_eq!(names.0.len(), 7);
+        assert_eq!(names.0.len(), 9);
         assert!(names.0.iter().all(|(_, m)| !m));
     }
 }

@@ -22,6 +22,7 @@ use super::fusion::{fuse, Moment};
 use super::level::{Level, LevelTracker};
 use super::outputs::Outputs;
 use super::source::{Part, Source};
+use super::unobserved::UnseenState;
 
 /// One processed cloud.
 #[derive(Debug)]
@@ -35,6 +36,8 @@ pub struct Frame {
     pub speed: Option<SpeedScaling>,
     /// Fusion with the other sources' latest results and the outputs' messages, s.
     pub outputs_s: f64,
+    /// The unobserved-space pass after this frame, s (`None`: not run).
+    pub unseen_s: Option<f64>,
     pub outputs: Outputs,
 }
 
@@ -53,6 +56,8 @@ pub struct Monitor {
     pub(super) depth_points: Vec<[f32; 3]>,
     /// What a change of attached objects is built from ([`Monitor::robot_without_objects`]).
     pub(super) base: Base,
+    /// The unobserved space's reach and latest pass (`unobserved`).
+    pub(super) unseen: UnseenState,
 }
 
 /// The robot without the config's attached objects.
@@ -259,7 +264,8 @@ impl Monitor {
 
     /// The fused picture at `moment`, rendered.
     pub(super) fn outputs(&mut self, moment: &Moment) -> Outputs {
-        let fused = fuse(&self.config, &self.sources, &mut self.fused, moment);
+        let unseen = self.unseen.last.as_ref().filter(|_| self.config.unobserved.enabled());
+        let fused = fuse(&self.config, &self.sources, unseen, &mut self.fused, moment);
         let root = self.model.kinematics.root_link();
         Outputs::render(&self.config, root, &self.model.name, fused)
     }

@@ -80,6 +80,12 @@ pub struct ReplayFrame {
     /// The recorded approach speed and separation margin, when the bag has them.
     pub truth_approach_mps: Option<f64>,
     pub truth_margin_m: Option<f64>,
+    /// What `~/unseen_distance` carries (`None`: not published, or NaN: no unseen region can
+    /// hold a body of the detection capability; `unseen_all_seen` tells which).
+    pub unseen_m: Option<f64>,
+    pub unseen_all_seen: bool,
+    /// The unobserved-space pass, ms.
+    pub unseen_ms: Option<f64>,
 }
 
 #[derive(Debug, Clone, Default, Serialize)]
@@ -95,6 +101,14 @@ pub struct Summary {
     pub processing_p99_ms: f64,
     /// Largest |min_distance − truth| over the frames with a recorded truth.
     pub max_error_vs_truth_m: Option<f64>,
+    /// Frames with a recorded truth whose smaller of `~/min_distance` and `~/unseen_distance`
+    /// (what `protect` takes) exceeds it by more than 0.1 mm, and how many were checked: the
+    /// unseen distance's promise where the obstacle hides.
+    pub protected_above_truth: usize,
+    pub protected_checked: usize,
+    /// The unobserved-space pass, ms (median and 99th percentile over the frames that ran it).
+    pub unseen_p50_ms: Option<f64>,
+    pub unseen_p99_ms: Option<f64>,
 }
 
 /// A replay that cannot run: the monitor's reset, or the bag in or out (each names its file).
@@ -191,6 +205,7 @@ pub fn replay(
     }
     let mut summary = Summary::default();
     let mut times = Vec::new();
+    let mut unseen_times = Vec::new();
     for m in &messages {
         summary.input_errors += feed(monitor, &m.topic, &m.data);
         let Some(source) = monitor.source_of(&m.topic) else {
@@ -211,6 +226,15 @@ pub fn replay(
                 .max((d - t).abs());
             summary.max_error_vs_truth_m = Some(e);
         }
+        if let (Some(t), Some(_)) = (row.truth_m, row.unseen_ms) {
+            let seen = row.min_distance_m.unwrap_or(f64::INFINITY);
+            let unseen = row.unseen_m.unwrap_or(f64::INFINITY);
+            summary.protected_checked += 1;
+            if seen.min(unseen) > t + 1e-4 && row.fault.is_none() {
+                summary.protected_above_truth += 1;
+            }
+        }
+        unseen_times.extend(row.unseen_ms);
         on_frame(&row);
         if let Some(w) = writer.as_mut() {
             let at = m.log_time_ns + (frame.processing_s * 1e9) as u64;
@@ -227,6 +251,8 @@ pub fn replay(
     times.sort_by(f64::total_cmp);
     summary.processing_p50_ms = percentile(&times, 0.5).unwrap_or(0.0);
     summary.processing_p99_ms = percentile(&times, 0.99).unwrap_or(0.0);
+    summary.unseen_p50_ms = percentile(&unseen_times, 0.5);
+    summary.unseen_p99_ms = percentile(&unseen_times, 0.99);
     Ok(summary)
 }
 
@@ -412,6 +438,12 @@ impl ReplayFrame {
             ssm_fault: speed.and_then(|s| s.separation.as_ref().err().cloned()),
             truth_approach_mps: truths.approach.get(&log_time_ns).copied(),
             truth_margin_m: truths.margin.get(&log_time_ns).copied(),
+            unseen_m: (o.unseen_distance.as_ref())
+                .map(|r| f64::from(r.range))
+                .filter(|d| !d.is_nan()),
+            unseen_all_seen: (o.unseen_distance.as_ref()).is_some_and(|r| r.range.is_nan())
+                && frame.unseen_s.is_some(),
+            unseen_ms: frame.unseen_s.map(|s| s * 1e3),
         }
     }
 }

@@ -15,6 +15,7 @@ use crate::tf::{JointError, JointStateBuffer, TfBuffer, TfError};
 use super::level::LevelTracker;
 use super::pipeline::{Base, Monitor};
 use super::source::Source;
+use super::unobserved::UnseenState;
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
 #[derive(Debug, thiserror::Error)]
@@ -182,6 +183,7 @@ impl Monitor {
             tf,
             joints,
             depth_points: Vec::new(),
+            unseen: UnseenState::default(),
             base: Base::Unknown,
         })
     }

@@ -13,6 +13,7 @@ use crate::cloud::depth::PinholeCamera;
 use crate::config::{Config, SourceConfig};
 use crate::msg::DiagnosticStatus;
 use crate::query::QueryResult;
+use crate::unseen::RangeView;
 
 use super::level::LevelTracker;
 use super::report::{FrameFacts, SourceReport};
@@ -27,6 +28,10 @@ pub struct Source {
     /// The camera model of its last CameraInfo, or why that one was refused (depth image
     /// sources; `None` until one arrives).
     camera: Option<Result<PinholeCamera, String>>,
+    /// What its latest frame saw free, for the unobserved space (`unobserved`): its view, or
+    /// why it observes nothing free (an unorganized cloud). `None` with `unobserved: ignore`,
+    /// and whenever its latest frame is gone or was a fault.
+    view: Option<Result<RangeView, String>>,
     watch: Watch,
 }
 
@@ -90,8 +95,24 @@ impl Source {
             latest: None,
             tracker: LevelTracker::new(config),
             camera: None,
+            view: None,
             watch: Watch::default(),
         }
+    }
+
+    /// Takes what its frame being measured saw free (kept only if the frame is measured).
+    pub fn set_view(&mut self, view: Option<Result<RangeView, String>>) {
+        self.view = view;
+    }
+
+    /// The same, to flag its robot pixels.
+    pub fn view_mut(&mut self) -> Option<&mut Result<RangeView, String>> {
+        self.view.as_mut()
+    }
+
+    /// What its latest measured frame saw free.
+    pub fn view(&self) -> Option<&Result<RangeView, String>> {
+        self.view.as_ref()
     }
 
     /// Takes a frame: its report (with the source's own level) and its result as the latest.
@@ -105,6 +126,9 @@ impl Source {
     ) -> bool {
         let report = SourceReport::new(config, robot, facts, &mut self.tracker);
         let over_budget = report.over_budget;
+        if facts.result.is_err() {
+            self.view = None;
+        }
         self.latest = Some(Latest {
             stamp_ns,
             result: match facts.result {
@@ -158,6 +182,7 @@ impl Source {
         self.tracker.set_thresholds(config);
         if toggled {
             self.latest = None;
+            self.view = None;
             self.tracker = LevelTracker::new(config);
         }
     }
@@ -165,6 +190,7 @@ impl Source {
     /// Forgets its latest result (it is in fault until its next frame); its level is kept.
     pub fn forget_result(&mut self) {
         self.latest = None;
+        self.view = None;
     }
 
     /// Takes a CameraInfo's camera model, or why it was refused.
@@ -204,6 +230,7 @@ impl Source {
     /// The clock went back at `now_ns`: its result is forgotten and its silence counts anew.
     pub fn restart(&mut self, now_ns: i64) {
         self.latest = None;
+        self.view = None;
         self.watch.since_ns = now_ns;
         self.watch.last_report_ns = None;
     }

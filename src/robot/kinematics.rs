@@ -52,6 +52,9 @@ pub struct Joint {
     pub parent_from_joint: Isometry3<f64>,
     pub motion: JointMotion,
     pub source: JointSource,
+    /// A prismatic joint's largest travel from its origin, m (its URDF limits; `None` where
+    /// they are not given); 0 for other joints.
+    pub travel_m: Option<f64>,
 }
 
 /// The kinematic tree of a robot.
@@ -98,6 +101,7 @@ impl Kinematics {
                 parent_from_joint: pose_from_urdf(&joint.origin),
                 motion: motions[j],
                 source: joint_source(joint, motions[j], &variable_of, path)?,
+                travel_m: travel(joint, motions[j]),
             });
         }
         Ok(Self {
@@ -126,6 +130,7 @@ impl Kinematics {
             parent_from_joint: parent_from_child,
             motion: JointMotion::Fixed,
             source: JointSource::None,
+            travel_m: Some(0.0),
         });
     }
 
@@ -166,6 +171,26 @@ impl Kinematics {
                     .ok_or_else(|| RobotError::MissingJoint(name.clone()))
             })
             .collect()
+    }
+
+    /// The robot's reach from its root's origin over the links with a body (`radii[l] > 0`):
+    /// no point of link `l` within `radii[l]` of the link's origin (indexed like [`Self::link_names`], m) ever lies farther, whatever the
+    /// joint values, since a revolute joint turns about its own origin and a fixed one does not
+    /// move: along each chain the joints' offsets add up, and a prismatic joint's travel. `None`
+    /// with a prismatic joint whose URDF gives no limits.
+    pub fn reach_m(&self, radii: &[f64]) -> Option<f64> {
+        let mut chain = vec![0.0; self.link_names.len()];
+        for joint in &self.joints {
+            let offset = joint.parent_from_joint.translation.vector.norm();
+            chain[joint.child] = chain[joint.parent] + offset + joint.travel_m?;
+        }
+        // Only links with a body (radius > 0) reach anywhere: a camera's link does not.
+        Some(
+            (chain.iter().zip(radii))
+                .filter(|(_, &r)| r > 0.0)
+                .map(|(c, r)| c + r)
+                .fold(0.0, f64::max),
+        )
     }
 
     /// `root_from_link` for every link, indexed like [`Self::link_names`].
@@ -403,6 +428,19 @@ struct JointMotions<'r> {
     variables: Vec<String>,
     /// Each of those joints' entry.
     variable_of: HashMap<&'r str, usize>,
+}
+
+/// A prismatic joint's largest travel (its limits; `None` where both are 0, as urdf-rs reads a
+/// joint without `<limit>`); 0 for other joints.
+fn travel(joint: &urdf_rs::Joint, motion: JointMotion) -> Option<f64> {
+    match motion {
+        JointMotion::Prismatic(_) => {
+            let (lo, hi) = (joint.limit.lower, joint.limit.upper);
+            let t = lo.abs().max(hi.abs());
+            (t > 0.0 && t.is_finite()).then_some(t)
+        }
+        _ => Some(0.0),
+    }
 }
 
 /// How each joint moves; a joint that moves and mimics none drives the robot.

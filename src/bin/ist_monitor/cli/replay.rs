@@ -113,7 +113,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
     // The header with the first frame, so that a bag that replays nothing prints only its error.
     let header = || {
         println!(
-            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8}",
+            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>8}",
             "frame",
             "stamp [s]",
             "level",
@@ -127,7 +127,9 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             "v_r [m/s]",
             "truth v_r",
             "truth mrg",
-            "ms"
+            "ms",
+            "unseen [m]",
+            "unseen ms"
         )
     };
     if args.clock == replay::Clock::Stamp {
@@ -143,7 +145,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
         }
         let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
         println!(
-            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8.3}{}",
+            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8.3} {:>10} {:>8}{}",
             f.index,
             f.stamp_ns as f64 * 1e-9,
             format!("{:?}", f.level).to_uppercase(),
@@ -162,6 +164,13 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             m(f.truth_approach_mps),
             m(f.truth_margin_m),
             f.processing_ms,
+            if f.unseen_all_seen {
+                "nan".into()
+            } else {
+                m(f.unseen_m)
+            },
+            f.unseen_ms
+                .map_or_else(|| "-".into(), |t| format!("{t:.1}")),
             f.fault
                 .as_ref()
                 .or(f.ssm_fault.as_ref())
@@ -197,6 +206,13 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             .map(|e| format!("; max |min_distance − truth| {:.2} mm", e * 1e3))
             .unwrap_or_default()
     );
+    if let (Some(p50), Some(p99)) = (summary.unseen_p50_ms, summary.unseen_p99_ms) {
+        println!(
+            "unobserved space: pass p50 {p50:.1} ms, p99 {p99:.1} ms; frames with a truth where \
+             min(min_distance, unseen_distance) exceeds it: {} of {}",
+            summary.protected_above_truth, summary.protected_checked
+        );
+    }
     if let Some(out) = &args.out {
         println!("outputs written to {}", out.display());
     }
