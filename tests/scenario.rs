@@ -513,3 +513,112 @@ fn generated_shadow_is_hidden_from_the_first_camera_and_seen_by_the_second() {
     let topics: Vec<&str> = config.sources.iter().map(|s| s.topic.as_str()).collect();
     assert_eq!(topics, [CLOUD_TOPIC, SIDE_CLOUD_TOPIC]);
 }
+
+/// Points of `cloud` (in the optical frame `root_from_optical` places in the root) as root-frame
+/// points, `None` where the point is invalid.
+fn in_root(
+    cloud: &[[f32; 3]],
+    root_from_optical: &nalgebra::Isometry3<f64>,
+) -> Vec<Option<nalgebra::Point3<f64>>> {
+    (cloud.iter())
+        .map(|p| {
+            (!p[0].is_nan()).then(|| {
+                root_from_optical * nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+            })
+        })
+        .collect()
+}
+
+/// The floor (`ScenarioParams::floor`) is a background, not an obstacle: the same seed gives the
+/// same truth (distance, approach speed, margin) and the same obstacle and robot points frame for
+/// frame, every valid point of the floorless bag is there bit for bit, and the rays that
+/// returned nothing below and around the arm now return points on the plane z = 0 (within the
+/// range noise, clipped at 2.5 σ = 2.5 mm along the ray).
+#[test]
+fn generated_floor_keeps_the_truth_and_fills_the_rays_below_the_arm() {
+    use ist_monitor::scenario::{Mount, Renderer, SceneKind, CLOUD_TOPIC};
+    let small = |p: &mut ist_monitor::scenario::ScenarioParams| {
+        p.width = 64;
+        p.height = 48;
+    };
+    let (_d1, plain, g) = generate_hidden(SceneKind::Person, 3, small);
+    let (_d2, floored, gf) = generate_hidden(SceneKind::Person, 3, |p| {
+        small(p);
+        p.floor = true
+    });
+    assert_eq!(g.truth_m, gf.truth_m);
+    assert_eq!(g.separation, gf.separation);
+    assert_eq!(g.obstacle_points, gf.obstacle_points);
+    assert_eq!(g.robot_points, gf.robot_points);
+    assert!(g.truth_m.iter().all(|t| t.is_some()));
+    // The first camera is fixed (camera_link under world): one pose for every frame.
+    let model = RobotModel::load(
+        std::path::Path::new(common::DEMO_URDF),
+        &[],
+        &Default::default(),
+    )
+    .unwrap();
+    let params = ist_monitor::scenario::ScenarioParams {
+        width: 64,
+        height: 48,
+        ..Default::default()
+    };
+    let root_from_optical = Renderer::new(&model, &params, &Mount::fixed())
+        .unwrap()
+        .frame(0.0, false)
+        .unwrap()
+        .root_from_sensor;
+    let (a, b) = (clouds(&plain, CLOUD_TOPIC), clouds(&floored, CLOUD_TOPIC));
+    assert_eq!((a.len(), b.len()), (3, 3));
+    for (a, b) in a.iter().zip(&b) {
+        let mut floor = 0;
+        let mut below_arm = 0;
+        for (p, q) in a.iter().zip(b) {
+            if !p[0].is_nan() {
+                assert_eq!(p.map(f32::to_bits), q.map(f32::to_bits));
+            }
+        }
+        for (p, q) in in_root(a, &root_from_optical)
+            .iter()
+            .zip(in_root(b, &root_from_optical))
+        {
+            let (None, Some(q)) = (p, q) else { continue };
+            assert!(q.z.abs() < 0.0026, "a new point off the floor: {q}");
+            floor += 1;
+            below_arm += usize::from(q.x.hypot(q.y) < 0.8);
+        }
+        assert!(floor > 500, "{floor} floor points");
+        assert!(
+            below_arm > 100,
+            "{below_arm} floor points within 0.8 m of the base"
+        );
+    }
+}
+
+/// With a second camera the scene has a side wall behind the arm as that camera sees it
+/// (`SIDE_WALL_CENTER`, its near face at y = 1.55 m): the side camera's rays behind the arm
+/// return points on it, and with the floor the rest of its rays below the arm return too.
+#[test]
+fn generated_second_camera_sees_the_side_wall_behind_the_arm() {
+    use ist_monitor::scenario::*;
+    let (_dir, bag, g) = generate_hidden(SceneKind::Shadow, 2, |p| {
+        p.width = 64;
+        p.height = 48;
+        p.second_camera = true;
+        p.floor = true;
+    });
+    assert!(g.truth_m.iter().all(|t| t.is_some_and(|t| t < 1.0)));
+    let root_from_optical = root_from_side_link() * link_from_optical();
+    let near_face = SIDE_WALL_CENTER[1] - 0.5 * SIDE_WALL_SIZE[1];
+    for cloud in clouds(&bag, SIDE_CLOUD_TOPIC) {
+        let points = in_root(&cloud, &root_from_optical);
+        let wall = (points.iter().flatten())
+            .filter(|p| (p.y - near_face).abs() < 0.003 && p.z > 0.01)
+            .count();
+        let floor = (points.iter().flatten())
+            .filter(|p| p.z.abs() < 0.0026)
+            .count();
+        assert!(wall > 64 * 48 / 4, "{wall} points on the side wall");
+        assert!(floor > 64 * 48 / 10, "{floor} points on the floor");
+    }
+}

@@ -7,9 +7,12 @@
 //! in behind the upper arm, hidden in its shadow as the camera sees it (`shadow`). A dark
 //! obstacle (`ScenarioParams::dark`) returns no depth; a second camera beside the arm
 //! (`ScenarioParams::second_camera`, topics under `/side_camera`) sees into the first one's
-//! shadow. Every frame is ray cast against the robot's collision meshes (the same tessellated
-//! meshes the monitor uses), the obstacle and a back wall; rays that hit nothing within the
-//! camera's range give NaN, like a real depth camera.
+//! shadow, with a side wall behind the arm as it sees it. Every frame is ray cast against the
+//! robot's collision meshes (the same tessellated meshes the monitor uses), the obstacle and a
+//! back wall, and the floor where there is one (`ScenarioParams::floor`); rays that hit nothing
+//! within the camera's range give NaN, like a real depth camera. A ray with no return observes
+//! nothing, so without a floor and a side wall the space below and behind the arm is never seen
+//! free: the floor and the side wall are the background that unobserved space needs.
 //!
 //! Recorded, as rosbag2 MCAP: `/tf_static` (the camera's optical frame under the URDF's
 //! `camera_link`), `/joint_states` at 50 Hz, `/camera/depth/points` (organized PointCloud2,
@@ -28,8 +31,9 @@
 //! Where the scene hides its obstacle (dark, shadow), the truth is the exact distance to its
 //! whole shape (or to a nearer obstacle point of any camera).
 //!
-//! The truth is taken over the points that hit the obstacle or the wall; points on the robot
-//! itself are what the monitor's self-filter removes. So that the two agree, the range noise is
+//! The truth is taken over the points that hit the obstacle or the walls; points on the robot
+//! itself are what the monitor's self-filter removes, and points on the floor are not obstacles
+//! either (the monitor drops them with an exclusion volume). So that the two agree, the range noise is
 //! clipped at 2.5 σ (a robot point then lies at most 2.5 σ from its surface, well inside the
 //! self-filter padding with the surface gap added), and the obstacle's closest approach stays
 //! above the padding. The noise is Gaussian from a fixed SplitMix64 stream (written here, a few
@@ -58,5 +62,7 @@ pub use params::{
     SIDE_OPTICAL_FRAME,
 };
 pub use renderer::{link_from_optical, root_from_side_link, Frame, Hit, Mount, Renderer};
-pub use scene::{SceneKind, TABLE_CENTER, TABLE_SIZE};
+pub use scene::{
+    SceneKind, FLOOR_SIZE, SIDE_WALL_CENTER, SIDE_WALL_SIZE, TABLE_CENTER, TABLE_SIZE,
+};
 pub use truth::Witness;

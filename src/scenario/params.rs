@@ -1,7 +1,7 @@
 //! The generator's settings: the scene, the camera (image size, field of view, range, noise and
 //! dropped pixels), the seed, and how the bag is written (compression, point layout, clouds or
-//! depth images), a dark obstacle and a second camera; and the topics, frames and rates the
-//! bag uses.
+//! depth images), a dark obstacle, a second camera and a floor; and the topics, frames and
+//! rates the bag uses.
 
 use super::scene::SceneKind;
 use crate::bag::writer::Compression;
@@ -39,7 +39,16 @@ pub struct ScenarioParams {
     /// under the robot's root) that looks into the first one's shadow, recorded on its own
     /// topics ([`SIDE_CLOUD_TOPIC`], [`SIDE_CAMERA_INFO_TOPIC`], [`SIDE_DEPTH_TOPIC`]) 1 ms
     /// after the first, with the same image size, noise and holes from a stream of its own.
+    /// The scene then has a side wall behind the arm as this camera sees it
+    /// (`SIDE_WALL_CENTER`, an obstacle like the back wall, more than 1.4 m from the arm), so
+    /// that its rays behind the arm return.
     pub second_camera: bool,
+    /// A floor under the cell (`FLOOR_SIZE`, its top the plane z = 0 of the robot's root),
+    /// seen by every camera, so that the rays below the arm return (a ray with no return
+    /// observes nothing). Its points are not obstacles: the truth leaves them out, as the
+    /// robot's own, and the monitor is told to drop them with an exclusion volume
+    /// (docs/replay.md). Off by default: the bags without it are byte for byte as before.
+    pub floor: bool,
 }
 
 impl ScenarioParams {
@@ -67,6 +76,7 @@ impl Default for ScenarioParams {
             depth: None,
             dark: false,
             second_camera: false,
+            floor: false,
         }
     }
 }

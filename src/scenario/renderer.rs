@@ -3,7 +3,8 @@
 //! scene's shapes, range noise (Gaussian along the ray, clipped at 2.5 σ) and dropped pixels
 //! from one reproducible stream, and optionally the depth image a camera would record, the
 //! points then made from it as `depth_image_proc` makes them. A dark obstacle's pixels return
-//! nothing (NaN), after the stream has drawn for them as for any pixel. Out: a [`Frame`],
+//! nothing (NaN), after the stream has drawn for them as for any pixel. The floor, where there is
+//! one, is cast against as a shape of its own, its points no obstacle. Out: a [`Frame`],
 //! points in the optical frame (m), each labelled with what its ray hit; its truth from
 //! `truth` (with the hidden obstacle's whole shape where the scene hides it).
 
@@ -14,7 +15,7 @@ use super::error::ScenarioError;
 use parry3d::shape::TriMesh;
 
 use super::params::{ScenarioParams, CAMERA_LINK, DS, SIDE_CAMERA_POSE};
-use super::scene::{joints_at, obstacles, ray_hit};
+use super::scene::{floor, joints_at, obstacles, ray_hit};
 use super::truth::{exact_truth, robot_meshes, shape_truth, Witness};
 use crate::cloud::depth::{encode_depth, points_from_depth, PinholeCamera};
 use crate::msg::{CameraInfo, Header};
@@ -28,8 +29,11 @@ pub enum Hit {
     Nothing,
     Robot,
     /// A shape of the scene: 0 the back wall, 1 the obstacle (person, forearm or box), 2 the
-    /// table.
+    /// table; the side wall (`ScenarioParams::second_camera`) last.
     Scene(u8),
+    /// The floor (`ScenarioParams::floor`): not an obstacle, left out of the truth as the
+    /// robot's own points are.
+    Floor,
 }
 
 /// SplitMix64 with Box–Muller: a fixed, reproducible stream.
@@ -119,6 +123,8 @@ pub struct Frame {
     pub truth_witness: Option<Witness>,
     pub obstacle_points: usize,
     pub robot_points: usize,
+    /// Valid points on the floor (`ScenarioParams::floor`), left out of the truth.
+    pub floor_points: usize,
     /// What each point's ray hit (`Nothing` where the point is NaN).
     pub hits: Vec<Hit>,
 }
@@ -280,7 +286,7 @@ impl<'a> Renderer<'a> {
         }
         let depth_image = self.depth_image(&mut points)?;
         let mut obstacle = Vec::new();
-        let mut robot_points = 0;
+        let (mut robot_points, mut floor_points) = (0, 0);
         let mut labels = vec![Hit::Nothing; points.len()];
         for ((p, hit), label) in points.iter().zip(&hits).zip(&mut labels) {
             let Some((_, what)) = *hit else { continue };
@@ -288,11 +294,11 @@ impl<'a> Renderer<'a> {
                 continue;
             }
             *label = what;
-            if what == Hit::Robot {
-                robot_points += 1;
-            } else {
-                obstacle
-                    .push(world_from_optical * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            match what {
+                Hit::Robot => robot_points += 1,
+                Hit::Floor => floor_points += 1,
+                Hit::Nothing | Hit::Scene(_) => obstacle
+                    .push(world_from_optical * Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
             }
         }
         let (truth_m, truth_witness) = match truth {
@@ -309,6 +315,7 @@ impl<'a> Renderer<'a> {
             truth_witness,
             obstacle_points: obstacle.len(),
             robot_points,
+            floor_points,
             hits: labels,
         })
     }
@@ -323,7 +330,7 @@ impl<'a> Renderer<'a> {
     ) -> Result<(Option<f64>, Option<Witness>), ScenarioError> {
         let (mut d, mut w) = exact_truth(obstacle, &self.solids, poses);
         if let Some(meshes) = &self.meshes {
-            let scene = obstacles(self.params.scene, s);
+            let scene = obstacles(self.params.scene, s, self.params.second_camera);
             let (shape, pose) = &scene[1];
             let (hidden, witness) = shape_truth(shape.as_ref(), pose, meshes, poses)
                 .ok_or_else(|| ScenarioError::HiddenTruth("a shape parry3d cannot query".into()))?;
@@ -344,7 +351,8 @@ impl<'a> Renderer<'a> {
         let params = &self.params;
         let (w, h) = (params.width as usize, params.height as usize);
         let origin = world_from_optical.translation.vector.into();
-        let scene = obstacles(params.scene, s);
+        let scene = obstacles(params.scene, s, params.second_camera);
+        let floor = params.floor.then(floor);
         let solids = &self.solids;
         (0..w * h)
             .into_par_iter()
@@ -360,6 +368,12 @@ impl<'a> Renderer<'a> {
                     take(
                         ray_hit(shape.as_ref(), pose, &origin, &d, params.max_range_m),
                         Hit::Scene(k as u8),
+                    );
+                }
+                if let Some((shape, pose)) = &floor {
+                    take(
+                        ray_hit(shape.as_ref(), pose, &origin, &d, params.max_range_m),
+                        Hit::Floor,
                     );
                 }
                 for (link, elements) in solids {

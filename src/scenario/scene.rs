@@ -2,7 +2,8 @@
 //! approach and back, a work table, a forearm hidden in the arm's shadow), the arm's joint
 //! trajectory along `s` ∈ [0, 1] and the shapes of the environment at `s` in the robot's root
 //! frame (m), which the renderer casts its rays against and the truth of a hidden obstacle is
-//! taken to.
+//! taken to; and the two backgrounds a bag may add, the floor (the plane z = 0 of the root, not
+//! an obstacle) and the side wall behind the arm as the second camera sees it (an obstacle).
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d::math::Vector;
@@ -80,6 +81,16 @@ const FOREARM_BEHIND: (f64, f64) = (0.93, 0.125);
 pub const TABLE_CENTER: [f64; 3] = [0.35, 0.45, 0.275];
 pub const TABLE_SIZE: [f64; 3] = [0.5, 0.5, 0.55];
 
+/// The floor (`ScenarioParams::floor`): a box of these edge lengths (m) whose top face is the
+/// plane z = 0 of the robot's root, centred under the root.
+pub const FLOOR_SIZE: [f64; 3] = [8.0, 8.0, 0.1];
+/// The side wall behind the arm as the second camera sees it (`ScenarioParams::second_camera`):
+/// its centre in the root frame and its edge lengths, m (x from −1.4 to 1.4, y from 1.55 to
+/// 1.65, z from 0 to 2.4). More than 1.4 m from the arm, so the truth near the arm is the same
+/// with it or without it.
+pub const SIDE_WALL_CENTER: [f64; 3] = [0.0, 1.6, 1.2];
+pub const SIDE_WALL_SIZE: [f64; 3] = [2.8, 0.1, 2.4];
+
 impl SceneKind {
     /// Where along the walk-up the scene is at `s` ∈ [0, 1]: the approach scene goes out and
     /// back.
@@ -127,9 +138,14 @@ pub(super) fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
         .collect()
 }
 
-/// The environment of a scene: shapes with their world poses at `s` ∈ [0, 1].
-/// The obstacle is index 1 (the renderer's `Hit::Scene(1)`).
-pub(super) fn obstacles(scene_kind: SceneKind, s: f64) -> Vec<(Box<dyn Shape>, Isometry3<f64>)> {
+/// The environment of a scene: shapes with their world poses at `s` ∈ [0, 1], with the side
+/// wall last where `side_wall` (a bag with a second camera). The obstacle is index 1 (the
+/// renderer's `Hit::Scene(1)`), the table index 2.
+pub(super) fn obstacles(
+    scene_kind: SceneKind,
+    s: f64,
+    side_wall: bool,
+) -> Vec<(Box<dyn Shape>, Isometry3<f64>)> {
     // A wall 1.4 m behind the robot, seen past it.
     let wall: Box<dyn Shape> = Box::new(Cuboid::new(Vector::new(0.05, 2.0, 1.2)));
     let wall_pose = Isometry3::translation(-1.4, 0.0, 1.2);
@@ -155,14 +171,27 @@ pub(super) fn obstacles(scene_kind: SceneKind, s: f64) -> Vec<(Box<dyn Shape>, I
     };
     let mut scene = vec![(wall, wall_pose), obstacle];
     if scene_kind == SceneKind::Table {
-        let [x, y, z] = TABLE_SIZE.map(|e| 0.5 * e);
-        let [cx, cy, cz] = TABLE_CENTER;
-        scene.push((
-            Box::new(Cuboid::new(Vector::new(x as f32, y as f32, z as f32))),
-            Isometry3::translation(cx, cy, cz),
-        ));
+        scene.push(centred_box(TABLE_CENTER, TABLE_SIZE));
+    }
+    if side_wall {
+        scene.push(centred_box(SIDE_WALL_CENTER, SIDE_WALL_SIZE));
     }
     scene
+}
+
+/// The floor (`ScenarioParams::floor`): [`FLOOR_SIZE`], its top face the plane z = 0.
+pub(super) fn floor() -> (Box<dyn Shape>, Isometry3<f64>) {
+    centred_box([0.0, 0.0, -0.5 * FLOOR_SIZE[2]], FLOOR_SIZE)
+}
+
+/// A box of edge lengths `size` centred at `center` (root frame, m), axis-aligned.
+fn centred_box(center: [f64; 3], size: [f64; 3]) -> (Box<dyn Shape>, Isometry3<f64>) {
+    let [x, y, z] = size.map(|e| (0.5 * e) as f32);
+    let [cx, cy, cz] = center;
+    (
+        Box::new(Cuboid::new(Vector::new(x, y, z))),
+        Isometry3::translation(cx, cy, cz),
+    )
 }
 
 /// The forearm of [`SceneKind::Shadow`] at `s`: a capsule along the camera's ray through the

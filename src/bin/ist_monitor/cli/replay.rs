@@ -95,9 +95,15 @@ pub struct GenerateArgs {
     /// Record a second depth camera beside the arm that sees into the first one's shadow, on
     /// /side_camera/depth/{points,camera_info,image_raw}, its frames side_camera_link (on
     /// /tf_static under the root) and side_camera_optical_frame. Replay with
-    /// config/demo_arm_two_cameras.yaml.
+    /// config/demo_arm_two_cameras.yaml. The scene then has a side wall behind the arm (y =
+    /// 1.6 m), an obstacle like the back wall, that the second camera sees.
     #[arg(long)]
     second_camera: bool,
+    /// Add a floor (8 × 8 m, its top the plane z = 0 of the robot's root) that every camera
+    /// sees, so that the rays below the arm return. Its points are not obstacles (left out of
+    /// the truth): drop them in the monitor with an exclusion volume (docs/replay.md).
+    #[arg(long)]
+    floor: bool,
 }
 
 pub fn replay(args: ReplayArgs) -> Result<()> {
@@ -252,6 +258,7 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
         point_step: args.point_step,
         dark: args.dark,
         second_camera: args.second_camera,
+        floor: args.floor,
         ..ScenarioParams::default()
     };
     let g = scenario::generate(&model, &params, &args.out)?;
