@@ -63,6 +63,7 @@ mod edt;
 mod error;
 mod fit;
 mod lattice;
+mod morphology;
 mod observe;
 mod opening;
 mod view;
@@ -72,5 +73,7 @@ pub use error::UnseenError;
 pub use fit::{fit_pinhole, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
 pub use lattice::{Lattice, DEFAULT_RESOLUTION_M, MAX_CELLS};
 pub use observe::{observe, Observation};
+#[doc(hidden)]
+pub use opening::open_exact;
 pub use opening::{open, Opened, DEFAULT_DETECTION_CAPABILITY_M};
 pub use view::{RangeView, DEFAULT_RANGE_NOISE_M};
