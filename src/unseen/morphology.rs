@@ -15,9 +15,10 @@
 //!   check each offset's bounds. z slabs in parallel (rayon). Cost: O(cells · stencil) at
 //!   worst, about O(unseen cells) in practice (most candidates stop at a face neighbour).
 //! - [`dilate_by_box`]: the cells within `m` cells of a survivor along every axis (the
-//!   Chebyshev ball, the box of half-width `m`), as three separable 1-D passes (x, then y, then
-//!   z), each a sliding count of the flags in a window of `2m + 1` rows: O(cells) whatever `m`,
-//!   in parallel, the y and z passes on whole rows and slabs at a time so that they vectorize.
+//!   Chebyshev ball, the box of half-width `m`), as three separable 1-D passes: along x each
+//!   flagged cell fills its window (each cell written once), then along y and z a sliding count
+//!   of the flags in a window of `2m + 1` rows, whole rows and slabs at a time so that it
+//!   vectorizes: O(cells) whatever `m`, in parallel.
 
 use rayon::prelude::*;
 
@@ -103,11 +104,18 @@ pub(super) fn dilate_by_box(cells: &[bool], dims: [usize; 3], m: usize) -> Vec<b
     let slab = n0 * n1;
     let mut a = vec![false; cells.len()];
     let mut b = vec![false; cells.len()];
-    // x: each row on its own, one flag per "row" of the window.
+    // x: each row on its own, the window of every flagged cell filled (survivors are sparse;
+    // a cell is written at most once).
     a.par_chunks_mut(n0)
         .zip(cells.par_chunks(n0))
-        .for_each_init(Vec::new, |count, (dst, src)| {
-            or_window(src, dst, 1, 0, m, count)
+        .for_each(|(dst, src)| {
+            let mut filled = 0;
+            for (i, _) in src.iter().enumerate().filter(|(_, &s)| s) {
+                let end = (i + m + 1).min(n0);
+                let start = i.saturating_sub(m).max(filled);
+                dst[start..end].fill(true);
+                filled = end;
+            }
         });
     // y: inside each z slab, whole x rows at a time.
     b.par_chunks_mut(slab)
