@@ -20,9 +20,10 @@
 //!    unseen, and `self_shadow` where only the robot's body stood in front. The caller then
 //!    drops the cells of the robot's padded volume, of the exclusion volumes and of attached
 //!    objects ([`Observation::drop_where`], [`Observation::drop_excluded`]);
-//! 3. [`open`] (`opening`, on `edt`'s exact distance transform): the unseen cells that could
-//!    hold a ball of the detection capability's diameter, so that isolated dropped pixels do
-//!    not count and a dark torso does;
+//! 3. [`open`] (`opening`, on `morphology`'s stencil erosion and box dilation, `edt`'s exact
+//!    distance transform past 256 offsets): the unseen cells that could hold a ball of the
+//!    detection capability's diameter, so that isolated dropped pixels do not count and a dark
+//!    torso does (the dilation by the box that encloses the ball: a superset, still certified);
 //! 4. [`unseen_distance`] (`distance`): the caller's certified lower bound over the opened
 //!    cells' centres less a cell diagonal and the pixel slack; `None` (NaN) when none is left.
 //!    The same over `self_shadow` tells the robot's own shadow apart.
@@ -51,18 +52,23 @@
 //!
 //! Cost: O(cells × views) for the observation, O(cells) for each opening. Measured by the test
 //! `kinect_scene_runs` (a 2 × 2 × 2 m volume at 2 cm, 10⁶ cells, one 640 × 480 view), release
-//! build, 2-core VM, 2026-11-27, three runs: observe 12.6–15.2 ms, open 52.7–69.3 ms (the two
-//! distance transforms), the distance 2.1–3.2 ms. The opening is the cost to cut before it runs
-//! every frame (the query alone is about 1 ms): at the defaults the erosion is the six face
-//! neighbours and the dilation under three cells, small stencils rather than a whole transform.
-//!
-//! Files: `error`, `lattice`, `view` and `fit`, `observe`, `edt`, `opening`, `distance`.
+//! build, 2-core VM, 2026-11-27. Quiet machine, three runs, before the opening's stencil and box:
+//! observe 12.6–15.2 ms, open 52.7–69.3 ms (two distance transforms), the distance 2.1–3.2 ms.
+//! With them, five runs while another build loaded the machine (load 3.4–3.6; observe took
+//! 26.6–71.1 ms there): open 7.3–11.9 ms, against 117–194 ms for the former opening
+//! ([`open_exact`], the two transforms) in the same runs, 15–21 times less; the opening and
+//! distance beyond the robot's shadow 9.6–14.5 ms. Both openings of a frame then stay within a
+//! fraction of the observation's cost.
+
+//! Files: `error`, `lattice`, `view` and `fit`, `observe`, `morphology`, `edt`, `opening`,
+//! `distance`.
 
 mod distance;
 mod edt;
 mod error;
 mod fit;
 mod lattice;
+mod morphology;
 mod observe;
 mod opening;
 mod robot;
@@ -73,6 +79,8 @@ pub use error::UnseenError;
 pub use fit::{fit_pinhole, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
 pub use lattice::{Lattice, DEFAULT_RESOLUTION_M, MAX_CELLS};
 pub use observe::{observe, Observation};
+#[doc(hidden)]
+pub use opening::open_exact;
 pub use opening::{open, Opened, DEFAULT_DETECTION_CAPABILITY_M};
 pub use robot::{flag_robot_pixels, place, robot_cells, PaddedSphere};
 pub use view::{RangeView, DEFAULT_RANGE_NOISE_M};
