@@ -35,7 +35,6 @@ mod unobserved;
 mod values;
 
 pub use choices::{SelfShadow, SourceKind, UnobservedPolicy};
-pub use unobserved::{MonitoredVolume, Unobserved};
 pub use config::{parse_override, Config, RobotSource};
 pub use error::ConfigError;
 pub use files::{key_matches, ParameterSources};
@@ -43,3 +42,4 @@ pub use params::OneOf;
 pub use params::{default_of, markdown_table, ParamDecl, ParamKind, PARAMETERS};
 pub use runtime::Parameter;
 pub use sources::{camera_info_beside, SourceConfig, StrayFilter};
+pub use unobserved::{MonitoredVolume, Unobserved};

@@ -37,7 +37,7 @@ use crate::query::{Nearest, Outcome, QueryResult};
 
 use super::level::{Level, LevelTracker};
 use super::source::{Latest, Part, Source};
-use super::unobserved::Unseen;
+use super::unseen_state::Unseen;
 
 /// What the fused picture is made for: a frame of `source` stamped `stamp_ns`, or a
 /// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
@@ -171,7 +171,8 @@ pub fn fuse<'a>(
     });
     let distance = nearest.as_ref().map(|n| n.distance_m);
     // `protect`: the level follows the smaller of the two.
-    let unseen_limits = protect && matches!((distance, unseen_distance), (Some(d), Some(u)) if u < d);
+    let unseen_limits =
+        protect && matches!((distance, unseen_distance), (Some(d), Some(u)) if u < d);
     let level_distance = if unseen_limits {
         unseen_distance
     } else {

@@ -278,7 +278,9 @@ impl Monitor {
             let camera = self.sources[source].camera().ok();
             let view = match &points {
                 Points::Depth { view, .. } => match camera {
-                    Some(c) => unobserved::view_of(Some((view, &c)), None, &root_from_sensor, noise),
+                    Some(c) => {
+                        unobserved::view_of(Some((view, &c)), None, &root_from_sensor, noise)
+                    }
                     None => Err("no camera model".into()),
                 },
                 Points::Cloud { points, width } => {

@@ -38,9 +38,11 @@ pub mod replay;
 mod report;
 mod setup;
 mod source;
+mod stamped;
 mod stray;
 pub mod unobserved;
 mod unseen_outputs;
+pub mod unseen_state;
 mod watch;
 
 pub use fault::{Fault, InputError};

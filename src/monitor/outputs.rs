@@ -34,6 +34,7 @@ use super::fusion::{Fused, NearestSource};
 use super::level::Level;
 use super::markers::{closest_markers, shape_markers};
 use super::source::Part;
+pub use super::stamped::stamped_distance;
 use super::unseen_outputs::unseen_messages;
 
 /// The messages of one frame. `min_distance` is `None` when nothing may be published.
@@ -169,20 +170,6 @@ fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V:
 /// subscriptions for all of them).
 pub fn visit_output_topics<V: OutputVisitor>(v: &mut V) -> Result<(), V::Error> {
     each_output(None, v)
-}
-
-/// `~/distance`: the conservative distance `d` stamped with `header` (NaN: none known).
-pub fn stamped_distance(config: &Config, header: &Header, d: Option<f64>) -> Range {
-    Range {
-        header: header.clone(),
-        // Depth cameras and lidars are infrared sensors; the field has no better value.
-        radiation_type: 1,
-        field_of_view: 0.0,
-        min_range: 0.0,
-        max_range: config.query.max_distance_m,
-        range: d.map_or(f32::NAN, |d| d as f32),
-        variance: 0.0,
-    }
 }
 
 impl Outputs {

@@ -22,7 +22,7 @@ use super::fusion::{fuse, Moment};
 use super::level::{Level, LevelTracker};
 use super::outputs::Outputs;
 use super::source::{Part, Source};
-use super::unobserved::UnseenState;
+use super::unseen_state::UnseenState;
 
 /// One processed cloud.
 #[derive(Debug)]
@@ -264,7 +264,11 @@ impl Monitor {
 
     /// The fused picture at `moment`, rendered.
     pub(super) fn outputs(&mut self, moment: &Moment) -> Outputs {
-        let unseen = self.unseen.last.as_ref().filter(|_| self.config.unobserved.enabled());
+        let unseen = self
+            .unseen
+            .last
+            .as_ref()
+            .filter(|_| self.config.unobserved.enabled());
         let fused = fuse(&self.config, &self.sources, unseen, &mut self.fused, moment);
         let root = self.model.kinematics.root_link();
         Outputs::render(&self.config, root, &self.model.name, fused)

@@ -15,7 +15,7 @@ use crate::tf::{JointError, JointStateBuffer, TfBuffer, TfError};
 use super::level::LevelTracker;
 use super::pipeline::{Base, Monitor};
 use super::source::Source;
-use super::unobserved::UnseenState;
+use super::unseen_state::UnseenState;
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
 #[derive(Debug, thiserror::Error)]

@@ -40,57 +40,12 @@ use crate::query::{Mode, Outcome, QueryOptions, QueryResult};
 use crate::robot::Kinematics;
 use crate::tf;
 use crate::unseen::{
-    flag_robot_pixels, observe, open, place, robot_cells, unseen_distance, Lattice,
-    PaddedSphere, RangeView,
+    flag_robot_pixels, in_cells, observe, open, place, robot_cells, robot_lattice, unseen_distance,
+    Lattice, PaddedSphere, RangeView,
 };
 
 use super::pipeline::Monitor;
-
-/// The unobserved space at one frame.
-#[derive(Debug, Clone)]
-pub struct Unseen {
-    pub stamp_ns: i64,
-    /// What was found, or why it is not known.
-    pub outcome: Result<UnseenFacts, String>,
-    /// The whole pass, s.
-    pub compute_s: f64,
-}
-
-/// What the pass found.
-#[derive(Debug, Clone, Default)]
-pub struct UnseenFacts {
-    /// The certified lower bound of the distance to a hidden body of the detection capability
-    /// (m; the robot's shadow left out with `apart`). `None`: no unseen region can hold one
-    /// (published as NaN). `max_distance` where none lies within it.
-    pub distance_m: Option<f64>,
-    /// The same over the robot's own shadow alone.
-    pub self_shadow_m: Option<f64>,
-    /// Per link (the engine's order), the same lower bound (`max_distance` beyond it).
-    pub per_link: Vec<(String, f64)>,
-    /// Cells seen free by some source, over all cells.
-    pub observed_fraction: f64,
-    /// Per enabled source: the fraction it saw free, or why it observes nothing free.
-    pub per_source: Vec<(String, Result<f64, String>)>,
-    pub cells: usize,
-    pub unseen_cells: usize,
-    /// Unseen cells in the robot's shadow.
-    pub shadow_cells: usize,
-    /// Cells that could hold a hidden body (the opening that `distance_m` is taken over).
-    pub opened_cells: usize,
-    /// The cell size, m, and the root-frame centres of the opened cells nearest the robot (at
-    /// most `unobserved_markers`), for the markers.
-    pub resolution_m: f64,
-    pub near_cells: Vec<[f32; 3]>,
-}
-
-/// What the monitor keeps between frames.
-#[derive(Debug, Clone, Default)]
-pub struct UnseenState {
-    /// The robot's reach from its root (m), once computed for the default volume.
-    reach_m: Option<Result<f64, String>>,
-    /// The latest pass.
-    pub last: Option<Unseen>,
-}
+use super::unseen_state::{Unseen, UnseenFacts};
 
 /// The view of a depth image `depth` of `camera`, or of an organized cloud `points` of `width`
 /// per row, placed by `root_from_sensor`; why a cloud observes nothing free otherwise.
@@ -101,7 +56,9 @@ pub(super) fn view_of(
     range_noise_m: f64,
 ) -> Result<RangeView, String> {
     let made = match (depth, cloud) {
-        (Some((d, camera)), _) => RangeView::from_depth(d, camera, *root_from_sensor, range_noise_m),
+        (Some((d, camera)), _) => {
+            RangeView::from_depth(d, camera, *root_from_sensor, range_noise_m)
+        }
         (None, Some((points, width))) => {
             let w = width.unwrap_or(points.len());
             let h = points.len().checked_div(w).unwrap_or(0);
@@ -125,7 +82,6 @@ impl Monitor {
     pub(super) fn unobserved(&mut self, stamp_ns: i64, poses: &[Isometry3<f64>]) -> Unseen {
         let start = Instant::now();
         let outcome = self.unobserved_facts(stamp_ns, poses);
-        if let Err(e) = &outcome { eprintln!("DEBUG unseen: {e}"); }
         Unseen {
             stamp_ns,
             outcome,
@@ -140,10 +96,14 @@ impl Monitor {
     ) -> Result<UnseenFacts, String> {
         let u = self.config.unobserved.clone();
         let lattice = self.lattice(&u, stamp_ns, poses)?;
-        let t0 = Instant::now();
         let spheres = self.padded_spheres(poses);
-        let robot = robot_cells(&lattice, &spheres);
-        eprintln!("DEBUG dims {:?} spheres {} robot {:.1} ms", lattice.dims(), spheres.len(), t0.elapsed().as_secs_f64()*1e3);
+        // The robot's cells over its own box: its pixels wherever it reaches, and the
+        // monitored cells its padded body takes (a cell centre in a robot cell).
+        let robot_lattice = match robot_lattice(&spheres, u.resolution_m) {
+            Some(l) => l.map_err(|e| format!("the robot's own lattice: {e}"))?,
+            None => return Err("the robot has no inner spheres".into()),
+        };
+        let robot = robot_cells(&robot_lattice, &spheres);
         // Every enabled source's view, its robot pixels flagged at these poses.
         let mut per_source = Vec::new();
         let mut seeing = Vec::new();
@@ -153,7 +113,7 @@ impl Monitor {
             }
             match self.sources[k].view_mut() {
                 Some(Ok(view)) => {
-                    flag_robot_pixels(view, &lattice, &robot);
+                    flag_robot_pixels(view, &robot_lattice, &robot);
                     seeing.push(per_source.len());
                     per_source.push((s.name.clone(), Ok(0.0)));
                 }
@@ -165,13 +125,11 @@ impl Monitor {
             .filter(|(s, _)| s.enabled)
             .filter_map(|(_, source)| source.view().and_then(|v| v.as_ref().ok()))
             .collect();
-        let t0 = Instant::now();
         let mut obs = observe(&lattice, &views);
-        eprintln!("DEBUG observe {:.1} ms", t0.elapsed().as_secs_f64()*1e3);
         for (&k, f) in seeing.iter().zip(&obs.observed_fraction_per_view) {
             per_source[k].1 = Ok(*f);
         }
-        obs.drop_where(&lattice, |i, _| robot[i]);
+        obs.drop_where(&lattice, |_, c| in_cells(&robot_lattice, &robot, c));
         let volumes = self.shared_volumes(stamp_ns, poses)?;
         obs.drop_excluded(&lattice, &volumes);
         let unseen_cells = obs.unseen_count();
@@ -184,7 +142,6 @@ impl Monitor {
             SelfShadow::Apart => open(&lattice, &obs.beyond_self_shadow(), pitch, capability)
                 .map_err(|e| e.to_string())?,
         };
-        eprintln!("DEBUG open done {:.1} ms since observe; unseen {} shadow {} opened {}", t0.elapsed().as_secs_f64()*1e3, unseen_cells, shadow_cells, counted.count);
         let options = self.unseen_query_options();
         let max = f64::from(options.max_distance_m);
         let mut result: Option<Result<QueryResult, String>> = None;
@@ -206,10 +163,11 @@ impl Monitor {
             None => Vec::new(),
         };
         let self_shadow_m = unseen_distance(&lattice, &all, Some(&obs.self_shadow), |centres| {
-            (engine.query(centres, &Isometry3::identity(), poses, &options).ok())
-                .map_or(0.0, |r| lower_bound(&r, max))
+            (engine
+                .query(centres, &Isometry3::identity(), poses, &options)
+                .ok())
+            .map_or(0.0, |r| lower_bound(&r, max))
         });
-        eprintln!("DEBUG distances {:.1} ms since observe", t0.elapsed().as_secs_f64()*1e3);
         let bounds = link_bounds(self.engine.links(), poses);
         let near_cells = near_robot(&lattice, &counted.cells, &bounds, u.markers);
         Ok(UnseenFacts {
@@ -238,10 +196,13 @@ impl Monitor {
             Some(v) => {
                 let root = self.model.kinematics.root_link().to_owned();
                 let frame = v.frame.clone().unwrap_or_else(|| root.clone());
-                let root_from_frame = self.place_frame(&frame, stamp_ns, poses).map_err(|e| {
-                    format!("monitored_volume.frame {frame}: {e}")
-                })?;
-                (root_from_frame * v.frame_from_box, v.size_m.map(|s| 0.5 * s))
+                let root_from_frame = self
+                    .place_frame(&frame, stamp_ns, poses)
+                    .map_err(|e| format!("monitored_volume.frame {frame}: {e}"))?;
+                (
+                    root_from_frame * v.frame_from_box,
+                    v.size_m.map(|s| 0.5 * s),
+                )
             }
             None => {
                 let reach = self.reach()?;
@@ -301,14 +262,21 @@ impl Monitor {
     }
 
     /// The exclusion volumes that apply to every source, placed in the root frame.
-    fn shared_volumes(&self, stamp_ns: i64, poses: &[Isometry3<f64>]) -> Result<Vec<Placed>, String> {
+    fn shared_volumes(
+        &self,
+        stamp_ns: i64,
+        poses: &[Isometry3<f64>],
+    ) -> Result<Vec<Placed>, String> {
         (self.config.exclusion_volumes.iter())
             .filter(|v| v.sources.is_empty())
             .map(|v| {
                 let root_from_frame = self
                     .place_frame(&v.frame, stamp_ns, poses)
                     .map_err(|e| format!("exclusion volume {}: {e}", v.name))?;
-                Ok(Placed::new(&v.shape, &(root_from_frame * v.frame_from_volume)))
+                Ok(Placed::new(
+                    &v.shape,
+                    &(root_from_frame * v.frame_from_volume),
+                ))
             })
             .collect()
     }
@@ -350,7 +318,12 @@ fn link_radii(kinematics: &Kinematics, links: &[crate::query::QueryLink]) -> Vec
 
 /// At most `most` centres of opened cells, the nearest the robot first by a cheap bound (the
 /// distance to each link's bounding sphere): for drawing only.
-fn near_robot(lattice: &Lattice, opened: &[bool], links: &[([f32; 3], f32)], most: usize) -> Vec<[f32; 3]> {
+fn near_robot(
+    lattice: &Lattice,
+    opened: &[bool],
+    links: &[([f32; 3], f32)],
+    most: usize,
+) -> Vec<[f32; 3]> {
     if most == 0 || links.is_empty() {
         return Vec::new();
     }
@@ -373,7 +346,10 @@ fn near_robot(lattice: &Lattice, opened: &[bool], links: &[([f32; 3], f32)], mos
 }
 
 /// Each monitored link's bounding sphere in the root frame at `poses` (centre, radius).
-fn link_bounds(links: &[crate::query::QueryLink], poses: &[Isometry3<f64>]) -> Vec<([f32; 3], f32)> {
+fn link_bounds(
+    links: &[crate::query::QueryLink],
+    poses: &[Isometry3<f64>],
+) -> Vec<([f32; 3], f32)> {
     (links.iter())
         .filter(|l| !l.spheres.is_empty())
         .map(|l| {

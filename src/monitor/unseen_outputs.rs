@@ -14,8 +14,8 @@ use crate::msg::{
 
 use super::fusion::Fused;
 use super::level::Level;
-use super::outputs::stamped_distance;
-use super::unobserved::Unseen;
+use super::stamped::stamped_distance;
+use super::unseen_state::Unseen;
 
 /// `~/unseen_distance`, `~/unseen_link_distances`, the marker and the status of `unseen`.
 pub struct UnseenMessages {
@@ -47,73 +47,97 @@ pub fn unseen_messages(
     };
     let mut values = vec![
         kv("policy", crate::choice::Choice::name(u.policy).into()),
-        kv("self_shadow", crate::choice::Choice::name(u.self_shadow).into()),
-        kv("detection_capability_m", format!("{}", u.detection_capability_m)),
+        kv(
+            "self_shadow",
+            crate::choice::Choice::name(u.self_shadow).into(),
+        ),
+        kv(
+            "detection_capability_m",
+            format!("{}", u.detection_capability_m),
+        ),
         kv("compute_ms", format!("{:.3}", unseen.compute_s * 1e3)),
     ];
     let name = format!("{}: unobserved space", config.node_name);
-    let (status, distance, links, marker) = match &unseen.outcome {
-        Err(reason) => {
-            let level = if u.protects() { Level::Error } else { Level::Warn };
-            values.push(kv("fault", "unobserved_unknown".into()));
-            let status = DiagnosticStatus {
-                level: level.diagnostic(),
-                name,
-                message: format!("unobserved space not known: {reason}"),
-                hardware_id: robot.to_owned(),
-                values,
-            };
-            (status, None, JointState::default(), delete_marker(&header))
-        }
-        Ok(f) => {
-            let show = |d: Option<f64>| d.map_or("nan".to_string(), |d| format!("{d:.6}"));
-            values.push(kv("distance_m", show(f.distance_m)));
-            values.push(kv("self_shadow_distance_m", show(f.self_shadow_m)));
-            values.push(kv("observed_fraction", format!("{:.4}", f.observed_fraction)));
-            for (source, fraction) in &f.per_source {
-                let v = match fraction {
-                    Ok(x) => format!("{x:.4}"),
-                    Err(e) => format!("0 (observes nothing free: {e})"),
+    let (status, distance, links, marker) =
+        match &unseen.outcome {
+            Err(reason) => {
+                let level = if u.protects() {
+                    Level::Error
+                } else {
+                    Level::Warn
                 };
-                values.push(kv(&format!("observed_fraction.{source}"), v));
+                values.push(kv("fault", "unobserved_unknown".into()));
+                let status = DiagnosticStatus {
+                    level: level.diagnostic(),
+                    name,
+                    message: format!("unobserved space not known: {reason}"),
+                    hardware_id: robot.to_owned(),
+                    values,
+                };
+                (status, None, JointState::default(), delete_marker(&header))
             }
-            for (key, n) in [
-                ("cells", f.cells),
-                ("unseen_cells", f.unseen_cells),
-                ("self_shadow_cells", f.shadow_cells),
-                ("opened_cells", f.opened_cells),
-            ] {
-                values.push(kv(key, n.to_string()));
-            }
-            let level = if fused.unseen_limits { fused.level } else { Level::Ok };
-            let message = match f.distance_m {
-                None => format!(
-                    "no unseen region can hold a body of {} m ({:.1} % of the volume seen)",
-                    u.detection_capability_m,
-                    100.0 * f.observed_fraction
-                ),
-                Some(d) => format!(
+            Ok(f) => {
+                let show = |d: Option<f64>| d.map_or("nan".to_string(), |d| format!("{d:.6}"));
+                values.push(kv("distance_m", show(f.distance_m)));
+                values.push(kv("self_shadow_distance_m", show(f.self_shadow_m)));
+                values.push(kv(
+                    "observed_fraction",
+                    format!("{:.4}", f.observed_fraction),
+                ));
+                for (source, fraction) in &f.per_source {
+                    let v = match fraction {
+                        Ok(x) => format!("{x:.4}"),
+                        Err(e) => format!("0 (observes nothing free: {e})"),
+                    };
+                    values.push(kv(&format!("observed_fraction.{source}"), v));
+                }
+                for (key, n) in [
+                    ("cells", f.cells),
+                    ("unseen_cells", f.unseen_cells),
+                    ("self_shadow_cells", f.shadow_cells),
+                    ("opened_cells", f.opened_cells),
+                ] {
+                    values.push(kv(key, n.to_string()));
+                }
+                let level = if fused.unseen_limits {
+                    fused.level
+                } else {
+                    Level::Ok
+                };
+                let message =
+                    match f.distance_m {
+                        None => format!(
+                            "no unseen region can hold a body of {} m ({:.1} % of the volume seen)",
+                            u.detection_capability_m,
+                            100.0 * f.observed_fraction
+                        ),
+                        Some(d) => format!(
                     "unseen space within {d:.3} m of the robot{} ({:.1} % of the volume seen)",
                     if fused.unseen_limits { ", which sets the level (protect)" } else { "" },
                     100.0 * f.observed_fraction
                 ),
-            };
-            let status = DiagnosticStatus {
-                level: level.diagnostic(),
-                name,
-                message,
-                hardware_id: robot.to_owned(),
-                values,
-            };
-            let links = JointState {
-                header: header.clone(),
-                name: f.per_link.iter().map(|(l, _)| l.clone()).collect(),
-                position: f.per_link.iter().map(|(_, d)| *d).collect(),
-                ..JointState::default()
-            };
-            (status, f.distance_m, links, cells_marker(&header, f.resolution_m, &f.near_cells))
-        }
-    };
+                    };
+                let status = DiagnosticStatus {
+                    level: level.diagnostic(),
+                    name,
+                    message,
+                    hardware_id: robot.to_owned(),
+                    values,
+                };
+                let links = JointState {
+                    header: header.clone(),
+                    name: f.per_link.iter().map(|(l, _)| l.clone()).collect(),
+                    position: f.per_link.iter().map(|(_, d)| *d).collect(),
+                    ..JointState::default()
+                };
+                (
+                    status,
+                    f.distance_m,
+                    links,
+                    cells_marker(&header, f.resolution_m, &f.near_cells),
+                )
+            }
+        };
     UnseenMessages {
         distance: stamped_distance(config, &header, distance),
         link_distances: JointState { header, ..links },

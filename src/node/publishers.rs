@@ -42,7 +42,7 @@ impl Publishers {
                 } else {
                     self.qos.clone()
                 };
-                if topic.every_beat(&self.config) {
+                if topic.every_beat(self.config) {
                     qos = qos.deadline(self.config.output_deadline_s.map(Duration::from_secs_f64));
                 }
                 let name = remap_topic(

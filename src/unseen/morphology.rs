@@ -8,9 +8,9 @@
 //! - [`stencil`]: the integer offsets `k ≠ 0` with `|k|² < erosion2`, nearest first, or `None`
 //!   when there are more than [`MAX_STENCIL`] (then the caller erodes by the distance
 //!   transform, whose cost does not grow with the radius).
-//! - [`erode`]: a cell survives when it and every cell at a stencil offset is unseen; offsets
-//!   beyond the lattice count as unseen (a body reaching out of the monitored volume still
-//!   counts). Only unseen cells are candidates, and a candidate stops at its first seen
+//! - [`erode`]: a cell survives when it and every cell at a stencil offset is unseen; an offset
+//!   beyond the lattice fails it (what lies outside the monitored volume is not watched: a body
+//!   counts where a ball of the capability fits inside the volume). Only unseen cells are candidates, and a candidate stops at its first seen
 //!   neighbour, nearest first; interior cells test precomputed linear offsets, border cells
 //!   check each offset's bounds. z slabs in parallel (rayon). Cost: O(cells · stencil) at
 //!   worst, about O(unseen cells) in practice (most candidates stop at a face neighbour).
@@ -86,8 +86,8 @@ pub(super) fn erode(unseen: &[bool], dims: [usize; 3], offsets: &[[i64; 3]]) -> 
                     offsets.iter().all(|&[a, b, c]| {
                         match (inside(i, a, n0), inside(j, b, n1), inside(k, c, n2)) {
                             (Some(x), Some(y), Some(z)) => unseen[x + n0 * (y + n1 * z)],
-                            // Beyond the lattice: unseen.
-                            _ => true,
+                            // Beyond the lattice: not watched, not unseen.
+                            _ => false,
                         }
                     })
                 };
@@ -245,7 +245,7 @@ pub(super) mod tests {
                     let brute = unseen[i]
                         && offsets.iter().all(|k| {
                             at(dims, [p[0] + k[0], p[1] + k[1], p[2] + k[2]])
-                                .is_none_or(|q| unseen[q])
+                                .is_some_and(|q| unseen[q])
                         });
                     assert_eq!(got, brute, "dims {dims:?} erosion2 {erosion2} cell {p:?}");
                 }

@@ -38,8 +38,11 @@
 //! the robot, `p`, has a centre within `R − ε` of `c` no farther than `d + ε` from it (the ball
 //! of radius `d/2` about `p` moved `d/2 + ε` inwards holds a centre and lies within `R − ε`).
 //!
-//! Cells beyond the lattice are taken as unseen for the erosion (a body reaching out of the
-//! monitored volume still counts).
+//! Cells beyond the lattice are not unseen for the erosion: the guarantee is for a ball that
+//! fits inside the monitored volume. Were they unseen, the unseen skin along a face (the cells
+//! within the range noise of a floor the volume stands on, the rim where the arm leaves the
+//! volume) would survive the erosion beside the robot and hold the distance at zero; a body
+//! larger than the capability that reaches into the volume by more than it still counts.
 //!
 //! **The passes.** The erosion tests the stencil of integer offsets `|k|² < ρₑ²/h²` on every
 //! unseen cell, stopping at its first seen neighbour (`morphology::erode`; at the defaults the
@@ -201,7 +204,20 @@ fn erode_by_transform(unseen: &[bool], dims: [usize; 3], erosion2: u64) -> Vec<b
     squared_distance_transform(&mut grid, dims);
     // Squared distances are integers: compare half a unit below.
     let survives = erosion2 as f64 - 0.5;
-    grid.par_iter().map(|&d2| d2 >= survives).collect()
+    // The nearest cell beyond the lattice lies along an axis, `min(i + 1, n − i)` away: it
+    // fails the cell as a seen one would.
+    let [n0, n1, _] = dims;
+    grid.par_iter()
+        .enumerate()
+        .map(|(index, &d2)| {
+            let ijk = [index % n0, (index / n0) % n1, index / (n0 * n1)];
+            let border = (0..3)
+                .map(|a| (ijk[a] + 1).min(dims[a] - ijk[a]))
+                .min()
+                .unwrap_or(0) as f64;
+            d2 >= survives && border * border >= survives
+        })
+        .collect()
 }
 
 /// Step 3: `dilated` less the cells that are not unseen, counted, into `opened`.

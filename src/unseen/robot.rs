@@ -18,6 +18,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;
 
+use super::error::UnseenError;
 use super::lattice::Lattice;
 use super::view::RangeView;
 
@@ -116,10 +117,13 @@ pub fn flag_robot_pixels(view: &mut RangeView, lattice: &Lattice, robot: &[bool]
             if !z.is_finite() {
                 return false;
             }
-            let p = [((i % w) as f32 - cx) * kx * z, ((i / w) as f32 - cy) * ky * z, z];
-            let root: [f32; 3] = std::array::from_fn(|r| {
-                (0..3).map(|c| rot[r][c] * p[c]).sum::<f32>() + tr[r]
-            });
+            let p = [
+                ((i % w) as f32 - cx) * kx * z,
+                ((i / w) as f32 - cy) * ky * z,
+                z,
+            ];
+            let root: [f32; 3] =
+                std::array::from_fn(|r| (0..3).map(|c| rot[r][c] * p[c]).sum::<f32>() + tr[r]);
             let q = to.at(root);
             if !q.iter().zip(dims).all(|(&x, n)| x >= 0.0 && x < n as f32) {
                 return false;
@@ -130,6 +134,44 @@ pub fn flag_robot_pixels(view: &mut RangeView, lattice: &Lattice, robot: &[bool]
     let count = flags.iter().filter(|&&f| f).count();
     view.robot_pixels_mut().copy_from_slice(&flags);
     count
+}
+
+/// A lattice over the padded spheres' box (root frame, axis-aligned) at `resolution_m`: the
+/// robot's cells there tell the pixels that returned on the robot wherever it reaches, inside
+/// the monitored volume or not ([`in_cells`]). `None` without spheres.
+pub fn robot_lattice(
+    spheres: &[PaddedSphere],
+    resolution_m: f64,
+) -> Option<Result<Lattice, UnseenError>> {
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for s in spheres {
+        let r = s.radius + s.padding;
+        for a in 0..3 {
+            lo[a] = lo[a].min(s.centre[a] - r);
+            hi[a] = hi[a].max(s.centre[a] + r);
+        }
+    }
+    if spheres.is_empty() {
+        return None;
+    }
+    // One cell more on every side, so that the cells the spheres take lie inside.
+    let grow = 1.5 * resolution_m;
+    let centre = Isometry3::translation(
+        0.5 * f64::from(lo[0] + hi[0]),
+        0.5 * f64::from(lo[1] + hi[1]),
+        0.5 * f64::from(lo[2] + hi[2]),
+    );
+    let half = std::array::from_fn(|a| 0.5 * f64::from(hi[a] - lo[a]) + grow);
+    Some(Lattice::new(centre, half, resolution_m))
+}
+
+/// Whether the root-frame point `p` falls in a cell set in `cells` (one flag per cell of
+/// `lattice`); a point outside the lattice does not.
+pub fn in_cells(lattice: &Lattice, cells: &[bool], p: [f32; 3]) -> bool {
+    let q = ToCells::new(lattice).at(p);
+    let dims = lattice.dims();
+    q.iter().zip(dims).all(|(&x, n)| x >= 0.0 && x < n as f32)
+        && cells[lattice.index(q.map(|x| x as usize))]
 }
 
 /// The root-frame centre of a point given in a link's frame, placed by `root_from_link`.
