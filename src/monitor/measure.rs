@@ -81,10 +81,13 @@ impl Monitor {
         let over_budget =
             self.sources[source].frame(&self.config, &self.model.name, stamp_ns, facts);
         // The unobserved space over every source's latest view, the robot at this frame's poses.
-        let mut unseen_s = None;
+        let (mut unseen_s, mut unseen_stages_s) = (None, Vec::new());
         if let Some(poses) = poses.filter(|_| self.config.unobserved.enabled()) {
             let unseen = self.unobserved(stamp_ns, &poses);
             unseen_s = Some(unseen.compute_s);
+            if let Ok(f) = &unseen.outcome {
+                unseen_stages_s = f.stages_s.clone();
+            }
             self.unseen.last = Some(unseen);
         }
         let moment = Moment {
@@ -102,8 +105,10 @@ impl Monitor {
             result,
             processing_s,
             speed,
-            outputs_s: fusion_start.elapsed().as_secs_f64(),
+            // The unobserved-space pass is timed on its own.
+            outputs_s: fusion_start.elapsed().as_secs_f64() - unseen_s.unwrap_or(0.0),
             unseen_s,
+            unseen_stages_s,
             outputs,
         }
     }

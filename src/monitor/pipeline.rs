@@ -36,8 +36,9 @@ pub struct Frame {
     pub speed: Option<SpeedScaling>,
     /// Fusion with the other sources' latest results and the outputs' messages, s.
     pub outputs_s: f64,
-    /// The unobserved-space pass after this frame, s (`None`: not run).
+    /// The unobserved-space pass after this frame, s (`None`: not run), and its stages' times.
     pub unseen_s: Option<f64>,
+    pub unseen_stages_s: Vec<(&'static str, f64)>,
     pub outputs: Outputs,
 }
 

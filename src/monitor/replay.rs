@@ -84,8 +84,9 @@ pub struct ReplayFrame {
     /// hold a body of the detection capability; `unseen_all_seen` tells which).
     pub unseen_m: Option<f64>,
     pub unseen_all_seen: bool,
-    /// The unobserved-space pass, ms.
+    /// The unobserved-space pass, ms, and each of its stages.
     pub unseen_ms: Option<f64>,
+    pub unseen_stages_ms: Vec<(&'static str, f64)>,
 }
 
 #[derive(Debug, Clone, Default, Serialize)]
@@ -444,6 +445,9 @@ impl ReplayFrame {
             unseen_all_seen: (o.unseen_distance.as_ref()).is_some_and(|r| r.range.is_nan())
                 && frame.unseen_s.is_some(),
             unseen_ms: frame.unseen_s.map(|s| s * 1e3),
+            unseen_stages_ms: (frame.unseen_stages_s.iter())
+                .map(|(n, s)| (*n, s * 1e3))
+                .collect(),
         }
     }
 }

@@ -32,6 +32,7 @@
 use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3};
+use rayon::prelude::*;
 
 use crate::cloud::depth::{DepthView, PinholeCamera};
 use crate::cloud::exclusion::Placed;
@@ -40,8 +41,8 @@ use crate::query::{Mode, Outcome, QueryOptions, QueryResult};
 use crate::robot::Kinematics;
 use crate::tf;
 use crate::unseen::{
-    flag_robot_pixels, in_cells, observe, open, place, robot_cells, robot_lattice, unseen_distance,
-    Lattice, PaddedSphere, RangeView,
+    flag_robot_pixels, observe, open, place, robot_cells, robot_lattice, unseen_distance, Lattice,
+    Opened, PaddedSphere, RangeView, RobotCells,
 };
 
 use super::pipeline::Monitor;
@@ -96,6 +97,9 @@ impl Monitor {
     ) -> Result<UnseenFacts, String> {
         let u = self.config.unobserved.clone();
         let lattice = self.lattice(&u, stamp_ns, poses)?;
+        let clock = Instant::now();
+        let mut stages = Vec::with_capacity(5);
+        let mut lap = |name: &'static str| stages.push((name, clock.elapsed().as_secs_f64()));
         let spheres = self.padded_spheres(poses);
         // The robot's cells over its own box: its pixels wherever it reaches, and the
         // monitored cells its padded body takes (a cell centre in a robot cell).
@@ -104,6 +108,7 @@ impl Monitor {
             None => return Err("the robot has no inner spheres".into()),
         };
         let robot = robot_cells(&robot_lattice, &spheres);
+        lap("robot");
         // Every enabled source's view, its robot pixels flagged at these poses.
         let mut per_source = Vec::new();
         let mut seeing = Vec::new();
@@ -126,12 +131,15 @@ impl Monitor {
             .filter_map(|(_, source)| source.view().and_then(|v| v.as_ref().ok()))
             .collect();
         let mut obs = observe(&lattice, &views);
+        lap("observe");
         for (&k, f) in seeing.iter().zip(&obs.observed_fraction_per_view) {
             per_source[k].1 = Ok(*f);
         }
-        obs.drop_where(&lattice, |_, c| in_cells(&robot_lattice, &robot, c));
+        let body = RobotCells::new(&robot_lattice, &robot);
+        obs.drop_where(&lattice, |_, c| body.contains(c));
         let volumes = self.shared_volumes(stamp_ns, poses)?;
         obs.drop_excluded(&lattice, &volumes);
+        lap("drop");
         let unseen_cells = obs.unseen_count();
         let shadow_cells = obs.self_shadow.iter().filter(|&&s| s).count();
         let pitch = obs.pixel_pitch_m;
@@ -142,32 +150,48 @@ impl Monitor {
             SelfShadow::Apart => open(&lattice, &obs.beyond_self_shadow(), pitch, capability)
                 .map_err(|e| e.to_string())?,
         };
+        lap("open");
         let options = self.unseen_query_options();
         let max = f64::from(options.max_distance_m);
-        let mut result: Option<Result<QueryResult, String>> = None;
         let engine = &mut self.engine;
-        let distance_m = unseen_distance(&lattice, &counted, None, |centres| {
-            let r = engine.query(centres, &Isometry3::identity(), poses, &options);
-            let d = r.as_ref().ok().map_or(0.0, |r| lower_bound(r, max));
-            result = Some(r.map_err(|e| e.to_string()));
-            d
-        });
-        let per_link = match result {
-            Some(Err(e)) => return Err(format!("the query over the unseen cells failed: {e}")),
-            Some(Ok(r)) => (r.links.iter())
+        // The distance over `opened` (∩ `subset`), and per link: one query over its centres.
+        let mut bound = |opened: &Opened, subset: &[bool]| -> Result<Bound, String> {
+            let mut result = None;
+            let d = unseen_distance(&lattice, opened, Some(subset), |centres| {
+                let r = engine.query(centres, &Isometry3::identity(), poses, &options);
+                let d = r.as_ref().ok().map_or(0.0, |r| lower_bound(r, max));
+                result = Some(r);
+                d
+            });
+            let per_link = match result {
+                Some(r) => (r
+                    .map_err(|e| format!("the query over the unseen cells failed: {e}"))?)
+                .links
+                .iter()
                 .map(|l| {
                     let lower = l.lower_m.or(l.farther_than_m).unwrap_or(max);
-                    (l.link.clone(), (lower - counted.margin_m).max(0.0))
+                    (l.link.clone(), (lower - opened.margin_m).max(0.0))
                 })
                 .collect(),
-            None => Vec::new(),
+                None => Vec::new(),
+            };
+            Ok(Bound {
+                distance_m: d,
+                per_link,
+            })
         };
-        let self_shadow_m = unseen_distance(&lattice, &all, Some(&obs.self_shadow), |centres| {
-            (engine
-                .query(centres, &Isometry3::identity(), poses, &options)
-                .ok())
-            .map_or(0.0, |r| lower_bound(&r, max))
-        });
+        // The shadow and the rest apart, so that `count` queries each opened cell once.
+        let shadow = bound(&all, &obs.self_shadow)?;
+        let rest = match u.self_shadow {
+            SelfShadow::Count => bound(&all, &negated(&obs.self_shadow))?,
+            SelfShadow::Apart => bound(&counted, &vec![true; lattice.len()])?,
+        };
+        let (distance_m, per_link) = match u.self_shadow {
+            SelfShadow::Count => rest.min(&shadow),
+            SelfShadow::Apart => (rest.distance_m, rest.per_link),
+        };
+        let self_shadow_m = shadow.distance_m;
+        lap("distance");
         let bounds = link_bounds(self.engine.links(), poses);
         let near_cells = near_robot(&lattice, &counted.cells, &bounds, u.markers);
         Ok(UnseenFacts {
@@ -182,6 +206,19 @@ impl Monitor {
             opened_cells: counted.count,
             resolution_m: lattice.resolution_m(),
             near_cells,
+            stages_s: {
+                lap("markers");
+                // Each stage's own time, from the laps.
+                let mut last = 0.0;
+                stages
+                    .into_iter()
+                    .map(|(n, t)| {
+                        let d = t - last;
+                        last = t;
+                        (n, d)
+                    })
+                    .collect()
+            },
         })
     }
 
@@ -246,13 +283,19 @@ impl Monitor {
         self.unseen.reach_m.clone().unwrap_or(Err(String::new()))
     }
 
-    /// Every inner sphere in the root frame, padded by the self-filter padding and its link's h.
+    /// The inner spheres (those of a quarter cell or more) in the root frame, padded by the
+    /// self-filter padding and their link's h.
     fn padded_spheres(&self, poses: &[Isometry3<f64>]) -> Vec<PaddedSphere> {
         let padding = self.config.query.self_filter_padding_m.unwrap_or(0.0);
+        // Spheres under a quarter cell add little to cells that reach half a diagonal beyond
+        // the padding; leaving them out only leaves a cell unseen, or a pixel not the robot's:
+        // the conservative side.
+        let smallest = (0.25 * self.config.unobserved.resolution_m) as f32;
         (self.engine.links().iter())
             .flat_map(|l| {
                 let pose = poses[l.pose_index];
-                l.spheres.iter().map(move |s| PaddedSphere {
+                let spheres = l.spheres.iter().filter(move |s| s.radius >= smallest);
+                spheres.map(move |s| PaddedSphere {
                     centre: place(&pose, s.center),
                     radius: s.radius,
                     padding: padding + l.gap_m,
@@ -293,6 +336,37 @@ impl Monitor {
     }
 }
 
+/// A distance over opened cells and its per-link values (m).
+struct Bound {
+    distance_m: Option<f64>,
+    per_link: Vec<(String, f64)>,
+}
+
+impl Bound {
+    /// The smaller of two, link by link (a side without cells has no links).
+    fn min(self, other: &Bound) -> (Option<f64>, Vec<(String, f64)>) {
+        let distance = match (self.distance_m, other.distance_m) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        let per_link = if self.per_link.is_empty() {
+            other.per_link.clone()
+        } else if other.per_link.is_empty() {
+            self.per_link
+        } else {
+            (self.per_link.into_iter().zip(&other.per_link))
+                .map(|((l, a), (_, b))| (l, a.min(*b)))
+                .collect()
+        };
+        (distance, per_link)
+    }
+}
+
+/// Each flag negated.
+fn negated(flags: &[bool]) -> Vec<bool> {
+    flags.par_iter().map(|&f| !f).collect()
+}
+
 /// The certified lower bound of a query over cell centres (`max` where none lies within it).
 fn lower_bound(r: &QueryResult, max: f64) -> f64 {
     match (&r.outcome, &r.nearest) {
@@ -317,7 +391,7 @@ fn link_radii(kinematics: &Kinematics, links: &[crate::query::QueryLink]) -> Vec
 }
 
 /// At most `most` centres of opened cells, the nearest the robot first by a cheap bound (the
-/// distance to each link's bounding sphere): for drawing only.
+/// distance to each link's bounding sphere), of a large set an even sample: for drawing only.
 fn near_robot(
     lattice: &Lattice,
     opened: &[bool],
@@ -327,10 +401,15 @@ fn near_robot(
     if most == 0 || links.is_empty() {
         return Vec::new();
     }
-    let mut near: Vec<(f32, [f32; 3])> = lattice
-        .centres(opened)
-        .into_iter()
-        .map(|c| {
+    // At most about `SAMPLE` cells are ranked: a large opened set is drawn thinned, evenly.
+    const SAMPLE: usize = 50_000;
+    let count = opened.par_iter().filter(|&&o| o).count();
+    let step = count.div_ceil(SAMPLE).max(1);
+    let mut near: Vec<(f32, [f32; 3])> = (opened.iter().enumerate())
+        .filter(|(_, &o)| o)
+        .step_by(step)
+        .map(|(i, _)| {
+            let c = lattice.centre(i);
             let d = (links.iter())
                 .map(|(centre, radius)| {
                     let d2: f32 = (0..3).map(|a| (c[a] - centre[a]).powi(2)).sum();
@@ -340,8 +419,11 @@ fn near_robot(
             (d, c)
         })
         .collect();
+    if near.len() > most {
+        near.select_nth_unstable_by(most, |a, b| a.0.total_cmp(&b.0));
+        near.truncate(most);
+    }
     near.sort_by(|a, b| a.0.total_cmp(&b.0));
-    near.truncate(most);
     near.into_iter().map(|(_, c)| c).collect()
 }
 

@@ -91,6 +91,9 @@ pub fn unseen_messages(
                     };
                     values.push(kv(&format!("observed_fraction.{source}"), v));
                 }
+                for (stage, t) in &f.stages_s {
+                    values.push(kv(&format!("{stage}_ms"), format!("{:.3}", t * 1e3)));
+                }
                 for (key, n) in [
                     ("cells", f.cells),
                     ("unseen_cells", f.unseen_cells),

@@ -37,6 +37,9 @@ pub struct UnseenFacts {
     /// most `unobserved_markers`), for the markers.
     pub resolution_m: f64,
     pub near_cells: Vec<[f32; 3]>,
+    /// Each stage's time, s: the robot's cells, the observation, the opening, the distance
+    /// query, the markers.
+    pub stages_s: Vec<(&'static str, f64)>,
 }
 
 /// What the monitor keeps between frames.

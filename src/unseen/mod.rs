@@ -82,5 +82,5 @@ pub use observe::{observe, Observation};
 #[doc(hidden)]
 pub use opening::open_exact;
 pub use opening::{open, Opened, DEFAULT_DETECTION_CAPABILITY_M};
-pub use robot::{flag_robot_pixels, in_cells, place, robot_cells, robot_lattice, PaddedSphere};
+pub use robot::{flag_robot_pixels, place, robot_cells, robot_lattice, PaddedSphere, RobotCells};
 pub use view::{RangeView, DEFAULT_RANGE_NOISE_M};

@@ -93,8 +93,14 @@ impl Observation {
     /// frame (`Placed::new(shape, &root_from_volume)`), with `cloud::exclusion`'s own point
     /// test. Returns how many each volume took (a cell in two counts for the first).
     pub fn drop_excluded(&mut self, lattice: &Lattice, volumes: &[Placed]) -> Vec<u64> {
+        if volumes.is_empty() {
+            return Vec::new();
+        }
         let indices: Vec<usize> = (0..self.unseen.len()).filter(|&i| self.unseen[i]).collect();
-        let mut centres: Vec<[f32; 3]> = indices.iter().map(|&i| lattice.centre(i)).collect();
+        let (origin, steps) = lattice.in_frame(&nalgebra::Isometry3::identity());
+        let mut centres: Vec<[f32; 3]> = (indices.par_iter())
+            .map(|&i| centre_at(origin, &steps, lattice.ijk(i)))
+            .collect();
         let counts = exclude(&mut centres, volumes);
         for (&i, c) in indices.iter().zip(&centres) {
             if c[0].is_nan() {

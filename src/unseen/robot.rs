@@ -165,13 +165,31 @@ pub fn robot_lattice(
     Some(Lattice::new(centre, half, resolution_m))
 }
 
-/// Whether the root-frame point `p` falls in a cell set in `cells` (one flag per cell of
-/// `lattice`); a point outside the lattice does not.
-pub fn in_cells(lattice: &Lattice, cells: &[bool], p: [f32; 3]) -> bool {
-    let q = ToCells::new(lattice).at(p);
-    let dims = lattice.dims();
-    q.iter().zip(dims).all(|(&x, n)| x >= 0.0 && x < n as f32)
-        && cells[lattice.index(q.map(|x| x as usize))]
+/// The cells a robot takes on its own lattice, to look root-frame points up in.
+pub struct RobotCells<'a> {
+    lattice: &'a Lattice,
+    cells: &'a [bool],
+    to: ToCells,
+}
+
+impl<'a> RobotCells<'a> {
+    /// `cells`: one flag per cell of `lattice` ([`robot_cells`]).
+    pub fn new(lattice: &'a Lattice, cells: &'a [bool]) -> Self {
+        Self {
+            lattice,
+            cells,
+            to: ToCells::new(lattice),
+        }
+    }
+
+    /// Whether the root-frame point `p` falls in a robot cell (a point outside the lattice
+    /// does not).
+    pub fn contains(&self, p: [f32; 3]) -> bool {
+        let q = self.to.at(p);
+        let dims = self.lattice.dims();
+        q.iter().zip(dims).all(|(&x, n)| x >= 0.0 && x < n as f32)
+            && self.cells[self.lattice.index(q.map(|x| x as usize))]
+    }
 }
 
 /// The root-frame centre of a point given in a link's frame, placed by `root_from_link`.

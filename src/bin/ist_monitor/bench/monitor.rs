@@ -42,9 +42,13 @@ fn monitor(
     args: &BenchMonitorArgs,
     extra: &[(impl AsRef<str>, impl AsRef<str>)],
 ) -> Result<Monitor> {
-    let extra: Vec<(String, String)> = (extra.iter())
+    let mut extra: Vec<(String, String)> = (extra.iter())
         .map(|(k, v)| (k.as_ref().to_owned(), v.as_ref().to_owned()))
         .collect();
+    // The unobserved space only where a variant asks for it (its own row).
+    if !extra.iter().any(|(k, _)| k == "unobserved") {
+        extra.push(("unobserved".into(), "ignore".into()));
+    }
     monitor_from_config(args.config.load(CONFIG, &extra)?)
 }
 
@@ -87,6 +91,15 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
     let meshes = monitor(&args, &ten_volumes(&root, 0.0, Some(&stl)));
     let _ = std::fs::remove_file(&stl);
     let mut excluding_meshes = meshes?;
+    // The unobserved space over a 2 × 2 × 2 m volume at 2 cm (10⁶ cells) about the robot.
+    let mut unseen = monitor(
+        &args,
+        &[
+            ("unobserved", "report"),
+            ("monitored_volume.size", "[2.0, 2.0, 2.0]"),
+            ("monitored_volume.translation", "[0.0, 0.0, 0.5]"),
+        ],
+    )?;
     // Warm-up: the GPU probe (backend auto), the caches and the self-filter's grids.
     for m in [
         &mut plain,
@@ -95,6 +108,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         &mut excluding,
         &mut excluding_nothing,
         &mut excluding_meshes,
+        &mut unseen,
     ] {
         for _ in 0..3 {
             cloud_frame(m, 0, payload);
@@ -105,6 +119,8 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut query_excluding, mut query_excluding_nothing) = (Vec::new(), Vec::new());
     let mut query_meshes = Vec::new();
+    let (mut query_unseen, mut pass_unseen) = (Vec::new(), Vec::new());
+    let mut stages: Vec<(&'static str, Vec<f64>)> = Vec::new();
     let (mut rejected, mut excluded, mut excluded_far, mut excluded_meshes) = (0, 0, 0, 0);
     for run in 0..args.runs {
         let f = cloud_frame(&mut plain, 0, payload);
@@ -131,6 +147,19 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         let f = cloud_frame(&mut excluding_meshes, 0, payload);
         query_meshes.push(f.processing_s * 1e3);
         excluded_meshes += count(&f);
+        let f = cloud_frame(&mut unseen, 0, payload);
+        query_unseen.push(f.processing_s * 1e3);
+        pass_unseen.push(
+            f.unseen_s
+                .context("the unobserved-space pass did not run")?
+                * 1e3,
+        );
+        for (k, (name, s)) in f.unseen_stages_s.iter().enumerate() {
+            if stages.len() <= k {
+                stages.push((name, Vec::new()));
+            }
+            stages[k].1.push(s * 1e3);
+        }
     }
     let ratio = |a: &[f64], b: &[f64]| Spread::of(a.iter().zip(b).map(|(x, y)| x / y).collect());
     let ms = |s: Spread| format!("{:.3} ms [{:.3}, {:.3}]", s.median, s.p10, s.p90);
@@ -190,6 +219,14 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         pct(ratio(&query_meshes, &query)),
         excluded_meshes / args.runs as u64
     );
+    println!(
+        "unobserved space (2 × 2 × 2 m at 2 cm, 10⁶ cells): {}  = {} of its frame's query",
+        ms(Spread::of(pass_unseen.clone())),
+        pct(ratio(&pass_unseen, &query_unseen))
+    );
+    for (name, times) in stages {
+        println!("  {name:<10} {}", ms(Spread::of(times)));
+    }
     Ok(())
 }
 
