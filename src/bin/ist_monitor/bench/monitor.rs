@@ -137,19 +137,6 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         let f = cloud_frame(&mut excluding_meshes, 0, payload);
         query_meshes.push(f.processing_s * 1e3);
         excluded_meshes += count(&f);
-        let f = cloud_frame(&mut unseen, 0, payload);
-        query_unseen.push(f.processing_s * 1e3);
-        pass_unseen.push(
-            f.unseen_s
-                .context("the unobserved-space pass did not run")?
-                * 1e3,
-        );
-        for (k, (name, s)) in f.unseen_stages_s.iter().enumerate() {
-            if stages.len() <= k {
-                stages.push((name, Vec::new()));
-            }
-            stages[k].1.push(s * 1e3);
-        }
     }
     let ratio = |a: &[f64], b: &[f64]| Spread::of(a.iter().zip(b).map(|(x, y)| x / y).collect());
     let ms = |s: Spread| format!("{:.3} ms [{:.3}, {:.3}]", s.median, s.p10, s.p90);
