@@ -29,7 +29,8 @@
 //!   images with `cloud::depth`;
 //! - after `query` and `cloud`: `unseen` (the space no source has seen free, as a voxel lattice
 //!   of the monitored volume, opened by the detection capability, and the certified distance to
-//!   it through the caller's query; it takes `cloud::depth` and `cloud::exclusion`);
+//!   it through the caller's query; it takes `cloud::depth` and `cloud::exclusion`), run by
+//!   `monitor::unobserved` over every source's latest view;
 //! - beside them: `geometry` (mesh helpers, under `robot`), `choice` (the enums a parameter or a
 //!   flag picks by name), `stats` (percentiles of timings), and behind the default feature
 //!   `fixtures` the test fixtures: `scenario` (the bag generator, on the meshes, clouds and

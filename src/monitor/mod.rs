@@ -24,7 +24,9 @@
 //! Each configured source is a [`Source`] that owns its state: its latest result, its level,
 //! its camera model and how the node watches it. Between frames the live node asks the monitor
 //! for the faults that are no frame of their own (`watch`: a silent source, an untrusted clock,
-//! "not monitoring"). `setup` starts a monitor; `replay` feeds a bag through this pipeline in
+//! "not monitoring"). After each measured frame, `unobserved` runs the unobserved-space pass over
+//! every source's latest view (`unseen_state` holds its result, `unseen_outputs` renders it).
+//! `setup` starts a monitor; `replay` feeds a bag through this pipeline in
 //! log-time order, as the node (`crate::node`) feeds it from DDS.
 
 mod fault;
