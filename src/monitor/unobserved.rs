@@ -97,6 +97,9 @@ impl Monitor {
     ) -> Result<UnseenFacts, String> {
         let u = self.config.unobserved.clone();
         let lattice = self.lattice(&u, stamp_ns, poses)?;
+        if let Some(blind) = self.all_blind(&lattice) {
+            return Ok(blind);
+        }
         let clock = Instant::now();
         let mut stages = Vec::with_capacity(5);
         let mut lap = |name: &'static str| stages.push((name, clock.elapsed().as_secs_f64()));
@@ -219,6 +222,35 @@ impl Monitor {
                     })
                     .collect()
             },
+        })
+    }
+
+    /// When no enabled source observes anything free (none has a view: unorganized clouds,
+    /// no frame yet), the whole volume is unseen: its distance is taken as 0, a lower bound
+    /// whatever the robot's pose, without the pass's cost.
+    fn all_blind(&self, lattice: &Lattice) -> Option<UnseenFacts> {
+        let enabled = || (self.config.sources.iter().zip(&self.sources)).filter(|(s, _)| s.enabled);
+        if enabled().any(|(_, source)| matches!(source.view(), Some(Ok(_)))) {
+            return None;
+        }
+        let per_source = enabled()
+            .map(|(s, source)| {
+                let why = match source.view() {
+                    Some(Err(e)) => e.clone(),
+                    _ => "no measured frame".into(),
+                };
+                (s.name.clone(), Err(why))
+            })
+            .collect();
+        Some(UnseenFacts {
+            distance_m: Some(0.0),
+            self_shadow_m: None,
+            per_source,
+            cells: lattice.len(),
+            unseen_cells: lattice.len(),
+            opened_cells: lattice.len(),
+            resolution_m: lattice.resolution_m(),
+            ..UnseenFacts::default()
         })
     }
 
