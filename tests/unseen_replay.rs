@@ -207,8 +207,13 @@ fn a_person_in_the_arms_shadow_is_within_the_unseen_distance() {
 #[test]
 fn a_second_camera_closes_the_arms_shadow() {
     let (_dir, bag) = generate(SceneKind::Person, |p| p.second_camera = true);
-    let both = replay_rows(&bag, TWO_CAMERAS, &[]);
-    let one = replay_rows(&bag, TWO_CAMERAS, &[("side_camera.enabled", "false")]);
+    let report = ("unobserved", "report");
+    let both = replay_rows(&bag, TWO_CAMERAS, &[report]);
+    let one = replay_rows(
+        &bag,
+        TWO_CAMERAS,
+        &[report, ("side_camera.enabled", "false")],
+    );
     let mut far = 0;
     for r in both.iter().filter(|r| r.fault.is_none()) {
         let Some(alone) = one
