@@ -91,6 +91,29 @@ fn unseen(r: &ReplayFrame) -> f64 {
     }
 }
 
+/// The unseen distance of `r` is at most the truth `t` (0.1 mm of rounding).
+fn assert_within_truth(r: &ReplayFrame, t: f64) {
+    assert!(
+        unseen(r) <= t + 1e-4,
+        "frame {}: unseen {} > truth {t}",
+        r.index,
+        unseen(r)
+    );
+}
+
+/// Within `stop_distance` (0.1 m) `protect`'s row `p` is ERROR and `report`'s row `r` is not.
+fn assert_protect_stops(r: &ReplayFrame, p: &ReplayFrame, t: f64) {
+    if t < 0.1 {
+        assert_eq!(
+            p.level,
+            Level::Error,
+            "frame {}: truth {t}, protect",
+            r.index
+        );
+        assert_ne!(r.level, Level::Error, "frame {}: report", r.index);
+    }
+}
+
 /// A person in dark clothes (no depth) walks up to the arm: the camera sees only the wall, 1.26 m
 /// away, on every frame. With the robot's shadow apart, the unseen distance is at most the true
 /// distance once the person is within the monitored volume (every frame within 0.3 m), and
@@ -122,22 +145,9 @@ fn a_dark_person_is_within_the_unseen_distance_and_protect_stops() {
         );
         if t <= 0.3 {
             near += 1;
-            assert!(
-                unseen(r) <= t + 1e-4,
-                "frame {}: unseen {} > truth {t}",
-                r.index,
-                unseen(r)
-            );
+            assert_within_truth(r, t);
         }
-        if t < 0.1 {
-            assert_eq!(
-                p.level,
-                Level::Error,
-                "frame {}: truth {t}, protect",
-                r.index
-            );
-            assert_ne!(r.level, Level::Error, "frame {}: report", r.index);
-        }
+        assert_protect_stops(r, p, t);
     }
     assert!(near >= 5, "only {near} frames within 0.3 m");
     assert!(report.iter().any(|r| truth(r) < 0.1));
@@ -184,21 +194,8 @@ fn a_person_in_the_arms_shadow_is_within_the_unseen_distance() {
     let protect = replay_rows(&bag, cfg, &[("unobserved", "protect")]);
     for (r, p) in report.iter().zip(&protect) {
         let t = truth(r);
-        assert!(
-            unseen(r) <= t + 1e-4,
-            "frame {}: unseen {} > truth {t}",
-            r.index,
-            unseen(r)
-        );
-        if t < 0.1 {
-            assert_eq!(
-                p.level,
-                Level::Error,
-                "frame {}: truth {t}, protect",
-                r.index
-            );
-            assert_ne!(r.level, Level::Error, "frame {}: report", r.index);
-        }
+        assert_within_truth(r, t);
+        assert_protect_stops(r, p, t);
     }
     assert!(report.iter().any(|r| truth(r) < 0.1));
 }
