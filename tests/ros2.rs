@@ -415,3 +415,99 @@ fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
         eprintln!("rclpy {what}: {got:.6} m, as the library");
     }
 }
+
+/// One voice per source (issue 46), with the real Kinect cloud of the README's Panda
+/// configuration (nearest point 0.098 m, inside `stop_distance` 0.1 m): a second rclpy
+/// participant on the camera's topic, sending the same cloud 3 m farther 50 ms after each of the
+/// camera's, never releases the stop (on main before this it was released on every other frame);
+/// nor does a second `/joint_states` writer that holds the arm elsewhere. Each is the fault
+/// `second_publisher` in the fused status while it speaks.
+#[test]
+fn rclpy_a_second_publisher_never_releases_the_stop() {
+    use ist_monitor::msg::{self, PointCloud2};
+    let test = "rclpy_a_second_publisher_never_releases_the_stop";
+    if !common::in_private_network(test) {
+        return;
+    }
+    let (Some(python), Some(shared)) = (common::rclpy_python(), common::shared()) else {
+        return;
+    };
+    let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
+    let topic = "/camera/depth_registered/points";
+    let messages = ist_monitor::bag::reader::read_messages(&bag, &|t, _| t == topic).unwrap();
+    let near = messages[0].data.clone();
+    // The same cloud 3 m farther along the optical axis (z), NaN holes kept.
+    let mut cloud: PointCloud2 = msg::decode(&near).unwrap();
+    let z = cloud.fields.iter().find(|f| f.name == "z").unwrap().offset as usize;
+    let mut data = cloud.data.to_vec();
+    for p in data.chunks_exact_mut(cloud.point_step as usize) {
+        let v = f32::from_le_bytes(p[z..z + 4].try_into().unwrap()) + 3.0;
+        p[z..z + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    cloud.data = data.into();
+    let dir = tempfile::tempdir().unwrap();
+    let (near_file, far_file) = (dir.path().join("near.cdr"), dir.path().join("far.cdr"));
+    std::fs::write(&near_file, &near).unwrap();
+    std::fs::write(&far_file, msg::encode(&cloud).unwrap()).unwrap();
+    let config =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("config/panda_perception_tutorial.yaml");
+    let ready = [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785, 0.0];
+    let mut away = ready;
+    away[0] += 1.5;
+    let names: Vec<String> = (1..=7)
+        .map(|k| format!("panda_joint{k}"))
+        .chain(["panda_finger_joint1".to_string()])
+        .collect();
+    let joints = serde_json::json!({"names": names, "positions": ready, "intruder": away});
+    for (what, joints, says) in [
+        (
+            "cloud",
+            None,
+            "more than one publisher on /camera/depth_registered/points",
+        ),
+        (
+            "joint states",
+            Some(joints.to_string()),
+            "published by more than one writer",
+        ),
+    ] {
+        let mut script_args: Vec<std::ffi::OsString> = vec![
+            "voices".into(),
+            "/ist_monitor".into(),
+            topic.into(),
+            near_file.clone().into(),
+            far_file.clone().into(),
+        ];
+        script_args.extend(joints.map(Into::into));
+        let args: Vec<&std::ffi::OsStr> = script_args.iter().map(|a| a.as_os_str()).collect();
+        let mut node = ist_monitor();
+        node.args(["node", "--config"]).arg(&config);
+        node.args(["--ros-args", "-p", "backend:=cpu"]);
+        let (out, log) = beside_node(&mut node, &python, &args);
+        assert_eq!(out["raised"], true, "{what}: {out}\n{log}");
+        let during = out["during"].as_array().unwrap();
+        let after = out["after"].as_array().unwrap();
+        assert!(
+            during.len() >= 10 && !after.is_empty(),
+            "{what}: {out}\n{log}"
+        );
+        let bits = |v: &[serde_json::Value]| -> String {
+            v.iter()
+                .map(|b| if b == true { '1' } else { '0' })
+                .collect()
+        };
+        assert!(
+            during.iter().chain(after).all(|b| b == true),
+            "{what}: the stop was released: {} then {}",
+            bits(during),
+            bits(after)
+        );
+        let messages = out["messages"].to_string();
+        assert!(messages.contains(says), "{what}: {messages}");
+        eprintln!(
+            "rclpy, a second {what} writer: stop {} while it spoke, {} after",
+            bits(during),
+            bits(after)
+        );
+    }
+}

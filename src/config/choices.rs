@@ -111,3 +111,31 @@ impl Choice for SelfShadow {
         }
     }
 }
+
+/// Which parameter changes a running node takes (`parameter_changes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParameterChanges {
+    /// Any valid change; while the safety stop is raised, one that weakens protection is
+    /// refused (`Config::weakening`).
+    Open,
+    /// A change that weakens protection is refused at any time: thresholds may be raised, never
+    /// lowered, by anyone on the network.
+    StrengthenOnly,
+    /// Every change refused: the parameters are those the node started with.
+    None,
+}
+
+impl Choice for ParameterChanges {
+    const ALL: &'static [Self] = &[
+        ParameterChanges::Open,
+        ParameterChanges::StrengthenOnly,
+        ParameterChanges::None,
+    ];
+    fn name(self) -> &'static str {
+        match self {
+            ParameterChanges::Open => "open",
+            ParameterChanges::StrengthenOnly => "strengthen_only",
+            ParameterChanges::None => "none",
+        }
+    }
+}

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use yaml_rust2::Yaml;
 
+use super::choices::ParameterChanges;
 use super::entries::Entries;
 use super::error::ConfigError;
 use super::params::scalar_yaml;
@@ -50,6 +51,11 @@ pub struct Config {
     pub tf_tolerance_s: f64,
     pub joint_state_tolerance_s: f64,
     pub future_stamp_tolerance_s: f64,
+    /// Two writers of one source topic, joint or TF frame heard within this of a stamp are
+    /// the fault `second_publisher` (`crate::msg::Voices`), s.
+    pub second_publisher_window_s: f64,
+    /// Which parameter changes the running node takes.
+    pub parameter_changes: ParameterChanges,
     /// The clock is `/clock`'s (`use_sim_time`); a silence of `clock_timeout_s` (wall) is a
     /// fault.
     pub use_sim_time: bool,
@@ -170,6 +176,8 @@ impl Config {
                 .distance("joint_state_tolerance", "joint_state_tolerance")?,
             future_stamp_tolerance_s: v
                 .distance("future_stamp_tolerance", "future_stamp_tolerance")?,
+            second_publisher_window_s: Self::positive_s(&v, "second_publisher_window")?,
+            parameter_changes: v.choice("parameter_changes", "parameter_changes")?,
             use_sim_time: v.bool("use_sim_time", "use_sim_time")?,
             clock_timeout_s: Self::positive_s(&v, "clock_timeout")?,
             warn_distance_m: thresholds.warn_m,

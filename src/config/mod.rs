@@ -34,7 +34,7 @@ mod sources;
 mod unobserved;
 mod values;
 
-pub use choices::{SelfShadow, SourceKind, UnobservedPolicy};
+pub use choices::{ParameterChanges, SelfShadow, SourceKind, UnobservedPolicy};
 pub use config::{parse_override, Config, RobotSource};
 pub use error::ConfigError;
 pub use files::{key_matches, ParameterSources};

@@ -4,7 +4,9 @@
 
 use yaml_rust2::{Yaml, YamlLoader};
 
-use super::choices::{SelfShadow, ShapeKind, SourceKind, SourceQos, UnobservedPolicy};
+use super::choices::{
+    ParameterChanges, SelfShadow, ShapeKind, SourceKind, SourceQos, UnobservedPolicy,
+};
 use crate::choice::Choice;
 use crate::query::{Backend, Mode};
 
@@ -116,6 +118,8 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("tf_tolerance", "0.1", "s", "a transform may be this much older or newer than the cloud"),
     p("joint_state_tolerance", "0.1", "s", "a joint state may be this much older or newer than the cloud"),
     p("future_stamp_tolerance", "0.1", "s", "a cloud stamped more than this ahead of the clock is a fault (clock skew between machines)"),
+    p("second_publisher_window", "1.0", "s", "one voice per input: two writers (DDS writer GUIDs, rmw_zenoh GIDs) of one source topic, one joint or one TF frame, heard within this long of a stamp, are the fault second_publisher (ERROR, no distance, naming the writers) until one of them has been alone this long; a static frame given two different values by two writers stays refused until the node restarts"),
+    one_of::<ParameterChanges>(p("parameter_changes", "open", "", "which run-time parameter changes are taken: open (any valid change; while the safety stop is raised one that weakens protection is refused), strengthen_only (a change that weakens protection — a lower stop_distance, hysteresis or release_frames, a volume or object added, a source disabled — is refused at any time) or none (every change refused)")),
     p("use_sim_time", "false", "", "take the clock from /clock (rosgraph_msgs/Clock: a simulator, `ros2 bag play --clock`) for the stamp checks, the timeouts, the SSM ages and the output stamps; /clock silent for clock_timeout is a fault, and a jump back in time forgets the transforms, joint states and results received"),
     p("clock_timeout", "1.0", "s", "use_sim_time: /clock silent this long (wall time) is a fault: ERROR, no distance, until it ticks again"),
     rt("warn_distance", "0.3", "m", "diagnostics WARN below this distance"),

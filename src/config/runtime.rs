@@ -20,11 +20,15 @@
 //!   holds the stop and disabling it is the operator's way to take a broken sensor out (the
 //!   other sources still watch; with none left the stop holds). Raising a threshold, enabling
 //!   a source and removing a volume or an object are always taken.
+//! - **Who may change what** (`parameter_changes`, [`Config::admits`]): `open` applies the rule
+//!   above; `strengthen_only` applies it at any time, stop raised or not, so that nobody on the
+//!   network can lower a running cell's thresholds; `none` refuses every change.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use yaml_rust2::Yaml;
 
+use super::choices::ParameterChanges;
 use super::config::Config;
 use super::entries::LISTS;
 use super::error::ConfigError;
@@ -127,6 +131,40 @@ impl Config {
             }
         }
         Ok(new)
+    }
+
+    /// Whether the running node takes `new` (a change of this config, valid on its own) while
+    /// the stop is raised (`stop_raised`) or not, by `parameter_changes`; the refusal says why.
+    pub fn admits(&self, new: &Config, stop_raised: bool, in_fault: &[bool]) -> Result<(), String> {
+        let rule = self.parameter_changes;
+        if rule == ParameterChanges::None {
+            return Err(
+                "refused: parameter_changes is none (the node takes no change at run \
+                        time: restart it with the new parameters)"
+                    .into(),
+            );
+        }
+        if !(stop_raised || rule == ParameterChanges::StrengthenOnly) {
+            return Ok(());
+        }
+        let weakening = self.weakening(new, in_fault);
+        if weakening.is_empty() {
+            return Ok(());
+        }
+        let when = if stop_raised {
+            "while the safety stop is raised"
+        } else {
+            "by parameter_changes: strengthen_only"
+        };
+        Err(format!(
+            "refused {when}: {} would weaken protection{}",
+            weakening.join(", "),
+            if rule == ParameterChanges::Open {
+                " (set it once the stop is released)"
+            } else {
+                ""
+            }
+        ))
     }
 
     /// What in `new` (a change of this config) could release a raised safety stop, one line
@@ -316,5 +354,34 @@ mod tests {
         let held = change(&c, &object).unwrap();
         let released = change(&held, &[("attached_objects", "[]")]).unwrap();
         assert!(held.weakening(&released, &[false, false]).is_empty());
+    }
+
+    #[test]
+    fn parameter_changes_decides_who_may_lower_a_threshold() {
+        let rule =
+            |r: &str| Config::from_overrides(&[("parameter_changes".into(), r.into())]).unwrap();
+        let lower = |c: &Config| change(c, &[("stop_distance", "0.05")]).unwrap();
+        let raise = |c: &Config| change(c, &[("stop_distance", "0.2")]).unwrap();
+        // open: lowered while the stop is clear, refused while it is raised.
+        let c = rule("open");
+        assert!(c.admits(&lower(&c), false, &[]).is_ok());
+        let e = c.admits(&lower(&c), true, &[]).unwrap_err();
+        assert!(e.contains("while the safety stop is raised"), "{e}");
+        // strengthen_only: refused at any time; raising is taken.
+        let c = rule("strengthen_only");
+        let e = c.admits(&lower(&c), false, &[]).unwrap_err();
+        assert!(
+            e.contains("strengthen_only") && e.contains("stop_distance"),
+            "{e}"
+        );
+        assert!(c.admits(&raise(&c), false, &[]).is_ok());
+        // none: every change refused, raising too.
+        let c = rule("none");
+        let e = c.admits(&raise(&c), false, &[]).unwrap_err();
+        assert!(e.contains("parameter_changes is none"), "{e}");
+        // It is set at start, never at run time.
+        let c = rule("none");
+        assert!(change(&c, &[("parameter_changes", "open")]).is_err());
+        assert!(Config::from_overrides(&[("parameter_changes".into(), "some".into())]).is_err());
     }
 }

@@ -50,6 +50,16 @@ pub enum Fault {
     /// yet (stamps cannot be checked against it).
     #[error("clock: {0}")]
     Clock(String),
+    /// More than one writer on the source's topic within `second_publisher_window`: which
+    /// one's frame is the scene is unknown, so neither is taken.
+    #[error(
+        "more than one publisher on {topic}: writers {writers} (second_publisher_window {window_s} s)"
+    )]
+    SecondPublisher {
+        topic: String,
+        writers: String,
+        window_s: f64,
+    },
     #[error("source {source_name}: {what} for {silent_s:.2} s (source_timeout {timeout_s} s)")]
     SourceTimeout {
         source_name: String,
@@ -64,8 +74,10 @@ impl Fault {
     pub fn kind(&self) -> &'static str {
         match self {
             Fault::Decode(_) => "decode",
+            Fault::Joints(JointError::SecondPublisher { .. }) => "second_publisher",
             Fault::Joints(JointError::Stale { .. }) => "stale_joint_state",
             Fault::Joints(_) => "joint_state",
+            Fault::Tf(TfError::SecondPublisher { .. }) => "second_publisher",
             Fault::Tf(TfError::Stale { .. }) => "stale_tf",
             Fault::Tf(_) => "tf",
             Fault::Query(_) => "query",
@@ -78,6 +90,7 @@ impl Fault {
             Fault::SourceTimeout { .. } => "stale_source",
             Fault::Clock(_) => "clock",
             Fault::ExclusionFrame { .. } => "exclusion_tf",
+            Fault::SecondPublisher { .. } => "second_publisher",
         }
     }
 }

@@ -17,7 +17,7 @@ use nalgebra::Isometry3;
 use crate::cloud::depth;
 use crate::cloud::exclusion::{self, ExclusionVolume};
 use crate::cloud::RangeLimits;
-use crate::msg::{Image, PointCloud2};
+use crate::msg::{Image, PointCloud2, Writer};
 use crate::query::{Outcome, QueryResult};
 use crate::separation::{self, SpeedScaling};
 use crate::tf;
@@ -171,6 +171,14 @@ impl Monitor {
     fn check_stamp(&self, source: usize, stamp_ns: i64, now_ns: Option<i64>) -> Result<(), Fault> {
         if stamp_ns == 0 {
             return Err(Fault::NoStamp);
+        }
+        let window_s = self.config.second_publisher_window_s;
+        if let Err(writers) = self.sources[source].one_voice(stamp_ns, window_s) {
+            return Err(Fault::SecondPublisher {
+                topic: self.config.sources[source].topic.clone(),
+                writers: Writer::list(&writers),
+                window_s,
+            });
         }
         let Some(now_ns) = now_ns else {
             return Ok(());

@@ -11,7 +11,7 @@ use std::time::Instant;
 use crate::cloud::depth::PinholeCamera;
 use crate::cloud::CloudError;
 use crate::config::Config;
-use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
+use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage, Writer};
 use crate::query::{Backend, Engine, QueryResult};
 use crate::robot::RobotModel;
 use crate::separation::{SpeedScaler, SpeedScaling};
@@ -133,11 +133,23 @@ impl Monitor {
         (self.fused.level() == Level::Error, in_fault)
     }
 
-    /// Adds a `tf2_msgs/TFMessage` from `/tf` or (`is_static`) `/tf_static`.
+    /// Adds a `tf2_msgs/TFMessage` from `/tf` or (`is_static`) `/tf_static`, of no known
+    /// writer (a bag's).
     pub fn on_tf(&mut self, topic: &str, m: &TfMessage, is_static: bool) -> Result<(), InputError> {
+        self.on_tf_from(topic, m, is_static, Writer::UNKNOWN)
+    }
+
+    /// The same, written by `writer` (one authority per frame: `crate::tf`).
+    pub fn on_tf_from(
+        &mut self,
+        topic: &str,
+        m: &TfMessage,
+        is_static: bool,
+        writer: Writer,
+    ) -> Result<(), InputError> {
         for t in &m.transforms {
             self.tf
-                .insert(t, is_static)
+                .insert_from(t, is_static, writer)
                 .map_err(|source| InputError::Tf {
                     topic: topic.into(),
                     source,
@@ -146,12 +158,30 @@ impl Monitor {
         Ok(())
     }
 
-    /// Adds a `sensor_msgs/JointState`.
+    /// Adds a `sensor_msgs/JointState` of no known writer (a bag's).
     pub fn on_joint_state(&mut self, topic: &str, m: &JointState) -> Result<(), InputError> {
-        self.joints.insert(m).map_err(|source| InputError::Joints {
-            topic: topic.into(),
-            source,
-        })
+        self.on_joint_state_from(topic, m, Writer::UNKNOWN)
+    }
+
+    /// The same, published by `writer` (one voice per joint: `crate::tf::joints`).
+    pub fn on_joint_state_from(
+        &mut self,
+        topic: &str,
+        m: &JointState,
+        writer: Writer,
+    ) -> Result<(), InputError> {
+        self.joints
+            .insert_from(m, writer)
+            .map_err(|source| InputError::Joints {
+                topic: topic.into(),
+                source,
+            })
+    }
+
+    /// Source `source`'s topic had a message from `writer` stamped `stamp_ns` (every message
+    /// received, before the newest is processed: one voice per source, [`Source::hear_writer`]).
+    pub fn hear_writer(&mut self, source: usize, writer: Writer, stamp_ns: i64) {
+        self.sources[source].hear_writer(writer, stamp_ns);
     }
 
     /// Which source, if any, publishes on `topic`.

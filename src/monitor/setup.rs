@@ -195,6 +195,7 @@ impl Monitor {
         model: &RobotModel,
     ) -> Result<(TfBuffer, JointStateBuffer), MonitorError> {
         let mut tf = TfBuffer::new(10.0);
+        tf.set_voice_window(config.second_publisher_window_s);
         for t in &config.static_transforms {
             tf.insert(t, true)
                 .map_err(|source| MonitorError::StaticTransform {
@@ -204,6 +205,7 @@ impl Monitor {
                 })?;
         }
         let mut joints = JointStateBuffer::new(model.kinematics.variables());
+        joints.set_voice_window(config.second_publisher_window_s);
         joints
             .set_fixed(&config.fixed_joint_state)
             .map_err(MonitorError::FixedJoint)?;

@@ -8,10 +8,16 @@
 //! fault, when nothing was received from it yet, or when its latest result is older than its
 //! `source_timeout` by the clock of the frame being fused. A silent source is reported as a
 //! fault every half `source_timeout` while its silence lasts (`Source::silence`).
+//!
+//! A source has **one voice**: the writers of its topic, each with the newest stamp it gave
+//! ([`Voices`]). A frame stamped within `second_publisher_window` of a second writer's newest
+//! stamp is the fault `second_publisher` naming both (`Source::one_voice`), whichever of them sent
+//! it: the fused rule keeps one latest result per source, so two writers would otherwise take
+//! turns deciding the stop.
 
 use crate::cloud::depth::PinholeCamera;
 use crate::config::{Config, SourceConfig};
-use crate::msg::DiagnosticStatus;
+use crate::msg::{DiagnosticStatus, Voices, Writer};
 use crate::query::QueryResult;
 use crate::unseen::RangeView;
 
@@ -33,6 +39,8 @@ pub struct Source {
     /// and whenever its latest frame is gone or was a fault.
     view: Option<Result<RangeView, String>>,
     watch: Watch,
+    /// Who wrote its messages.
+    voices: Voices,
 }
 
 /// A source's latest frame.
@@ -97,6 +105,21 @@ impl Source {
             camera: None,
             view: None,
             watch: Watch::default(),
+            voices: Voices::default(),
+        }
+    }
+
+    /// `writer` sent a message stamped `stamp_ns` (each one received, also those the node's
+    /// slot dropped for a newer one).
+    pub fn hear_writer(&mut self, writer: Writer, stamp_ns: i64) {
+        self.voices.hear(writer, stamp_ns);
+    }
+
+    /// The writers heard at `stamp_ns` when there are two or more (see the module doc).
+    pub fn one_voice(&self, stamp_ns: i64, window_s: f64) -> Result<(), Vec<Writer>> {
+        match self.voices.conflict(stamp_ns, (window_s * 1e9) as i64) {
+            None => Ok(()),
+            Some(writers) => Err(writers),
         }
     }
 
@@ -212,6 +235,7 @@ impl Source {
     pub fn take_inputs(&mut self, old: &mut Source) {
         std::mem::swap(&mut self.camera, &mut old.camera);
         std::mem::swap(&mut self.watch, &mut old.watch);
+        std::mem::swap(&mut self.voices, &mut old.voices);
     }
 
     /// Enabled at `now_ns`: not heard from yet, its silence counted from now.
@@ -233,6 +257,7 @@ impl Source {
         self.view = None;
         self.watch.since_ns = now_ns;
         self.watch.last_report_ns = None;
+        self.voices.forget();
     }
 
     /// A message arrived: what it ends, where the node says so (its first, or the first after

@@ -16,7 +16,8 @@
 //!
 //! Files: one per message package (`builtin`, `geometry`, `sensor`, `visualization`,
 //! `diagnostic`, `control`), `message` (the trait each states), `cdr` (payloads), `owned` (whole
-//! messages, decoded in place), `definition` (schemas) and `type_hash` (REP-2016 hashes).
+//! messages, decoded in place), `definition` (schemas), `type_hash` (REP-2016 hashes) and
+//! `writer` (who wrote a message: one voice per input).
 
 mod builtin;
 mod cdr;
@@ -29,6 +30,7 @@ mod owned;
 mod sensor;
 mod type_hash;
 mod visualization;
+mod writer;
 
 pub use builtin::*;
 pub use cdr::{decode, encode, MsgError};
@@ -41,3 +43,4 @@ pub use owned::{decode_owned, Owned, OwnedMessage};
 pub use sensor::*;
 pub use type_hash::{hashed_description, service_hash, type_hash};
 pub use visualization::*;
+pub use writer::{Voices, Writer, MAX_WRITERS};

@@ -1,6 +1,8 @@
 //! The node's inputs on their way to the processing thread: each source's newest message in its
 //! slot (an older unprocessed one, and a gap in a writer's sequence numbers, count as dropped),
-//! and TF, joint states and camera info forwarded in order through a channel.
+//! and TF, joint states and camera info forwarded in order through a channel. Each message goes
+//! with its writer's GID ([`Writer`]); a source's slot also collects the writers of every message
+//! it received, the dropped ones too, for the monitor's one-voice rule (`crate::msg::Voices`).
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -10,8 +12,14 @@ use std::time::Instant;
 use super::clock::NodeClock;
 use super::error::{lock, Result};
 use super::transport::RosNode;
-use crate::msg::{Image, OwnedMessage, PointCloud2};
+use crate::msg::{Image, OwnedMessage, PointCloud2, Writer, MAX_WRITERS};
 use ros2_client::qos::QosProfile;
+use ros2_client::MessageInfo;
+
+/// The writer of a message, from what the transport said of it.
+pub(super) fn writer_of(info: &MessageInfo) -> Writer {
+    Writer(info.publisher_gid().to_bytes16())
+}
 
 /// Samples lost before they reached the reader, from the gaps in sequence numbers. Each writer
 /// numbers its own samples, so two publishers on one topic are followed separately.
@@ -44,6 +52,14 @@ pub(super) enum SourceMessage {
 }
 
 impl SourceMessage {
+    /// Its stamp, ns since the epoch.
+    pub(super) fn stamp_ns(&self) -> i64 {
+        match self {
+            Self::Cloud(c) => c.header.stamp.as_nanos(),
+            Self::Depth(i) => i.header.stamp.as_nanos(),
+        }
+    }
+
     /// Width, height, frame and bytes of data.
     pub(super) fn describe(&self) -> (u32, u32, &str, usize) {
         match self {
@@ -60,6 +76,21 @@ pub(super) struct Slot {
     pub(super) cloud: Option<(SourceMessage, Instant, i64)>,
     /// When the last one was received, by the node's monotonic clock (`NodeClock`).
     pub(super) last_received: Option<i64>,
+    /// The writers of the messages received since the monitor last took them, each with the
+    /// newest stamp it gave (at most [`MAX_WRITERS`]).
+    pub(super) writers: Vec<(Writer, i64)>,
+}
+
+impl Slot {
+    /// `writer` sent a message stamped `stamp_ns`.
+    fn heard(&mut self, writer: Writer, stamp_ns: i64) {
+        if let Some(h) = self.writers.iter_mut().find(|(w, _)| *w == writer) {
+            h.1 = h.1.max(stamp_ns);
+        } else if self.writers.len() < MAX_WRITERS {
+            self.writers.push((writer, stamp_ns));
+        }
+        // (More writers than the monitor keeps: the conflict is plain already.)
+    }
 }
 
 /// Subscribes to source `k`'s messages of type `T`: each replaces the slot's unprocessed one
@@ -82,8 +113,10 @@ pub(super) fn source_task<T: OwnedMessage>(
                 shared.dropped.fetch_add(lost, Ordering::Relaxed);
                 let now = Instant::now();
                 let clock_ns = shared.clock.now_ns();
+                let message = wrap(m);
                 let mut slot = lock(&shared.slots[k]);
-                if slot.cloud.replace((wrap(m), now, clock_ns)).is_some() {
+                slot.heard(writer_of(&info), message.stamp_ns());
+                if slot.cloud.replace((message, now, clock_ns)).is_some() {
                     shared.dropped.fetch_add(1, Ordering::Relaxed);
                 }
                 slot.last_received = Some(shared.clock.monotonic_ns());
@@ -100,8 +133,8 @@ pub(super) fn source_task<T: OwnedMessage>(
     })
 }
 
-/// Forwards each message on `topic`, as `wrap` makes it, to `tx` (the processing thread); a
-/// message that fails to decode is counted and skipped.
+/// Forwards each message on `topic` with its writer, as `wrap` makes it, to `tx` (the
+/// processing thread); a message that fails to decode is counted and skipped.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn forward<T: OwnedMessage, U: Send + 'static>(
     node: &mut RosNode,
@@ -110,12 +143,12 @@ pub(super) fn forward<T: OwnedMessage, U: Send + 'static>(
     executor: &smol::Executor<'static>,
     what: &'static str,
     tx: std::sync::mpsc::Sender<U>,
-    wrap: impl Fn(T) -> U + Send + 'static,
+    wrap: impl Fn(T, Writer) -> U + Send + 'static,
     shared: &Arc<Shared>,
 ) -> Result<smol::Task<()>> {
     let shared = shared.clone();
     node.subscribe::<T>(topic, qos, false, executor, move |item| match item {
-        Ok((m, _)) => tx.send(wrap(m)).is_ok(),
+        Ok((m, info)) => tx.send(wrap(m, writer_of(&info))).is_ok(),
         Err(e) => {
             log::warn!("{what}: {e}");
             shared.input_errors.fetch_add(1, Ordering::Relaxed);

@@ -36,7 +36,7 @@ use super::transport::{RosNode, Transport};
 use super::up::log_up;
 use crate::config::{Config, SourceConfig, SourceKind};
 use crate::monitor::{Heard, Monitor, Outputs};
-use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage};
+use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage, Writer};
 use ros2_client::qos::{History, QosProfile};
 
 /// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
@@ -123,8 +123,8 @@ struct Wiring<'a> {
 /// TF, joint states and depth sources' CameraInfo, in queues the processing thread drains
 /// (they are small; the monitor is owned by that thread).
 struct Inputs {
-    tf: Receiver<(TfMessage, bool)>,
-    joints: Receiver<JointState>,
+    tf: Receiver<(TfMessage, bool, Writer)>,
+    joints: Receiver<(JointState, Writer)>,
     camera_info: Receiver<(usize, CameraInfo)>,
 }
 
@@ -139,8 +139,8 @@ impl Wiring<'_> {
         camera_info: Receiver<(usize, CameraInfo)>,
     ) -> Result<(Inputs, Vec<Vec<smol::Task<()>>>)> {
         let config = self.config;
-        let (tf_tx, tf) = std::sync::mpsc::channel::<(TfMessage, bool)>();
-        let (js_tx, joints) = std::sync::mpsc::channel::<JointState>();
+        let (tf_tx, tf) = std::sync::mpsc::channel::<(TfMessage, bool, Writer)>();
+        let (js_tx, joints) = std::sync::mpsc::channel::<(JointState, Writer)>();
         // Each source's subscriptions, made while it is enabled (also when it is enabled at run
         // time), dropped when it is disabled.
         let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
@@ -165,7 +165,7 @@ impl Wiring<'_> {
                 self.executor,
                 name,
                 tf_tx.clone(),
-                move |m: TfMessage| (m, is_static),
+                move |m: TfMessage, w| (m, is_static, w),
                 &self.shared,
             )?);
         }
@@ -179,7 +179,7 @@ impl Wiring<'_> {
             self.executor,
             "joint states",
             js_tx,
-            |m: JointState| m,
+            |m: JointState, w| (m, w),
             &self.shared,
         )?);
         let inputs = Inputs {
@@ -235,7 +235,7 @@ impl Wiring<'_> {
                     executor,
                     "camera info",
                     self.info.clone(),
-                    move |m: CameraInfo| (k, m),
+                    move |m: CameraInfo, _| (k, m),
                     shared,
                 )?);
             }
@@ -317,16 +317,16 @@ impl Serving<'_> {
             log::warn!("{e}");
             (self.wiring.shared.input_errors).fetch_add(1, Ordering::Relaxed);
         };
-        while let Ok((m, is_static)) = self.inputs.tf.try_recv() {
+        while let Ok((m, is_static, w)) = self.inputs.tf.try_recv() {
             let topic = if is_static { "/tf_static" } else { "/tf" };
-            monitor.on_tf(topic, &m, is_static).unwrap_or_else(refused);
+            (monitor.on_tf_from(topic, &m, is_static, w)).unwrap_or_else(refused);
         }
         while let Ok((k, m)) = self.inputs.camera_info.try_recv() {
             monitor.on_camera_info(k, &m).unwrap_or_else(refused);
         }
         let topic = &self.wiring.config.joint_states_topic;
-        while let Ok(m) = self.inputs.joints.try_recv() {
-            monitor.on_joint_state(topic, &m).unwrap_or_else(refused);
+        while let Ok((m, w)) = self.inputs.joints.try_recv() {
+            (monitor.on_joint_state_from(topic, &m, w)).unwrap_or_else(refused);
         }
     }
 
@@ -450,10 +450,14 @@ impl Serving<'_> {
             .enumerate()
             .filter(|(k, _)| enabled[*k])
         {
-            let (message, last) = {
+            let (message, last, writers) = {
                 let mut slot = lock(&self.wiring.shared.slots[k]);
-                (slot.cloud.take(), slot.last_received)
+                let writers = std::mem::take(&mut slot.writers);
+                (slot.cloud.take(), slot.last_received, writers)
             };
+            for (writer, stamp_ns) in writers {
+                monitor.hear_writer(k, writer, stamp_ns);
+            }
             if let Some((message, received, clock_ns)) = message {
                 self.frame(monitor, k, s, &message, received, clock_ns);
                 continue;

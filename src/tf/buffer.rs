@@ -3,13 +3,22 @@
 //! stamp (each edge interpolated, or its nearest sample within the tolerance). Input: `/tf`,
 //! `/tf_static` and the config's static transforms; output: poses or a [`TfError`] naming the
 //! edge.
+//!
+//! **One authority per frame.** Each edge keeps who wrote it ([`Voices`], by the messages'
+//! stamps): two writers of one dynamic frame within the voice window of a lookup's stamp, a
+//! static frame given two different values by two writers, or a frame one writer calls static
+//! and another dynamic, is [`TfError::SecondPublisher`] on every lookup through that edge — the
+//! dynamic conflict until one writer has been alone for the window, the static one for as long as
+//! the buffer lives (a static value, once contested, cannot be trusted again without a restart).
+//! A static frame restated with the same value by a new writer (a restarted
+//! robot_state_publisher) is no conflict.
 
 use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Translation3};
 
 use super::history::{History, Miss};
-use crate::msg::TransformStamped;
+use crate::msg::{TransformStamped, Voices, Writer};
 
 /// Longest chain of frames walked; deeper is taken for a loop.
 const MAX_DEPTH: usize = 64;
@@ -45,6 +54,12 @@ pub enum TfError {
         oldest_s: f64,
         stamp_s: f64,
     },
+    #[error("frame {child} has more than one authority: {what} by writers {writers}")]
+    SecondPublisher {
+        child: String,
+        what: &'static str,
+        writers: String,
+    },
 }
 
 #[derive(Debug, Clone)]
@@ -53,6 +68,12 @@ struct Edge {
     is_static: bool,
     /// `parent_from_child` over time.
     samples: History<Isometry3<f64>>,
+    /// Who wrote it dynamically (`/tf`), by stamp.
+    voices: Voices,
+    /// Who wrote it statically, with the value each gave.
+    statics: Vec<(Writer, Isometry3<f64>)>,
+    /// A conflict that holds for the buffer's life: what it was, and the writers.
+    contested: Option<(&'static str, Vec<Writer>)>,
 }
 
 /// A TF buffer: the frame tree with a history per edge.
@@ -60,7 +81,12 @@ struct Edge {
 pub struct TfBuffer {
     edges: HashMap<String, Edge>,
     cache_ns: i64,
+    /// Two writers of one dynamic frame within this of a lookup's stamp are a conflict.
+    voice_window_ns: i64,
 }
+
+/// The default voice window, s (the config's `second_publisher_window`).
+pub const VOICE_WINDOW_S: f64 = 1.0;
 
 pub(super) fn strip(frame: &str) -> &str {
     frame.strip_prefix('/').unwrap_or(frame)
@@ -79,22 +105,85 @@ pub fn interpolate(a: &Isometry3<f64>, b: &Isometry3<f64>, s: f64) -> Isometry3<
     )
 }
 
+impl Edge {
+    /// Notes `writer`'s statement (see the module doc for what contests an edge).
+    fn hear(&mut self, writer: Writer, stamp_ns: i64, is_static: bool, pose: &Isometry3<f64>) {
+        if self.contested.is_some() {
+            return;
+        }
+        let other = |w: &Writer| *w != writer;
+        if is_static {
+            let differs = |p: &Isometry3<f64>| {
+                (p.translation.vector - pose.translation.vector).norm() > 1e-9
+                    || p.rotation.angle_to(&pose.rotation) > 1e-9
+            };
+            let by = (self.statics.iter()).find(|(w, p)| other(w) && differs(p));
+            if let Some((w, _)) = by {
+                self.contested = Some(("two static values", vec![*w, writer]));
+            } else if let Some(w) = self.voices.writers().find(other) {
+                self.contested = Some(("static and dynamic", vec![w, writer]));
+            }
+            self.statics.retain(|(w, _)| other(w));
+            self.statics.push((writer, *pose));
+        } else {
+            if let Some((w, _)) = self.statics.iter().find(|(w, _)| other(w)) {
+                self.contested = Some(("static and dynamic", vec![*w, writer]));
+            }
+            self.voices.hear(writer, stamp_ns);
+        }
+    }
+
+    /// The conflict that stops a lookup at `stamp_ns` (`None`: the newest sample's stamp).
+    fn conflict(
+        &self,
+        stamp_ns: Option<i64>,
+        window_ns: i64,
+    ) -> Option<(&'static str, Vec<Writer>)> {
+        if let Some(c) = &self.contested {
+            return Some(c.clone());
+        }
+        if self.is_static {
+            return None;
+        }
+        let at = stamp_ns.or_else(|| self.samples.newest_stamp())?;
+        (self.voices.conflict(at, window_ns)).map(|w| ("two dynamic writers", w))
+    }
+}
+
 impl TfBuffer {
     /// A buffer keeping `cache_s` seconds of history per dynamic edge.
     pub fn new(cache_s: f64) -> Self {
         Self {
             edges: HashMap::new(),
             cache_ns: (cache_s * 1e9) as i64,
+            voice_window_ns: (VOICE_WINDOW_S * 1e9) as i64,
         }
     }
 
-    /// Forgets the dynamic transforms (`/tf`), keeping the static ones.
-    pub fn forget_dynamic(&mut self) {
-        self.edges.retain(|_, e| e.is_static);
+    /// Two writers of one dynamic frame within `window_s` of a stamp are a conflict.
+    pub fn set_voice_window(&mut self, window_s: f64) {
+        self.voice_window_ns = (window_s * 1e9) as i64;
     }
 
-    /// Adds one transform (`header.frame_id` the parent, `parent_from_child`).
+    /// Forgets the dynamic transforms (`/tf`) and who wrote them, keeping the static ones.
+    pub fn forget_dynamic(&mut self) {
+        self.edges.retain(|_, e| e.is_static);
+        self.edges.values_mut().for_each(|e| e.voices.forget());
+    }
+
+    /// Adds one transform (`header.frame_id` the parent, `parent_from_child`) of no known
+    /// writer (a bag's, the config's).
     pub fn insert(&mut self, t: &TransformStamped, is_static: bool) -> Result<(), TfError> {
+        self.insert_from(t, is_static, Writer::UNKNOWN)
+    }
+
+    /// Adds one transform written by `writer`.
+    pub fn insert_from(
+        &mut self,
+        t: &TransformStamped,
+        is_static: bool,
+        writer: Writer,
+    ) -> Result<(), TfError> {
         let parent = strip(&t.header.frame_id);
         let child = strip(&t.child_frame_id);
         if parent.is_empty() || child.is_empty() || parent == child {
@@ -114,7 +203,11 @@ impl TfBuffer {
             parent: parent.to_owned(),
             is_static,
             samples: History::default(),
+            voices: Voices::default(),
+            statics: Vec::new(),
+            contested: None,
         });
+        edge.hear(writer, stamp, is_static, &pose);
         if edge.parent != parent || edge.is_static != is_static {
             // Re-parented, or turned static/dynamic: the new statement replaces the old.
             edge.parent = parent.to_owned();
@@ -136,9 +229,16 @@ impl TfBuffer {
         tolerance_ns: i64,
     ) -> Result<Isometry3<f64>, TfError> {
         let edge = &self.edges[child];
+        let names = || (edge.parent.clone(), child.to_owned());
+        if let Some((what, writers)) = edge.conflict(stamp_ns, self.voice_window_ns) {
+            return Err(TfError::SecondPublisher {
+                child: child.to_owned(),
+                what,
+                writers: Writer::list(&writers),
+            });
+        }
         let stamp_ns = stamp_ns.filter(|_| !edge.is_static);
         let sampled = edge.samples.sample(stamp_ns, tolerance_ns, interpolate);
-        let names = || (edge.parent.clone(), child.to_owned());
         match sampled.expect("edges are created with a sample") {
             Ok(pose) => Ok(pose),
             Err(Miss::Stale { newest_ns }) => {
@@ -345,5 +445,84 @@ pub(super) mod tests {
         assert!(tf.edges["b"].samples.len() <= 12);
         let e = tf.lookup("w", "b", Some(0), 0.0).unwrap_err();
         assert!(matches!(e, TfError::TooOld { .. }));
+    }
+
+    #[test]
+    fn one_frame_from_two_authorities_is_refused_while_both_are_heard() {
+        let (a, b) = (Writer([1; 16]), Writer([2; 16]));
+        let s = 1_000_000_000;
+        let mut tf = TfBuffer::new(10.0);
+        tf.set_voice_window(0.5);
+        tf.insert_from(&ts("w", "cam", s, pose(1.0, 0.0)), false, a)
+            .unwrap();
+        assert!(tf.lookup("w", "cam", Some(s), 0.1).is_ok());
+        // A second writer of the same frame, 3 m away: no lookup takes either value.
+        tf.insert_from(&ts("w", "cam", s + 50_000_000, pose(4.0, 0.0)), false, b)
+            .unwrap();
+        let e = tf
+            .lookup("w", "cam", Some(s + 50_000_000), 0.1)
+            .unwrap_err();
+        assert!(
+            matches!(&e, TfError::SecondPublisher { child, .. } if child == "cam"),
+            "{e}"
+        );
+        assert!(e.to_string().contains(&b.to_string()), "{e}");
+        assert!(tf.lookup("w", "cam", None, 0.1).is_err());
+        // b falls silent: once a has been alone for the window, a's transforms are taken again.
+        let later = s + 700_000_000;
+        tf.insert_from(&ts("w", "cam", later, pose(1.0, 0.0)), false, a)
+            .unwrap();
+        let p = tf.lookup("w", "cam", Some(later), 0.1).unwrap();
+        assert!((p.translation.x - 1.0).abs() < 1e-12);
+        // Other frames are not touched by a conflict on one.
+        tf.insert_from(&ts("w", "other", s, pose(0.0, 0.0)), false, a)
+            .unwrap();
+        tf.insert_from(&ts("w", "other", s, pose(0.0, 0.0)), false, b)
+            .unwrap();
+        assert!(tf.lookup("w", "cam", Some(later), 0.1).is_ok());
+        assert!(tf.lookup("w", "other", Some(s), 0.1).is_err());
+    }
+
+    #[test]
+    fn a_static_frame_contested_stays_refused_and_a_restated_one_does_not() {
+        let (a, b, c) = (Writer([1; 16]), Writer([2; 16]), Writer([3; 16]));
+        let mut tf = TfBuffer::new(10.0);
+        tf.insert_from(&ts("w", "cam", 0, pose(1.0, 0.2)), true, a)
+            .unwrap();
+        // The same value from a new writer (a restarted publisher): no conflict.
+        tf.insert_from(&ts("w", "cam", 5, pose(1.0, 0.2)), true, b)
+            .unwrap();
+        assert!(tf.lookup("w", "cam", Some(0), 0.0).is_ok());
+        // Another value from another writer: refused for good, whatever comes after.
+        tf.insert_from(&ts("w", "cam", 9, pose(2.0, 0.2)), true, c)
+            .unwrap();
+        let e = tf.lookup("w", "cam", Some(0), 0.0).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                TfError::SecondPublisher {
+                    what: "two static values",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        tf.insert_from(&ts("w", "cam", 10, pose(1.0, 0.2)), true, a)
+            .unwrap();
+        tf.forget_dynamic();
+        assert!(tf.lookup("w", "cam", Some(10_000_000_000), 0.0).is_err());
+        // A frame one writer states static and another publishes on /tf.
+        tf.insert_from(&ts("w", "lidar", 0, pose(0.5, 0.0)), true, a)
+            .unwrap();
+        tf.insert_from(&ts("w", "lidar", 1, pose(0.5, 0.0)), false, b)
+            .unwrap();
+        assert!(tf.lookup("w", "lidar", Some(1), 0.1).is_err());
+        // The same writer changing its own static value is no conflict (a new calibration).
+        tf.insert_from(&ts("w", "imu", 0, pose(0.1, 0.0)), true, a)
+            .unwrap();
+        tf.insert_from(&ts("w", "imu", 0, pose(0.2, 0.0)), true, a)
+            .unwrap();
+        let p = tf.lookup("w", "imu", None, 0.0).unwrap();
+        assert!((p.translation.x - 0.2).abs() < 1e-12);
     }
 }

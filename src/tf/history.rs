@@ -30,6 +30,11 @@ impl<T: Clone> History<T> {
     pub fn len(&self) -> usize {
         self.samples.len()
     }
+    /// The newest sample's stamp.
+    pub fn newest_stamp(&self) -> Option<i64> {
+        self.samples.back().map(|s| s.0)
+    }
+
     pub fn clear(&mut self) {
         self.samples.clear();
     }

@@ -16,8 +16,14 @@
 //! is stated ([`VelocitySource`]). A joint with neither is an error naming it, never a zero.
 //! Non-finite velocities (some drivers publish NaN for joints without a sensor) count as not
 //! given.
+//!
+//! **One voice per joint.** Each joint keeps who published it ([`Voices`], by stamp): two
+//! writers of one joint within the voice window of the stamp looked up (a second
+//! `joint_state_publisher`, a simulator left running beside the driver) is
+//! [`JointError::SecondPublisher`] naming the joint and the writers, until one of them has been
+//! alone for the window. Joints only one writer publishes may come from several messages.
 
-use crate::msg::JointState;
+use crate::msg::{JointState, Voices, Writer};
 
 use super::history::{History, Miss};
 
@@ -47,6 +53,8 @@ pub enum JointError {
     NotInRobot(String),
     #[error("JointState: {names} names but {velocities} velocities (empty or one per name)")]
     VelocityLengths { names: usize, velocities: usize },
+    #[error("joint {joint}: published by more than one writer: {writers}")]
+    SecondPublisher { joint: String, writers: String },
     #[error(
         "joint {0}: no velocity: the joint states carry none, and there are not two positions \
          within joint_state_tolerance to differentiate"
@@ -84,6 +92,10 @@ pub struct JointStateBuffer {
     /// Per variable, the velocities the messages gave.
     velocities: Vec<History<f64>>,
     fixed: Vec<Option<f64>>,
+    /// Per variable, who published it.
+    voices: Vec<Voices>,
+    /// Two writers of one joint within this of a stamp are a conflict.
+    voice_window_ns: i64,
 }
 
 impl JointStateBuffer {
@@ -94,6 +106,28 @@ impl JointStateBuffer {
             samples: vec![History::default(); variables.len()],
             velocities: vec![History::default(); variables.len()],
             fixed: vec![None; variables.len()],
+            voices: vec![Voices::default(); variables.len()],
+            voice_window_ns: (crate::tf::VOICE_WINDOW_S * 1e9) as i64,
+        }
+    }
+
+    /// Two writers of one joint within `window_s` of a stamp are a conflict.
+    pub fn set_voice_window(&mut self, window_s: f64) {
+        self.voice_window_ns = (window_s * 1e9) as i64;
+    }
+
+    /// Joint `i`'s writers at `stamp_ns` (`None`: its newest sample's), an error when two
+    /// are heard.
+    fn one_voice(&self, i: usize, stamp_ns: Option<i64>) -> Result<(), JointError> {
+        let Some(at) = stamp_ns.or_else(|| self.samples[i].newest_stamp()) else {
+            return Ok(());
+        };
+        match self.voices[i].conflict(at, self.voice_window_ns) {
+            None => Ok(()),
+            Some(writers) => Err(JointError::SecondPublisher {
+                joint: self.variables[i].clone(),
+                writers: Writer::list(&writers),
+            }),
         }
     }
 
@@ -114,11 +148,17 @@ impl JointStateBuffer {
     pub fn forget(&mut self) {
         self.samples.iter_mut().for_each(History::clear);
         self.velocities.iter_mut().for_each(History::clear);
+        self.voices.iter_mut().for_each(Voices::forget);
     }
 
-    /// Adds a message. The whole message is refused when its lengths disagree or a position of
-    /// a known joint is not finite.
+    /// Adds a message of no known writer (a bag's). The whole message is refused when its
+    /// lengths disagree or a position of a known joint is not finite.
     pub fn insert(&mut self, m: &JointState) -> Result<(), JointError> {
+        self.insert_from(m, Writer::UNKNOWN)
+    }
+
+    /// Adds a message published by `writer` (as [`JointStateBuffer::insert`]).
+    pub fn insert_from(&mut self, m: &JointState, writer: Writer) -> Result<(), JointError> {
         if m.name.len() != m.position.len() {
             return Err(JointError::Lengths {
                 names: m.name.len(),
@@ -143,6 +183,7 @@ impl JointStateBuffer {
         }
         for (i, p) in known {
             self.samples[i].insert(stamp, p, i64::MAX, MAX_SAMPLES);
+            self.voices[i].hear(writer, stamp);
         }
         for (n, &v) in m.name.iter().zip(&m.velocity) {
             if let Some(i) = self.variables.iter().position(|x| x == n) {
@@ -167,6 +208,7 @@ impl JointStateBuffer {
         let (mut given, mut derived) = (0, 0);
         let mut q_dot = Vec::with_capacity(self.variables.len());
         for i in 0..self.variables.len() {
+            self.one_voice(i, stamp_ns)?;
             let v = if let Some(Ok(v)) = self.velocities[i].sample(stamp_ns, tolerance_ns, lerp) {
                 given += 1;
                 v
@@ -197,6 +239,7 @@ impl JointStateBuffer {
         (0..self.variables.len())
             .map(|i| {
                 let joint = || self.variables[i].clone();
+                self.one_voice(i, stamp_ns)?;
                 let lerp = |a: &f64, b: &f64, w: f64| a + w * (b - a);
                 match self.samples[i].sample(stamp_ns, tolerance_ns, lerp) {
                     None => self.fixed[i].ok_or_else(|| JointError::Missing(joint())),
@@ -322,5 +365,39 @@ mod tests {
             Err(JointError::NonFinite(_))
         ));
         assert!(matches!(buf.at(None, 0.1), Err(JointError::Missing(_))));
+    }
+
+    #[test]
+    fn a_joint_from_two_writers_is_an_error_until_one_is_alone_for_the_window() {
+        let vars = vec!["a".to_string(), "b".to_string()];
+        let mut buf = JointStateBuffer::new(&vars);
+        buf.set_voice_window(0.5);
+        let (w1, w2) = (Writer([1; 16]), Writer([2; 16]));
+        // Two writers of different joints combine.
+        buf.insert_from(&js(0, &["a"], &[1.0]), w1).unwrap();
+        buf.insert_from(&js(0, &["b"], &[2.0]), w2).unwrap();
+        assert_eq!(buf.at(Some(0), 0.1).unwrap(), vec![1.0, 2.0]);
+        // A second writer of joint a.
+        buf.insert_from(&js(10_000_000, &["a", "b"], &[0.0, 2.0]), w1)
+            .unwrap();
+        buf.insert_from(&js(20_000_000, &["a"], &[1.5]), w2)
+            .unwrap();
+        let e = buf.at(Some(20_000_000), 0.1).unwrap_err();
+        assert!(
+            matches!(&e, JointError::SecondPublisher { joint, .. } if joint == "a"),
+            "{e}"
+        );
+        assert!(buf.velocities_at(Some(20_000_000), 0.1).is_err());
+        assert!(buf.at(None, 0.1).is_err());
+        // w2 falls silent; w1 alone for the window: its values are taken again.
+        buf.insert_from(&js(600_000_000, &["a", "b"], &[0.3, 2.0]), w1)
+            .unwrap();
+        assert_eq!(buf.at(Some(600_000_000), 0.1).unwrap(), vec![0.3, 2.0]);
+        buf.insert_from(&js(610_000_000, &["a"], &[0.4]), w2)
+            .unwrap();
+        buf.forget();
+        buf.insert_from(&js(700_000_000, &["a", "b"], &[0.5, 2.0]), w1)
+            .unwrap();
+        assert_eq!(buf.at(None, 0.1).unwrap(), vec![0.5, 2.0]);
     }
 }

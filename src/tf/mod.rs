@@ -26,6 +26,6 @@ mod history;
 pub mod joints;
 mod sensor;
 
-pub use buffer::{interpolate, TfBuffer, TfError};
+pub use buffer::{interpolate, TfBuffer, TfError, VOICE_WINDOW_S};
 pub use joints::{JointError, JointStateBuffer, VelocitySource};
 pub use sensor::root_from_sensor;

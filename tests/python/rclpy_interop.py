@@ -36,6 +36,21 @@ any ROS 2 node would.
         (the source's timeout). Also lists the nodes and NODE's topics as the graph shows them,
         and NODE's lines on /rosout.
         Prints one JSON object.
+
+    rclpy_interop.py voices NODE TOPIC NEAR_CDR FAR_CDR [JOINTS_JSON]
+        One voice per source (issue 46). A camera node publishes the serialized PointCloud2 in
+        NEAR_CDR on TOPIC at 10 Hz, stamped now, with best-effort sensor QoS; once
+        NODE/safety_stop is raised, a second participant (another rclpy context: another DDS
+        participant, as a second driver or anyone on the network would be) publishes FAR_CDR on
+        the same topic 50 ms after each near one, for 4 s, then falls silent (once the fused
+        status is ERROR with a distance: the obstacle measured). With JOINTS_JSON
+        ({"names": [...], "positions": [...], "intruder": [...]}) the controller (the camera's
+        participant) also publishes /joint_states at 50 Hz, and the second participant
+        publishes the intruder's positions on /joint_states instead of the far cloud. Records
+        every NODE/safety_stop with the phase it came in, and the /diagnostics messages.
+        Prints one JSON object: "raised" (the stop was raised before the intruder), "during"
+        and "after" (the stops received while the intruder spoke and in the 2 s after it),
+        "messages" (the messages of the statuses above OK seen while it spoke).
 """
 import json
 import math
@@ -415,11 +430,115 @@ def answers(node_name, topic, message_file, info_file):
     shut(node, executor)
 
 
+def stamped(raw, now_ns):
+    """A serialized message with its header stamp (just after the 4-byte CDR encapsulation,
+    little endian) set to `now_ns`."""
+    out = bytearray(raw)
+    struct.pack_into("<iI", out, 4, now_ns // 1_000_000_000, now_ns % 1_000_000_000)
+    return bytes(out)
+
+
+def voices(node_name, topic, near_file, far_file, joints_json):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Bool
+    node, executor = spin("rclpy_camera")
+    # The intruder: a participant of its own.
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    intruder = rclpy.create_node("rclpy_intruder", context=ctx)
+    intruder_exec = SingleThreadedExecutor(context=ctx)
+    intruder_exec.add_node(intruder)
+    threading.Thread(target=intruder_exec.spin, daemon=True).start()
+    lock = threading.Lock()
+    fused = watch_fused(node, lock)
+    state = {"phase": "before", "stops": {"before": [], "during": [], "after": []},
+             "messages": set()}
+
+    def on_stop(m):
+        with lock:
+            state["stops"][state["phase"]].append(bool(m.data))
+
+    def on_diagnostics(m):
+        with lock:
+            if state["phase"] == "during":
+                state["messages"].update(s.message for s in m.status if s.level != b"\x00")
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+    node.create_subscription(Bool, f"{node_name}/safety_stop", on_stop,
+                             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    with open(near_file, "rb") as f:
+        near = f.read()
+    with open(far_file, "rb") as f:
+        far = f.read()
+    joints = json.loads(joints_json) if joints_json else None
+    camera = node.create_publisher(PointCloud2, topic, qos_profile_sensor_data)
+    second = intruder.create_publisher(PointCloud2, topic, qos_profile_sensor_data)
+    js_pub = node.create_publisher(JointState, "/joint_states", qos_profile_sensor_data)
+    js_intruder = intruder.create_publisher(JointState, "/joint_states",
+                                            qos_profile_sensor_data)
+    running = {"on": True, "intruder": False}
+
+    def joint_state(pub, positions):
+        m = JointState()
+        m.header.stamp = node.get_clock().now().to_msg()
+        m.name, m.position = joints["names"], [float(p) for p in positions]
+        pub.publish(m)
+
+    def publish_loop():
+        k = 0
+        while running["on"]:
+            now = time.time_ns()
+            if k % 5 == 0:
+                camera.publish(stamped(near, now))
+            if joints:
+                joint_state(js_pub, joints["positions"])
+            time.sleep(0.01)
+            if running["intruder"]:
+                if joints:
+                    joint_state(js_intruder, joints["intruder"])
+                elif k % 5 == 0:
+                    time.sleep(0.04)
+                    second.publish(stamped(far, time.time_ns()))
+            k += 1
+            time.sleep(max(0.0, 0.02 - (time.time_ns() - now) * 1e-9))
+
+    thread = threading.Thread(target=publish_loop, daemon=True)
+    thread.start()
+    wait_for = waiter(lock)
+    # Raised by the measured obstacle (not by the start: the node is not monitoring until its
+    # trees are built).
+    out = {"raised": wait_for(lambda: fused["level"] == 2 and fused["distance_m"] is not None
+                              and True in state["stops"]["before"], 120),
+           "distance_m": fused["distance_m"]}
+    with lock:
+        state["phase"] = "during"
+    running["intruder"] = True
+    time.sleep(4.0)
+    running["intruder"] = False
+    with lock:
+        state["phase"] = "after"
+    time.sleep(2.0)
+    running["on"] = False
+    thread.join()
+    with lock:
+        out.update(during=state["stops"]["during"], after=state["stops"]["after"],
+                   messages=sorted(state["messages"]))
+    print(json.dumps(out))
+    intruder_exec.shutdown()
+    intruder.destroy_node()
+    rclpy.shutdown(context=ctx)
+    shut(node, executor)
+
+
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "params":
         params(sys.argv[2])
     elif len(sys.argv) == 4 and sys.argv[1] == "sim":
         sim(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) in (6, 7) and sys.argv[1] == "voices":
+        voices(*sys.argv[2:6], sys.argv[6] if len(sys.argv) == 7 else None)
     elif len(sys.argv) in (5, 6) and sys.argv[1] == "answers":
         answers(sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5] if len(sys.argv) == 6 else None)
     else:

@@ -1,7 +1,8 @@
 //! The node's running parameters: the config it runs with, listed, read, typed and described
-//! as `ros2 param` asks, and a change checked (against the robot's links and, while the safety
-//! stop is raised, against weakening protection) before it goes whole to the processing thread
-//! and onto `/parameter_events`.
+//! as `ros2 param` asks, and a change checked (against the robot's links, and by
+//! `parameter_changes`: while the safety stop is raised or always, against weakening
+//! protection; or refused) before it goes whole to the processing thread and onto
+//! `/parameter_events`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Sender;
@@ -193,17 +194,9 @@ impl Parameters {
             .collect::<Result<Vec<_>, String>>()?;
         let new = config.with_changes(&yaml).map_err(|e| e.to_string())?;
         self.check_objects(&config, &new)?;
-        if self.safety.stop.load(Ordering::Relaxed) {
-            let in_fault = lock(&self.safety.in_fault).clone();
-            let weakening = config.weakening(&new, &in_fault);
-            if !weakening.is_empty() {
-                return Err(format!(
-                    "refused while the safety stop is raised: {} would weaken protection \
-                     (set it once the stop is released)",
-                    weakening.join(", ")
-                ));
-            }
-        }
+        let stop_raised = self.safety.stop.load(Ordering::Relaxed);
+        let in_fault = lock(&self.safety.in_fault).clone();
+        config.admits(&new, stop_raised, &in_fault)?;
         let mut event = event(&config, &params, &new);
         lock(&self.apply)
             .send(new.clone())

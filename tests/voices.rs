@@ -1,0 +1,199 @@
+//! One voice per input (issue 46), through the monitor as the node drives it: a second writer
+//! on a source's topic, of a joint, or of the camera's frame never releases the stop, and the
+//! fault `second_publisher` names the writers; once one writer has been alone for
+//! `second_publisher_window`, its frames are measured again.
+
+mod common;
+
+use ist_monitor::cloud::pointcloud2;
+use ist_monitor::config::Config;
+use ist_monitor::monitor::{Frame, Level, Monitor};
+use ist_monitor::msg::{Header, JointState, TfMessage, Time, Transform, TransformStamped, Writer};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+const T0: i64 = 1_700_000_000_000_000_000;
+const MS: i64 = 1_000_000;
+const CAMERA: Writer = Writer([1; 16]);
+const INTRUDER: Writer = Writer([2; 16]);
+
+/// The demo arm seen by a camera `cam` whose pose comes from `/tf` (`world` → `cam`), joints
+/// from `/joint_states`, `second_publisher_window` 0.5 s; and the height of the arm's top at
+/// rest (the highest point of its inner spheres, the root at the origin).
+fn monitor() -> (Monitor, Vec<String>, f32) {
+    let (model, trees) = common::demo_trees();
+    let joints = model.kinematics.variables().to_vec();
+    let poses = model.kinematics.link_poses(&vec![0.0; joints.len()]);
+    let top = (trees.iter())
+        .flat_map(|tree| {
+            let pose = poses[model.kinematics.link_index(&tree.link).unwrap()];
+            tree.spheres.iter().map(move |s| {
+                let c = s.center.map(f64::from);
+                (pose * nalgebra::Point3::new(c[0], c[1], c[2])).z as f32 + s.radius
+            })
+        })
+        .fold(f32::MIN, f32::max);
+    let config = Config::from_overrides(&[
+        ("robot_description".into(), common::DEMO_URDF.into()),
+        ("backend".into(), "cpu".into()),
+        ("second_publisher_window".into(), "0.5".into()),
+    ])
+    .unwrap();
+    (
+        Monitor::with_trees(config, model, &trees).unwrap(),
+        joints,
+        top,
+    )
+}
+
+fn header(t: i64, frame: &str) -> Header {
+    Header {
+        stamp: Time::from_nanos(t),
+        frame_id: frame.into(),
+    }
+}
+
+/// `world` → `cam` at the origin (`x` along x) at `t`, written by `w`.
+fn camera_pose(m: &mut Monitor, t: i64, x: f64, w: Writer) {
+    let pose = Isometry3::from_parts(Translation3::new(x, 0.0, 0.0), UnitQuaternion::identity());
+    let tf = TfMessage {
+        transforms: vec![TransformStamped {
+            header: header(t, "world"),
+            child_frame_id: "cam".into(),
+            transform: Transform::from_isometry(&pose),
+        }],
+    };
+    m.on_tf_from("/tf", &tf, false, w).unwrap();
+}
+
+/// Every joint at `q` at `t`, published by `w`.
+fn joints(m: &mut Monitor, names: &[String], t: i64, q: f64, w: Writer) {
+    let js = JointState {
+        header: header(t, ""),
+        name: names.to_vec(),
+        position: vec![q; names.len()],
+        ..JointState::default()
+    };
+    m.on_joint_state_from("/joint_states", &js, w).unwrap();
+}
+
+/// A cloud of one point at `z` above the root, stamped `t`, from `w`, processed at `t`.
+fn cloud(m: &mut Monitor, t: i64, z: f32, w: Writer) -> Frame {
+    let layout = pointcloud2::Layout::unorganized(1);
+    let c = pointcloud2::encode(header(t, "cam"), &[[0.0, 0.0, z]], &layout).unwrap();
+    m.hear_writer(0, w, t);
+    m.on_cloud(0, &c, std::time::Instant::now(), Some(t))
+}
+
+fn fault_kind(f: &Frame) -> String {
+    common::status_value(f, "fault")
+        .unwrap_or_default()
+        .to_owned()
+}
+
+/// The issue's case: the camera sees an obstacle inside `stop_distance`; a second publisher on
+/// the same topic sends the scene 3 m farther 50 ms after each frame. The stop is never
+/// released while both speak; the camera alone for the window is measured again.
+#[test]
+fn a_second_publisher_on_the_cloud_topic_never_releases_the_stop() {
+    let (mut m, names, top) = monitor();
+    let (near_z, far_z) = (top + 0.05, top + 3.05);
+    let mut stops = String::new();
+    let mut faults = Vec::new();
+    for k in 0..20 {
+        let t = T0 + k * 100 * MS;
+        camera_pose(&mut m, t, 0.0, CAMERA);
+        joints(&mut m, &names, t, 0.0, CAMERA);
+        // The obstacle 5 cm above the arm's top.
+        let near = cloud(&mut m, t, near_z, CAMERA);
+        stops.push(if near.outputs.safety_stop.data {
+            '1'
+        } else {
+            '0'
+        });
+        if k >= 3 {
+            camera_pose(&mut m, t + 50 * MS, 0.0, CAMERA);
+            let far = cloud(&mut m, t + 50 * MS, far_z, INTRUDER);
+            stops.push(if far.outputs.safety_stop.data {
+                '1'
+            } else {
+                '0'
+            });
+            assert!(far.outputs.min_distance.is_none(), "frame {k}");
+            faults.push(fault_kind(&far));
+        }
+    }
+    assert!(!stops.contains('0'), "the stop was released: {stops}");
+    assert!(faults.iter().all(|f| f == "second_publisher"), "{faults:?}");
+    let last = cloud(&mut m, T0 + 1_960 * MS, near_z, CAMERA);
+    let message = &last.outputs.diagnostics.status[0].message;
+    assert!(message.contains(&INTRUDER.to_string()), "{message}");
+    assert!(message.contains(&CAMERA.to_string()), "{message}");
+    // The intruder falls silent: once the camera has been alone for 0.5 s, its frames count
+    // again (here: still the obstacle, still the stop, now with a distance).
+    let mut measured = None;
+    for k in 20..32 {
+        let t = T0 + k * 100 * MS;
+        camera_pose(&mut m, t, 0.0, CAMERA);
+        joints(&mut m, &names, t, 0.0, CAMERA);
+        let f = cloud(&mut m, t, near_z, CAMERA);
+        assert!(f.outputs.safety_stop.data);
+        if f.outputs.min_distance.is_some() && measured.is_none() {
+            measured = Some(k);
+        }
+    }
+    // The intruder's last frame was stamped at 1.95 s: measured from 2.5 s on.
+    assert_eq!(measured, Some(25));
+}
+
+/// The control: the same far clouds from the camera's own writer release the stop (what a
+/// second writer would do if it were taken as the source), so the test above can fail.
+#[test]
+fn the_far_cloud_from_the_one_writer_does_release_it() {
+    let (mut m, names, top) = monitor();
+    camera_pose(&mut m, T0, 0.0, CAMERA);
+    joints(&mut m, &names, T0, 0.0, CAMERA);
+    assert!(
+        cloud(&mut m, T0, top + 0.05, CAMERA)
+            .outputs
+            .safety_stop
+            .data
+    );
+    let t = T0 + 50 * MS;
+    camera_pose(&mut m, t, 0.0, CAMERA);
+    joints(&mut m, &names, t, 0.0, CAMERA);
+    let far = cloud(&mut m, t, top + 3.05, CAMERA);
+    assert!(!far.outputs.safety_stop.data);
+    assert_eq!(far.outputs.level, Level::Ok);
+}
+
+/// Two writers of the arm's joints (a second joint_state_publisher holding the arm elsewhere),
+/// and two authorities for the camera's frame: every frame is the fault, no distance.
+#[test]
+fn two_joint_state_writers_and_two_tf_authorities_are_faults() {
+    let (mut m, names, top) = monitor();
+    for k in 0..5 {
+        let t = T0 + k * 100 * MS;
+        camera_pose(&mut m, t, 0.0, CAMERA);
+        joints(&mut m, &names, t, 0.0, CAMERA);
+        joints(&mut m, &names, t + 10 * MS, 1.0, INTRUDER);
+        let f = cloud(&mut m, t + 10 * MS, top + 3.05, CAMERA);
+        assert_eq!(f.outputs.level, Level::Error, "frame {k}");
+        assert!(f.outputs.min_distance.is_none());
+        assert_eq!(fault_kind(&f), "second_publisher");
+        let message = &f.outputs.diagnostics.status[0].message;
+        assert!(
+            message.contains("published by more than one writer"),
+            "{message}"
+        );
+    }
+    let (mut m, names, _) = monitor();
+    for k in 0..5 {
+        let t = T0 + k * 100 * MS;
+        camera_pose(&mut m, t, 0.0, CAMERA);
+        camera_pose(&mut m, t + 5 * MS, 3.0, INTRUDER);
+        joints(&mut m, &names, t, 0.0, CAMERA);
+        let f = cloud(&mut m, t + 5 * MS, top + 3.05, CAMERA);
+        assert_eq!(f.outputs.level, Level::Error, "frame {k}");
+        assert_eq!(fault_kind(&f), "second_publisher");
+    }
+}
