@@ -4,6 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+pub mod cyclone;
+
 /// Says that the running test skips, and why, on the process's standard error itself: the
 /// test harness captures `eprintln!`, so a skip would otherwise be invisible. `.ci/run` counts
 /// these lines (`SKIPPED <test>: <reason>`).
