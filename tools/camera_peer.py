@@ -25,7 +25,10 @@ core, from /proc) and its peak resident memory to the line.
 
 `--transport zenoh` publishes the same messages the way rmw_zenoh does (key
 `<domain>/<topic>/<DDS type>/<type hash>`, CDR payload with its encapsulation header, the rmw_zenoh
-attachment), connected to the router at `--connect`.
+attachment), connected to the router at `--connect`; or with the session config of
+`--zenoh-config FILE` (e.g. config/zenoh/secure_session.json5: TLS with a certificate, relative
+paths from the working directory) and `--zenoh-override 'key=value;...'` on top (as
+ZENOH_CONFIG_OVERRIDE, e.g. the camera's own certificate and key).
 
 DDS discovers by multicast: run it only inside ../shared/tools/netns-run, where loopback is the
 only interface. It refuses to start anywhere else.
@@ -259,6 +262,8 @@ def main():
     ap.add_argument("--transport", choices=["dds", "zenoh", "rclpy"], default="dds")
     ap.add_argument("--node-pid", type=int, help="report this process's CPU and peak memory")
     ap.add_argument("--connect", default="tcp/localhost:7447")
+    ap.add_argument("--zenoh-config", help="the zenoh session config file (else --connect)")
+    ap.add_argument("--zenoh-override", default="", help="key=value;... on top of it")
     args = ap.parse_args()
     refuse_outside_private_network()
     if args.transport == "rclpy":
@@ -359,10 +364,16 @@ def main():
     else:
         import zenoh
 
-        conf = zenoh.Config()
-        conf.insert_json5("mode", '"peer"')
-        conf.insert_json5("connect/endpoints", json.dumps([args.connect]))
-        conf.insert_json5("scouting/multicast/enabled", "false")
+        if args.zenoh_config:
+            conf = zenoh.Config.from_file(args.zenoh_config)
+        else:
+            conf = zenoh.Config()
+            conf.insert_json5("mode", '"peer"')
+            conf.insert_json5("connect/endpoints", json.dumps([args.connect]))
+            conf.insert_json5("scouting/multicast/enabled", "false")
+        for entry in filter(None, (e.strip() for e in args.zenoh_override.split(";"))):
+            k, v = entry.split("=", 1)
+            conf.insert_json5(k.strip(), v.strip())
         session = zenoh.open(conf)
         gid = os.urandom(16)
         dp = None

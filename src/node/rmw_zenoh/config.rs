@@ -1,8 +1,10 @@
 //! The zenoh configs as rmw_zenoh reads them (the folder's **Sessions**): a node's session
 //! config and the router's, each from its file or rmw_zenoh's default with
-//! `ZENOH_CONFIG_OVERRIDE` on top; the check for a router when a node opens its session; and
-//! the router that `ist_monitor zenoh-router` runs.
+//! `ZENOH_CONFIG_OVERRIDE` on top; the check of the TLS files a config names (before zenoh
+//! opens them, whose own error names neither the key nor the file); the check for a router
+//! when a node opens its session; and the router that `ist_monitor zenoh-router` runs.
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use zenoh::Wait;
@@ -128,9 +130,49 @@ pub fn config_from_env(what: ConfigFor) -> Result<(zenoh::Config, String), NodeE
     rmw_zenoh_config(what, uri.as_deref(), overrides.as_deref())
 }
 
+/// The TLS files a config may name (`transport/link/tls/<key>`), each a path to a PEM file.
+const TLS_FILES: [&str; 5] = [
+    "root_ca_certificate",
+    "listen_certificate",
+    "listen_private_key",
+    "connect_certificate",
+    "connect_private_key",
+];
+
+/// Checks that every TLS file `config` names can be read, so that a missing or unreadable
+/// certificate or key is an error naming its key and path (relative paths are read from the
+/// working directory, as zenoh reads them) instead of zenoh's "unable to connect". `from` says
+/// where the config came from. Costs one `open` per named file.
+pub fn check_tls_files(config: &zenoh::Config, from: &str) -> Result<(), NodeError> {
+    for key in TLS_FILES {
+        let key = format!("transport/link/tls/{key}");
+        let Ok(value) = config.get_json(&key) else {
+            continue;
+        };
+        let Ok(Some(path)) = serde_json::from_str::<Option<String>>(&value) else {
+            continue;
+        };
+        if let Err(e) = std::fs::File::open(&path) {
+            let cwd = std::env::current_dir()
+                .map(|d| format!(" (relative to {})", d.display()))
+                .unwrap_or_default();
+            let cwd = if Path::new(&path).is_relative() {
+                cwd
+            } else {
+                String::new()
+            };
+            return Err(NodeError::Transport(format!(
+                "{key} '{path}'{cwd} of the {from}: {e}"
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// How many routers the session is connected to, by `ZENOH_ROUTER_CHECK_ATTEMPTS` (see the
-/// folder's documentation, `rmw_zenoh`).
-pub(super) fn check_router(session: &zenoh::Session) -> Result<usize, NodeError> {
+/// folder's documentation, `rmw_zenoh`); `endpoints` are those the session's config connects
+/// to, for the messages.
+pub(super) fn check_router(session: &zenoh::Session, endpoints: &str) -> Result<usize, NodeError> {
     let count = || session.info().routers_zid().wait().count();
     let attempts: i64 = match std::env::var("ZENOH_ROUTER_CHECK_ATTEMPTS") {
         Ok(v) => v.trim().parse().map_err(|_| {
@@ -153,12 +195,12 @@ pub(super) fn check_router(session: &zenoh::Session) -> Result<usize, NodeError>
             if attempts > 0 {
                 return Err(NodeError::Transport(format!(
                     "no zenoh router after {attempts} s (ZENOH_ROUTER_CHECK_ATTEMPTS): start \
-                     one (rmw_zenohd, or `ist_monitor zenoh-router`) at {ZENOH_ROUTER}"
+                     one (rmw_zenohd, or `ist_monitor zenoh-router`) at {endpoints}"
                 )));
             }
             log::warn!(
                 "no zenoh router connected: other nodes are found only through a router at \
-                 {ZENOH_ROUTER} (rmw_zenohd, or `ist_monitor zenoh-router`) or the endpoints \
+                 {endpoints} (rmw_zenohd, or `ist_monitor zenoh-router`) or the endpoints \
                  the session config names (docs/node.md)"
             );
             return Ok(0);
@@ -185,6 +227,7 @@ pub fn zenoh_router(
         )?;
     }
     let endpoints = c.get_json("listen/endpoints").unwrap_or_default();
+    check_tls_files(&c, &format!("zenoh router ({from})"))?;
     let session = zenoh::open(c)
         .wait()
         .map_err(|e| NodeError::Transport(format!("zenoh router on {endpoints} ({from}): {e}")))?;
@@ -245,5 +288,75 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("ZENOH_CONFIG_OVERRIDE"), "{e}");
+    }
+
+    /// The shipped secure configs are valid zenoh configs by rmw_zenoh's rules: the router
+    /// listens on TLS only, with mTLS and a deny-by-default access control; the session is a
+    /// TLS client; and the TLS files they name are checked (relative to the working directory).
+    #[test]
+    fn the_secure_configs_parse_and_their_tls_files_are_checked() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/zenoh");
+        let router = root.join("secure_router.json5");
+        let (c, from) =
+            rmw_zenoh_config(ConfigFor::Router, Some(router.to_str().unwrap()), None).unwrap();
+        assert_eq!(
+            c.get_json("listen/endpoints").unwrap(),
+            r#"["tls/localhost:7447"]"#
+        );
+        assert_eq!(
+            c.get_json("transport/link/tls/enable_mtls").unwrap(),
+            "true"
+        );
+        assert_eq!(c.get_json("access_control/enabled").unwrap(), "true");
+        assert_eq!(
+            c.get_json("access_control/default_permission").unwrap(),
+            "\"deny\""
+        );
+        // Run elsewhere than beside certs/: the missing file is named, with its key.
+        let e = check_tls_files(&c, &from).unwrap_err().to_string();
+        assert!(
+            e.contains("transport/link/tls/root_ca_certificate 'certs/ca.pem'")
+                && e.contains("relative to")
+                && e.contains("secure_router.json5"),
+            "{e}"
+        );
+        let session = root.join("secure_session.json5");
+        let (c, from) =
+            rmw_zenoh_config(ConfigFor::Session, Some(session.to_str().unwrap()), None).unwrap();
+        assert_eq!(c.get_json("mode").unwrap(), "\"client\"");
+        assert_eq!(
+            c.get_json("connect/endpoints").unwrap(),
+            r#"["tls/localhost:7447"]"#
+        );
+        assert!(check_tls_files(&c, &from).is_err());
+        // With the files present (absolute paths, as an override gives them) the check passes;
+        // one unreadable file is named.
+        let dir = tempfile::tempdir().unwrap();
+        let mut overrides = String::new();
+        for (key, file) in [
+            ("root_ca_certificate", "ca.pem"),
+            ("connect_certificate", "me.pem"),
+            ("connect_private_key", "me.key"),
+        ] {
+            let path = dir.path().join(file);
+            std::fs::write(&path, "PEM").unwrap();
+            overrides.push_str(&format!("transport/link/tls/{key}=\"{}\";", path.display()));
+        }
+        let (c, from) = rmw_zenoh_config(
+            ConfigFor::Session,
+            Some(session.to_str().unwrap()),
+            Some(&overrides),
+        )
+        .unwrap();
+        check_tls_files(&c, &from).unwrap();
+        std::fs::remove_file(dir.path().join("me.key")).unwrap();
+        let e = check_tls_files(&c, &from).unwrap_err().to_string();
+        assert!(
+            e.contains("connect_private_key") && e.contains("me.key") && !e.contains("relative"),
+            "{e}"
+        );
+        // rmw_zenoh's default names no TLS file.
+        let (c, from) = rmw_zenoh_config(ConfigFor::Session, None, None).unwrap();
+        check_tls_files(&c, &from).unwrap();
     }
 }

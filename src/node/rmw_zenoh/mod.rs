@@ -10,7 +10,10 @@
 //! fails without one; a negative value skips the check; unset or 0 checks once and warns (a
 //! safety node starts and reports rather than hang). The router (`ist_monitor zenoh-router`)
 //! reads its config as `rmw_zenohd` does: `ZENOH_ROUTER_CONFIG_URI`, else listening on
-//! `tcp/localhost:7447`, with `ZENOH_CONFIG_OVERRIDE` on top.
+//! `tcp/localhost:7447`, with `ZENOH_CONFIG_OVERRIDE` on top. TLS, mTLS and access control are
+//! zenoh's own, set in these files (`config/zenoh/secure_router.json5` and
+//! `secure_session.json5`, docs/security.md); the certificates and keys a config names are
+//! checked before the session opens, so that a missing one is an error naming its key and path.
 //!
 //! **Keys.** A message of type `pkg/msg/T` on topic `/a/b` in domain `d` is put on the key
 //! `d/a/b/pkg::msg::dds_::T_/RIHS01_<hash>`, the hash being the type's REP-2016 hash

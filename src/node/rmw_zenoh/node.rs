@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use ros2_client::qos::QosProfile;
 use zenoh::Wait;
 
-use super::config::{check_router, config_from_env, ConfigFor};
+use super::config::{check_router, check_tls_files, config_from_env, ConfigFor};
 use super::keys::{mangle, qos_key, NODE_ID};
 use crate::msg::RosMessage;
 use crate::node::error::{entity, NodeError};
@@ -41,10 +41,14 @@ impl ZenohNode {
     /// `domain` on it; also returns what the node runs on, for its start line.
     pub fn open(domain: u16, namespace: &str, name: &str) -> Result<(Self, String), NodeError> {
         let (config, from) = config_from_env(ConfigFor::Session)?;
-        let session = zenoh::open(config)
-            .wait()
-            .map_err(|e| NodeError::Transport(format!("zenoh session ({from}): {e}")))?;
-        let routers = check_router(&session)?;
+        check_tls_files(&config, &format!("zenoh session ({from})"))?;
+        let endpoints = config.get_json("connect/endpoints").unwrap_or_default();
+        let session = zenoh::open(config).wait().map_err(|e| {
+            NodeError::Transport(format!(
+                "zenoh session ({from}) connecting to {endpoints}: {e}"
+            ))
+        })?;
+        let routers = check_router(&session, &endpoints)?;
         let zid = session.zid().to_string();
         let lv_prefix = format!("@ros2_lv/{domain}/{zid}/{NODE_ID}");
         let namespace = if namespace == "/" { "" } else { namespace };
