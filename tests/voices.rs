@@ -197,3 +197,64 @@ fn two_joint_state_writers_and_two_tf_authorities_are_faults() {
         assert_eq!(fault_kind(&f), "second_publisher");
     }
 }
+
+/// A depth image source whose CameraInfo comes from two writers (a second driver with other
+/// intrinsics would move every point): its images are the fault, naming the CameraInfo topic.
+#[test]
+fn two_camera_info_writers_are_a_fault_of_the_depth_source() {
+    use ist_monitor::msg::{CameraInfo, Image};
+    let (model, trees) = common::demo_trees();
+    let names = model.kinematics.variables().to_vec();
+    let config = Config::from_overrides(&[
+        ("robot_description".into(), common::DEMO_URDF.into()),
+        ("backend".into(), "cpu".into()),
+        ("camera.type".into(), "depth_image".into()),
+        ("camera.topic".into(), "/camera/depth/image_raw".into()),
+    ])
+    .unwrap();
+    let mut m = Monitor::with_trees(config, model, &trees).unwrap();
+    let (w, h, f) = (32u32, 24u32, 30.0);
+    let info = |t: i64, f: f64| CameraInfo {
+        header: header(t, "cam"),
+        height: h,
+        width: w,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.0; 5],
+        k: [f, 0.0, 15.5, 0.0, f, 11.5, 0.0, 0.0, 1.0],
+        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: [f, 0.0, 15.5, 0.0, 0.0, f, 11.5, 0.0, 0.0, 0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let image = |t: i64| Image {
+        header: header(t, "cam"),
+        height: h,
+        width: w,
+        encoding: "16UC1".into(),
+        is_bigendian: 0,
+        step: 2 * w,
+        data: (0..w * h)
+            .flat_map(|_| 3000u16.to_le_bytes())
+            .collect::<Vec<u8>>()
+            .into(),
+    };
+    let mut kinds = Vec::new();
+    for k in 0..4 {
+        let t = T0 + k * 100 * MS;
+        camera_pose(&mut m, t, 0.0, CAMERA);
+        joints(&mut m, &names, t, 0.0, CAMERA);
+        m.on_camera_info_from(0, &info(t, f), CAMERA).unwrap();
+        if k >= 2 {
+            m.on_camera_info_from(0, &info(t, 3.0 * f), INTRUDER)
+                .unwrap();
+        }
+        m.hear_writer(0, CAMERA, t);
+        let frame = m.on_depth_image(0, &image(t), std::time::Instant::now(), Some(t));
+        kinds.push(fault_kind(&frame));
+        if k >= 2 {
+            let message = &frame.outputs.diagnostics.status[0].message;
+            assert!(message.contains("/camera/depth/camera_info"), "{message}");
+            assert!(frame.outputs.min_distance.is_none());
+        }
+    }
+    assert_eq!(kinds, ["", "", "second_publisher", "second_publisher"]);
+}

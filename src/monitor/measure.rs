@@ -237,6 +237,14 @@ impl Monitor {
         self.check_stamp(source, stamp_ns, now_ns)?;
         let frame = Some(image.header.frame_id.clone()).filter(|f| !f.is_empty());
         let frame = frame.ok_or(Fault::NoFrame)?;
+        let window_s = self.config.second_publisher_window_s;
+        if let Err(writers) = self.sources[source].one_camera(stamp_ns, window_s) {
+            return Err(Fault::SecondPublisher {
+                topic: self.camera_info_topic(source),
+                writers: Writer::list(&writers),
+                window_s,
+            });
+        }
         let camera = self.sources[source]
             .camera()
             .map_err(|reason| Fault::NoCameraInfo {

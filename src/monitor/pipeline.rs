@@ -210,8 +210,20 @@ impl Monitor {
     /// used for the source's next depth images; a refused one (the error names the field)
     /// makes them faults that say why, until a good one arrives.
     pub fn on_camera_info(&mut self, source: usize, m: &CameraInfo) -> Result<(), InputError> {
+        self.on_camera_info_from(source, m, Writer::UNKNOWN)
+    }
+
+    /// The same, published by `writer` (one voice per camera model: [`Source::one_camera`]).
+    pub fn on_camera_info_from(
+        &mut self,
+        source: usize,
+        m: &CameraInfo,
+        writer: Writer,
+    ) -> Result<(), InputError> {
         let camera = PinholeCamera::from_camera_info(m);
-        self.sources[source].set_camera(camera.as_ref().map_err(|e| e.to_string()).copied());
+        let stamp_ns = m.header.stamp.as_nanos();
+        let model = camera.as_ref().map_err(|e| e.to_string()).copied();
+        self.sources[source].set_camera(model, writer, stamp_ns);
         camera.map(|_| ()).map_err(|e| InputError::Camera {
             topic: self.camera_info_topic(source),
             source: Box::new(e),

@@ -13,7 +13,7 @@
 //! ([`Voices`]). A frame stamped within `second_publisher_window` of a second writer's newest
 //! stamp is the fault `second_publisher` naming both (`Source::one_voice`), whichever of them sent
 //! it: the fused rule keeps one latest result per source, so two writers would otherwise take
-//! turns deciding the stop.
+//! turns deciding the stop. The same holds for a depth image source's CameraInfo.
 
 use crate::cloud::depth::PinholeCamera;
 use crate::config::{Config, SourceConfig};
@@ -41,6 +41,8 @@ pub struct Source {
     watch: Watch,
     /// Who wrote its messages.
     voices: Voices,
+    /// Who wrote its CameraInfo (depth image sources).
+    camera_voices: Voices,
 }
 
 /// A source's latest frame.
@@ -106,6 +108,7 @@ impl Source {
             view: None,
             watch: Watch::default(),
             voices: Voices::default(),
+            camera_voices: Voices::default(),
         }
     }
 
@@ -118,6 +121,18 @@ impl Source {
     /// The writers heard at `stamp_ns` when there are two or more (see the module doc).
     pub fn one_voice(&self, stamp_ns: i64, window_s: f64) -> Result<(), Vec<Writer>> {
         match self.voices.conflict(stamp_ns, (window_s * 1e9) as i64) {
+            None => Ok(()),
+            Some(writers) => Err(writers),
+        }
+    }
+
+    /// The same for its CameraInfo: two writers of the camera model a depth image is
+    /// unprojected with are a conflict too.
+    pub fn one_camera(&self, stamp_ns: i64, window_s: f64) -> Result<(), Vec<Writer>> {
+        match self
+            .camera_voices
+            .conflict(stamp_ns, (window_s * 1e9) as i64)
+        {
             None => Ok(()),
             Some(writers) => Err(writers),
         }
@@ -216,9 +231,16 @@ impl Source {
         self.view = None;
     }
 
-    /// Takes a CameraInfo's camera model, or why it was refused.
-    pub fn set_camera(&mut self, camera: Result<PinholeCamera, String>) {
+    /// Takes a CameraInfo's camera model, or why it was refused; `writer` sent it, stamped
+    /// `stamp_ns`.
+    pub fn set_camera(
+        &mut self,
+        camera: Result<PinholeCamera, String>,
+        writer: Writer,
+        stamp_ns: i64,
+    ) {
         self.camera = Some(camera);
+        self.camera_voices.hear(writer, stamp_ns);
     }
 
     /// The camera model its depth images are made into points with, or why there is none.
@@ -236,6 +258,7 @@ impl Source {
         std::mem::swap(&mut self.camera, &mut old.camera);
         std::mem::swap(&mut self.watch, &mut old.watch);
         std::mem::swap(&mut self.voices, &mut old.voices);
+        std::mem::swap(&mut self.camera_voices, &mut old.camera_voices);
     }
 
     /// Enabled at `now_ns`: not heard from yet, its silence counted from now.
@@ -258,6 +281,7 @@ impl Source {
         self.watch.since_ns = now_ns;
         self.watch.last_report_ns = None;
         self.voices.forget();
+        self.camera_voices.forget();
     }
 
     /// A message arrived: what it ends, where the node says so (its first, or the first after

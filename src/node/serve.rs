@@ -55,7 +55,7 @@ pub(super) fn serve(
     tasks: &mut Vec<smol::Task<()>>,
     runtime: Runtime,
 ) -> Result<()> {
-    let (info, camera_info) = std::sync::mpsc::channel::<(usize, CameraInfo)>();
+    let (info, camera_info) = std::sync::mpsc::channel::<(usize, CameraInfo, Writer)>();
     let wiring = Wiring {
         config,
         executor,
@@ -117,7 +117,7 @@ struct Wiring<'a> {
     /// Each source's slot, the wake-up, the counts.
     shared: Arc<Shared>,
     /// Where depth sources' CameraInfo goes.
-    info: Sender<(usize, CameraInfo)>,
+    info: Sender<(usize, CameraInfo, Writer)>,
 }
 
 /// TF, joint states and depth sources' CameraInfo, in queues the processing thread drains
@@ -125,7 +125,7 @@ struct Wiring<'a> {
 struct Inputs {
     tf: Receiver<(TfMessage, bool, Writer)>,
     joints: Receiver<(JointState, Writer)>,
-    camera_info: Receiver<(usize, CameraInfo)>,
+    camera_info: Receiver<(usize, CameraInfo, Writer)>,
 }
 
 impl Wiring<'_> {
@@ -136,7 +136,7 @@ impl Wiring<'_> {
         &self,
         node: &mut RosNode,
         tasks: &mut Vec<smol::Task<()>>,
-        camera_info: Receiver<(usize, CameraInfo)>,
+        camera_info: Receiver<(usize, CameraInfo, Writer)>,
     ) -> Result<(Inputs, Vec<Vec<smol::Task<()>>>)> {
         let config = self.config;
         let (tf_tx, tf) = std::sync::mpsc::channel::<(TfMessage, bool, Writer)>();
@@ -235,7 +235,7 @@ impl Wiring<'_> {
                     executor,
                     "camera info",
                     self.info.clone(),
-                    move |m: CameraInfo, _| (k, m),
+                    move |m: CameraInfo, w| (k, m, w),
                     shared,
                 )?);
             }
@@ -321,8 +321,8 @@ impl Serving<'_> {
             let topic = if is_static { "/tf_static" } else { "/tf" };
             (monitor.on_tf_from(topic, &m, is_static, w)).unwrap_or_else(refused);
         }
-        while let Ok((k, m)) = self.inputs.camera_info.try_recv() {
-            monitor.on_camera_info(k, &m).unwrap_or_else(refused);
+        while let Ok((k, m, w)) = self.inputs.camera_info.try_recv() {
+            (monitor.on_camera_info_from(k, &m, w)).unwrap_or_else(refused);
         }
         let topic = &self.wiring.config.joint_states_topic;
         while let Ok((m, w)) = self.inputs.joints.try_recv() {
