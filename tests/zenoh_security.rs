@@ -6,8 +6,11 @@
 //! that holds them), and the cell's members and intruders as independent zenoh sessions (Python
 //! `eclipse-zenoh`, `tests/python/zenoh_secure_peer.py`) publishing the camera's topic: the
 //! camera a near cloud, each intruder a far cloud of its own, 50 ms after the camera's, which the
-//! node would report if it got through. The controls run the same intruders with the access
-//! control off, and with no TLS at all: there they get through, so the checks can fail.
+//! node would report if it got through; once with the router on `tls/` (the shipped configs as
+//! they are) and once on `quic/` (the same configs, the endpoints switched by
+//! `ZENOH_CONFIG_OVERRIDE` as docs/security.md's recipe does). The controls run the same
+//! intruders (over `tls/`) with the access control off, and with no TLS at all: there they get
+//! through, so the checks can fail.
 
 mod common;
 
@@ -213,10 +216,11 @@ fn client(endpoint: &str, tls: &[(&str, &str)]) -> serde_json::Value {
     c
 }
 
-/// A member's TLS settings: the CA it trusts, its certificate and key (`DIR/NAME.pem|key`).
-fn member(ca: &str, dir: &str, name: &str) -> serde_json::Value {
+/// A member's TLS settings over `link` (`tls` or `quic`, which takes the same settings): the CA
+/// it trusts, its certificate and key (`DIR/NAME.pem|key`).
+fn member(link: &str, ca: &str, dir: &str, name: &str) -> serde_json::Value {
     let mut c = client(
-        "tls/localhost:7447",
+        &format!("{link}/localhost:7447"),
         &[
             ("root_ca_certificate", ca),
             ("connect_certificate", &format!("{dir}/{name}.pem")),
@@ -227,22 +231,26 @@ fn member(ca: &str, dir: &str, name: &str) -> serde_json::Value {
     c
 }
 
-/// The camera and the four intruders: no certificate over tcp, no certificate over TLS, a
+/// The camera and the four intruders, over the router's `link` (`tls` or `quic`): no
+/// certificate over tcp, no certificate over `link` (`tls_no_certificate` whichever it is), a
 /// certificate from another CA, and the HMI's (the cell's CA) which the rules do not let write.
-fn plan() -> Vec<(&'static str, serde_json::Value)> {
+fn plan(link: &str) -> Vec<(&'static str, serde_json::Value)> {
     vec![
-        ("camera", member("certs/ca.pem", "certs", "camera")),
+        ("camera", member(link, "certs/ca.pem", "certs", "camera")),
         ("tcp_no_certificate", client("tcp/localhost:7447", &[])),
         (
             "tls_no_certificate",
             client(
-                "tls/localhost:7447",
+                &format!("{link}/localhost:7447"),
                 &[("root_ca_certificate", "certs/ca.pem")],
             ),
         ),
         // It trusts the router's CA; its own certificate is signed by another.
-        ("other_ca", member("certs/ca.pem", "other", "camera")),
-        ("hmi_not_allowed", member("certs/ca.pem", "certs", "hmi")),
+        ("other_ca", member(link, "certs/ca.pem", "other", "camera")),
+        (
+            "hmi_not_allowed",
+            member(link, "certs/ca.pem", "certs", "hmi"),
+        ),
     ]
 }
 
@@ -267,7 +275,19 @@ fn reported(cell: &Cell, got: &[f64], name: &str) -> bool {
 /// router drops the cloud it writes on the camera's topic: the node never reports it.
 #[test]
 fn zenoh_mtls_and_acl_keep_intruders_out() {
-    let test = "zenoh_mtls_and_acl_keep_intruders_out";
+    secured_cell_holds("zenoh_mtls_and_acl_keep_intruders_out", "tls");
+}
+
+/// The same over QUIC, the link docs/security.md recommends for full-rate clouds: the shipped
+/// configs with the one-line `ZENOH_CONFIG_OVERRIDE` of its recipe, for the router
+/// (`listen/endpoints`) and the node (`connect/endpoints`); the members connect over `quic/`.
+#[test]
+fn zenoh_mtls_and_acl_keep_intruders_out_over_quic() {
+    secured_cell_holds("zenoh_mtls_and_acl_keep_intruders_out_over_quic", "quic");
+}
+
+/// The checks (a) to (d) above, the router listening and the members connecting over `link`.
+fn secured_cell_holds(test: &str, link: &str) {
     if !common::in_private_network(test) {
         return;
     }
@@ -275,15 +295,26 @@ fn zenoh_mtls_and_acl_keep_intruders_out() {
         return;
     };
     let root = env!("CARGO_MANIFEST_DIR");
-    let router_env = [(
+    let endpoints = format!("[\"{link}/localhost:7447\"]");
+    let mut router_env = vec![(
         "ZENOH_ROUTER_CONFIG_URI",
         format!("{root}/config/zenoh/secure_router.json5"),
     )];
-    let node_env = [(
+    let mut node_env = vec![(
         "ZENOH_SESSION_CONFIG_URI",
         format!("{root}/config/zenoh/secure_session.json5"),
     )];
-    let (report, log) = cell.run(&python, &router_env, &node_env, &plan());
+    if link != "tls" {
+        router_env.push((
+            "ZENOH_CONFIG_OVERRIDE",
+            format!("listen/endpoints={endpoints}"),
+        ));
+        node_env.push((
+            "ZENOH_CONFIG_OVERRIDE",
+            format!("connect/endpoints={endpoints}"),
+        ));
+    }
+    let (report, log) = cell.run(&python, &router_env, &node_env, &plan(link));
     assert!(
         log.contains("secure_session.json5") && log.contains("1 router(s)"),
         "the node's start line names its config and its router: {log}"
@@ -348,7 +379,7 @@ fn zenoh_without_acl_or_tls_the_intruders_get_through() {
         "ZENOH_SESSION_CONFIG_URI",
         format!("{root}/config/zenoh/secure_session.json5"),
     )];
-    let (report, _) = cell.run(&python, &router_env, &node_env, &plan());
+    let (report, _) = cell.run(&python, &router_env, &node_env, &plan("tls"));
     let camera = distances(&report, "camera");
     assert!(reported(&cell, &camera, "camera"), "{report}");
     assert!(
