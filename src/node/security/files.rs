@@ -9,7 +9,13 @@
 //! `governance.p7s` and `permissions.p7s` are S/MIME signed by `permissions_ca.cert.pem` and
 //! hold a governance (`<domain_access_rules>`) and a permissions (`<permissions>`) document.
 //! What they say (the rules, the grant's subject) is left to RustDDS, whose refusal is
-//! reported with its own message.
+//! reported with its own message, but for one rule RustDDS 0.15.1 cannot keep: payload
+//! protection (`data_protection_kind` ENCRYPT or SIGN) of a sample large enough to be sent in
+//! fragments (a cloud). RustDDS transforms each DATA_FRAG's slice instead of the whole payload,
+//! so the slices outgrow the fragment sizes the submessage declares and every receiver drops
+//! them: such a topic carries nothing. [`check_files`] reports the rule, for a WARN;
+//! `metadata_protection_kind` ENCRYPT with `data_protection_kind` NONE encrypts the same bytes
+//! (the whole submessage) and works.
 
 use std::path::{Path, PathBuf};
 
@@ -55,7 +61,9 @@ mod checks {
     use super::BadFile;
 
     /// The enclave's files in `dir` (all present) checked one by one; the first unusable one.
-    pub fn check_files(dir: &Path) -> Result<(), BadFile> {
+    /// `Ok(true)`: the governance asks for payload protection (`data_protection_kind` ENCRYPT
+    /// or SIGN), which RustDDS cannot apply to fragmented samples (the module's doc).
+    pub fn check_files(dir: &Path) -> Result<bool, BadFile> {
         let identity_ca = certificate(dir, "identity_ca.cert.pem")?;
         let cert = certificate(dir, "cert.pem")?;
         let ca_key = identity_ca
@@ -70,14 +78,22 @@ mod checks {
         }
         private_key(dir, &cert)?;
         let permissions_ca = certificate(dir, "permissions_ca.cert.pem")?;
-        signed_document(
+        let governance = signed_document(
             dir,
             "governance.p7s",
             &permissions_ca,
             "<domain_access_rules",
         )?;
         signed_document(dir, "permissions.p7s", &permissions_ca, "<permissions")?;
-        Ok(())
+        Ok(payload_protected(&governance))
+    }
+
+    /// Whether a governance document asks for payload protection anywhere.
+    pub(super) fn payload_protected(governance: &str) -> bool {
+        governance
+            .split("<data_protection_kind>")
+            .skip(1)
+            .any(|rest| matches!(rest.trim_start().get(..4), Some("ENCR" | "SIGN")))
     }
 
     fn bad(dir: &Path, file: &str, why: String) -> BadFile {
@@ -152,8 +168,8 @@ mod checks {
         Ok(())
     }
 
-    /// `file`, S/MIME signed by `ca` around a document that holds `root`.
-    fn signed_document(dir: &Path, file: &str, ca: &X509, root: &str) -> Result<(), BadFile> {
+    /// `file`, S/MIME signed by `ca` around a document that holds `root`: the document.
+    fn signed_document(dir: &Path, file: &str, ca: &X509, root: &str) -> Result<String, BadFile> {
         let (p7, content) = Pkcs7::from_smime(&read(dir, file)?).map_err(|e| {
             bad(
                 dir,
@@ -196,14 +212,15 @@ mod checks {
                 ),
             )
         })?;
-        if !String::from_utf8_lossy(&out).contains(root) {
+        let document = String::from_utf8_lossy(&out).into_owned();
+        if !document.contains(root) {
             return Err(bad(
                 dir,
                 file,
                 format!("the signed document holds no {root}> element"),
             ));
         }
-        Ok(())
+        Ok(document)
     }
 
     /// OpenSSL's first reason, short (its whole stack repeats file and line).
@@ -322,12 +339,25 @@ mod tests {
     fn a_good_enclave_passes_and_a_missing_file_is_named() {
         let d = tempfile::tempdir().unwrap();
         enclave(d.path(), &ca("ca"));
-        check_files(d.path()).unwrap();
+        assert!(!check_files(d.path()).unwrap());
         std::fs::remove_file(d.path().join("governance.p7s")).unwrap();
         assert_eq!(
             first_missing(d.path()),
             Some(d.path().join("governance.p7s"))
         );
+    }
+
+    #[test]
+    fn payload_protection_is_found_in_any_rule() {
+        use super::checks::payload_protected;
+        let rule =
+            |k: &str| format!("<topic_rule><data_protection_kind>{k}</data_protection_kind>");
+        assert!(!payload_protected(&rule("NONE")));
+        assert!(payload_protected(&rule("ENCRYPT")));
+        assert!(payload_protected(&(rule("NONE") + &rule(" SIGN"))));
+        assert!(!payload_protected(
+            "<metadata_protection_kind>ENCRYPT</metadata_protection_kind>"
+        ));
     }
 
     #[test]

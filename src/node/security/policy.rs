@@ -66,11 +66,23 @@ impl Security {
             };
         }
         #[cfg(feature = "security")]
-        super::files::check_files(&dir).map_err(|b| SecurityError::BadFile {
-            enclave: name.clone(),
-            file: b.file,
-            why: b.why,
-        })?;
+        let payload_protected =
+            super::files::check_files(&dir).map_err(|b| SecurityError::BadFile {
+                enclave: name.clone(),
+                file: b.file,
+                why: b.why,
+            })?;
+        #[cfg(feature = "security")]
+        if payload_protected {
+            log::warn!(
+                "SROS2: enclave {name}: {} asks for payload protection (data_protection_kind \
+                 ENCRYPT or SIGN), which RustDDS 0.15.1 cannot apply to samples sent in \
+                 fragments: clouds on such topics will not arrive (the safety stop holds). Use \
+                 metadata_protection_kind ENCRYPT with data_protection_kind NONE, which \
+                 encrypts the same bytes (docs/security.md)",
+                dir.join("governance.p7s").display()
+            );
+        }
         Ok(Security::Enclave {
             name,
             keystore,
