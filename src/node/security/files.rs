@@ -360,10 +360,13 @@ mod tests {
         ));
     }
 
+    /// What spoils a good enclave for one case.
+    type Spoil<'a> = Box<dyn FnOnce(&Path, &Ca) + 'a>;
+
     #[test]
     fn each_bad_file_is_named_with_why() {
         let other = ca("other ca");
-        let cases: Vec<(&str, &str, Box<dyn FnOnce(&Path, &Ca)>)> = vec![
+        let cases: Vec<(&str, &str, Spoil)> = vec![
             (
                 "identity_ca.cert.pem",
                 "not a PEM X.509 certificate",
