@@ -88,6 +88,8 @@ pub struct Config {
     pub rosout: bool,
     /// Output topic remappings of the live node (`--ros-args -r FROM:=TO`; not a parameter).
     pub remaps: Vec<(String, String)>,
+    /// The live node's SROS2 enclave (`--ros-args --enclave`; not a parameter): `None` is `/`.
+    pub enclave: Option<String>,
     /// The values as given (flattened names; a declared default is not in it), and the folder
     /// relative paths were taken from: what a change at run time is validated with
     /// (`runtime`).
@@ -196,6 +198,7 @@ impl Config {
             ssm: separation::ssm(&v)?,
             unobserved: unobserved::unobserved(&v)?,
             remaps: Vec::new(),
+            enclave: None,
             rosout: true,
             base: base.map(Path::to_owned),
             values: v.values,

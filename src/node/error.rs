@@ -36,6 +36,10 @@ pub enum NodeError {
     BuildLost,
     #[error(transparent)]
     Config(#[from] crate::config::ConfigError),
+    /// SROS2: the security the environment asks for cannot be had (names the variable, the
+    /// enclave or the file).
+    #[error(transparent)]
+    Security(#[from] super::security::SecurityError),
     /// The transport (`RMW_IMPLEMENTATION`, zenoh's session config or router).
     #[error("{0}")]
     Transport(String),

@@ -117,7 +117,13 @@ struct Started {
 /// services and the executor's thread that runs the subscriptions and services.
 fn start(config: &Config, transport: Transport) -> Result<Started> {
     let executor = Arc::new(smol::Executor::new());
-    let mut node = RosNode::new(transport, &config.namespace, &config.node_name, &executor)?;
+    let mut node = RosNode::in_enclave(
+        transport,
+        &config.namespace,
+        &config.node_name,
+        config.enclave.as_deref(),
+        &executor,
+    )?;
     let outputs = Publishers::new(&mut node, config, OUTPUT_QOS)?;
     // The node's log on /rosout (unless --disable-rosout-logs), from here to its last word.
     let rosout = if config.rosout {

@@ -25,7 +25,8 @@
 //! `publishers`: the output table's publishers. `parameters`: the parameter services; a change
 //! they take reaches the processing thread through a channel and is applied before its next
 //! frame (a source enabled then is subscribed to then). `transport` and `rmw_zenoh`: DDS or
-//! zenoh underneath; `socket`: the DDS sockets' buffers. `clock`: the node's time. `error`:
+//! zenoh underneath; `socket`: the DDS sockets' buffers; `security`: SROS2 (the environment, the
+//! enclave's files, what the node starts with). `clock`: the node's time. `error`:
 //! what stops it.
 
 mod clock;
@@ -40,6 +41,7 @@ pub mod record;
 pub mod rmw_zenoh;
 mod ros_args;
 pub mod rosout;
+pub mod security;
 mod serve;
 mod socket;
 pub mod transport;

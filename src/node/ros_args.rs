@@ -1,9 +1,10 @@
 //! The ROS 2 command line after `--ros-args`, as rcl parses it: `-r`/`--remap` (`__node:=`,
 //! `__ns:=`, and topic remappings `FROM:=TO`, optionally for one node as `NODE:FROM:=TO`),
 //! `-p`/`--param NAME:=VALUE`, `--params-file FILE` (repeatable), `--log-level [NAME:=]LEVEL`,
-//! `--enable-`/`--disable-rosout-logs`, and the arguments that concern rcl's own logging or
-//! security (`--enclave`, `--log-config-file`, `--enable-`/`--disable-stdout-logs`,
-//! `-external-lib-logs`), which are taken and noted: the node has no rcl underneath. Anything else is refused naming it. A launch file
+//! `--enable-`/`--disable-rosout-logs`, `-e`/`--enclave ENCLAVE` (the SROS2 enclave, an
+//! absolute name as rcl validates it: `security`), and the arguments that concern rcl's own
+//! logging (`--log-config-file`, `--enable-`/`--disable-stdout-logs`, `-external-lib-logs`),
+//! which are taken and noted: the node has no rcl underneath. Anything else is refused naming it. A launch file
 //! starts the node with exactly these (launch_ros's `Node(name=, namespace=, parameters=,
 //! remappings=, ros_arguments=)`).
 //!
@@ -18,6 +19,7 @@ use std::path::PathBuf;
 use ros2_client::{MessageTypeName, Name};
 
 use super::error::{entity, NodeError, Result};
+use super::security::validate_enclave_name;
 use crate::config::Config;
 use crate::msg::RosMessage;
 
@@ -38,6 +40,8 @@ pub struct RosArgs {
     /// `--enable-rosout-logs` / `--disable-rosout-logs` (the node's log on `/rosout`, on
     /// unless disabled).
     pub rosout: Option<bool>,
+    /// `--enclave`: the SROS2 enclave (validated; used with `ROS_SECURITY_ENABLE=true`).
+    pub enclave: Option<String>,
     /// Arguments taken but without effect here, with why (for the log).
     pub noted: Vec<String>,
 }
@@ -200,10 +204,8 @@ pub fn parse_ros_args(args: &[String]) -> Result<RosArgs> {
             }
             "-e" | "--enclave" => {
                 let e = arg("ENCLAVE")?;
-                out.noted.push(format!(
-                    "--enclave {e}: ignored (no SROS 2 security here: the node's traffic is not \
-                     encrypted)"
-                ));
+                validate_enclave_name("--enclave", &e).map_err(|e| bad(e.to_string()))?;
+                out.enclave = Some(e);
             }
             "--log-config-file" => {
                 let f = arg("FILE")?;
@@ -329,7 +331,9 @@ mod tests {
             r.log_level_for("other", "/cell1"),
             Some(log::LevelFilter::Warn)
         );
-        assert_eq!(r.noted.len(), 1);
+        // --enclave is taken (no longer noted as ignored).
+        assert_eq!(r.enclave.as_deref(), Some("/cell1"));
+        assert!(r.noted.is_empty(), "{:?}", r.noted);
         assert_eq!(r.rosout, Some(false));
         // An input, expanded then remapped.
         let remaps = r.remaps_for("watch");
@@ -342,6 +346,21 @@ mod tests {
             "/cell1/joint_states"
         );
         assert_eq!(resolve_topic("~", &remaps, "/cell1/watch"), "/cell1/watch");
+    }
+
+    #[test]
+    fn an_enclave_is_an_absolute_name() {
+        assert_eq!(
+            parse_ros_args(&args(&["--ros-args", "-e", "/"]))
+                .unwrap()
+                .enclave
+                .as_deref(),
+            Some("/")
+        );
+        for bad in ["cell1", "/cell1/", "/1cell"] {
+            let e = parse_ros_args(&args(&["--ros-args", "--enclave", bad])).unwrap_err();
+            assert!(e.to_string().contains(&format!("'{bad}'")), "{e}");
+        }
     }
 
     #[test]

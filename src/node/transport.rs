@@ -3,7 +3,9 @@
 //! of ROS 2's `rmw_zenoh` ([`super::rmw_zenoh`]; `RMW_IMPLEMENTATION=rmw_zenoh_cpp`, or
 //! `--transport zenoh`). [`RosNode`] hides which one a node runs on, so that the node, `play` and
 //! `record` are written once. Also the DDS side's own: the domain, the participant with its
-//! socket buffers, and a source's subscription on a topic that keeps few samples.
+//! socket buffers and its SROS2 security ([`super::security`]), and a source's subscription on
+//! a topic that keeps few samples. A node and a tool alike take the security the environment
+//! asks for, so that `play` and `record` are peers of a secured cell too.
 
 use futures::StreamExt;
 use ros2_client::dds::{Context, Node, Publisher, Server, ServiceMapping, Subscription};
@@ -13,8 +15,9 @@ use serde::Serialize;
 
 use super::error::{entity, NodeError};
 use super::qos::{source_topic_qos, SOURCE_SAMPLES};
-use super::rmw_zenoh::{ZenohNode, ZenohPub};
+use super::rmw_zenoh::{config_from_env, ConfigFor, ZenohNode, ZenohPub};
 use super::ros_args::{topic_name, type_name};
+use super::security::{zenoh_endpoints, Security, SecurityEnv, SecurityError};
 use super::socket::{self, SOCKET_BUFFER};
 use crate::choice::Choice;
 use crate::msg::{Owned, OwnedMessage, RosMessage};
@@ -72,6 +75,8 @@ pub struct RosNode {
     inner: Inner,
     /// What the node runs on, for its start line.
     pub describe: String,
+    /// Its SROS2 security, for its start line.
+    pub security: Security,
 }
 
 enum Inner {
@@ -101,13 +106,29 @@ impl<T: RosMessage + std::fmt::Debug> Pub<T> {
 }
 
 impl RosNode {
-    /// A node `namespace`/`name` on `transport`; on DDS its spinner runs on `executor`.
+    /// A node `namespace`/`name` on `transport`, in the enclave the environment names (else
+    /// `/`); on DDS its spinner runs on `executor`.
     pub fn new(
         transport: Transport,
         namespace: &str,
         name: &str,
         executor: &smol::Executor<'static>,
     ) -> Result<Self, NodeError> {
+        Self::in_enclave(transport, namespace, name, None, executor)
+    }
+
+    /// [`RosNode::new`] in `enclave` (`--enclave`; `ROS_SECURITY_ENCLAVE_OVERRIDE` wins, as in
+    /// rcl): with `ROS_SECURITY_ENABLE=true` the node is secured by the enclave's files or, on
+    /// zenoh, by its config's TLS; without them it refuses to start (Enforce) or starts
+    /// unsecured with a WARN (Permissive).
+    pub fn in_enclave(
+        transport: Transport,
+        namespace: &str,
+        name: &str,
+        enclave: Option<&str>,
+        executor: &smol::Executor<'static>,
+    ) -> Result<Self, NodeError> {
+        let env = SecurityEnv::from_process();
         let node_name = NodeName::new(namespace, name)
             .map_err(|e| entity("node name", &format!("{namespace} {name}"), e))?;
         // The parameter services are the node's own (`parameters`), from its declarations.
@@ -119,7 +140,9 @@ impl RosNode {
         let domain = domain_id()?;
         match transport {
             Transport::Dds => {
-                let ctx = context(domain)?;
+                let security = Security::for_dds(&env, enclave)?;
+                security.warn_if_unsecured(name);
+                let ctx = context(domain, &security)?;
                 let mut node = ctx
                     .new_node(node_name.clone(), options())
                     .map_err(|e| entity("node", name, e))?;
@@ -132,6 +155,7 @@ impl RosNode {
                     .detach();
                 Ok(Self {
                     describe: format!("DDS (RustDDS) on domain {domain}"),
+                    security,
                     inner: Inner::Dds {
                         ctx,
                         node: Box::new(node),
@@ -140,9 +164,12 @@ impl RosNode {
                 })
             }
             Transport::Zenoh => {
+                let security = zenoh_security(&env)?;
+                security.warn_if_unsecured(name);
                 let (node, describe) = ZenohNode::open(domain, namespace, name)?;
                 Ok(Self {
                     describe,
+                    security,
                     inner: Inner::Zenoh(Box::new(node)),
                 })
             }
@@ -319,14 +346,44 @@ pub fn domain_id() -> Result<u16, NodeError> {
     }
 }
 
-/// A DDS context on `domain`, with [`SOCKET_BUFFER`] socket buffers: forced past
-/// `net.core.rmem_max` where the process may (`socket`).
-pub fn context(domain: u16) -> Result<Context, NodeError> {
-    let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
+/// The security of a zenoh session with `env`: its config's endpoints asked for TLS.
+fn zenoh_security(env: &SecurityEnv) -> Result<Security, NodeError> {
+    if !env.enabled() {
+        return Ok(Security::Off);
+    }
+    let (config, from) = config_from_env(ConfigFor::Session)?;
+    let values: Vec<String> = ["connect/endpoints", "listen/endpoints"]
+        .iter()
+        .filter_map(|k| config.get_json(k).ok())
+        .collect();
+    Ok(Security::for_zenoh(env, &from, &zenoh_endpoints(&values))?)
+}
+
+/// A DDS context on `domain`, with [`SOCKET_BUFFER`] socket buffers (forced past
+/// `net.core.rmem_max` where the process may: `socket`) and, for [`Security::Enclave`], RustDDS's
+/// built-in security plugins with the enclave's files (no key password, as rcl).
+pub fn context(domain: u16, security: &Security) -> Result<Context, NodeError> {
+    let builder = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
         .socket_receive_buffer_size(SOCKET_BUFFER)
-        .socket_send_buffer_size(SOCKET_BUFFER)
-        .build()
-        .map_err(|e| NodeError::Participant(format!("{e:?}")))?;
+        .socket_send_buffer_size(SOCKET_BUFFER);
+    #[cfg(feature = "security")]
+    let builder = match security {
+        Security::Enclave { dir, .. } => builder.builtin_security(
+            ros2_client::dds::rustdds::DomainParticipantSecurityConfigFiles::with_ros_default_names(
+                dir,
+                String::new(),
+            ),
+        ),
+        _ => builder,
+    };
+    let participant = builder.build().map_err(|e| match security {
+        Security::Enclave { name, dir, .. } => NodeError::Security(SecurityError::Refused {
+            enclave: name.clone(),
+            dir: dir.clone(),
+            message: e.to_string(),
+        }),
+        _ => NodeError::Participant(format!("{e:?}")),
+    })?;
     if let Err(e) = socket::force_receive_buffers(SOCKET_BUFFER) {
         log::debug!("SO_RCVBUFFORCE: {e} (the kernel's net.core.rmem_max stands)");
     }

@@ -1,6 +1,7 @@
 //! The line that says the node is up: its name, the robot and links it watches, the query mode,
 //! each enabled source on its topic and the transport; on DDS also the socket receive buffer
-//! asked and granted, with a warning when the kernel grants less than a cloud burst needs.
+//! asked and granted, with a warning when the kernel grants less than a cloud burst needs; and,
+//! when SROS2 is asked for, the enclave it runs in or why it runs unsecured.
 
 use super::ros_args::input_topic;
 use super::socket::{self, granted_receive_buffer, mib, SOCKET_BUFFER};
@@ -42,13 +43,17 @@ pub(super) fn log_up(config: &Config, monitor: &Monitor, node: &RosNode) {
     };
     log::info!(
         "up: node {} (outputs on ~/ and /diagnostics), robot '{}' ({} links monitored), mode {}, \
-         sources: {}; {}{buffer}",
+         sources: {}; {}{buffer}{security}",
         config.node_path(),
         monitor.model.name,
         monitor.links(),
         format!("{:?}", config.query.mode).to_lowercase(),
         sources.join(", "),
         node.describe,
+        security = node
+            .security
+            .describe()
+            .map_or(String::new(), |s| format!("; {s}")),
     );
     if let Some(g) = granted.filter(|&g| g < SOCKET_BUFFER) {
         log::warn!(

@@ -24,8 +24,9 @@ pub struct NodeArgs {
     #[arg(long)]
     config: Option<PathBuf>,
     /// `--ros-args` as rcl takes them: `-r __node:=NAME -r __ns:=/NS -r FROM:=TO --params-file
-    /// FILE -p NAME:=VALUE --log-level [NAME:=]LEVEL` (FROM:=TO remaps an input or an output,
-    /// e.g. `~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input`)
+    /// FILE -p NAME:=VALUE --log-level [NAME:=]LEVEL --enclave /ENCLAVE` (FROM:=TO remaps an input or
+    /// an output, e.g. `~/speed_scaling:=/joint_trajectory_controller/speed_scaling_input`;
+    /// the enclave is SROS2's, used with ROS_SECURITY_ENABLE=true: docs/security.md)
     #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
     ros_args: Vec<String>,
 }
@@ -98,6 +99,7 @@ pub fn node(args: NodeArgs) -> Result<()> {
     .context("parameters")?;
     config.remaps = ros.remaps_for(&config.node_name);
     config.rosout = ros.rosout.unwrap_or(true);
+    config.enclave = ros.enclave.clone();
     // Signals first: the node answers them throughout, the tree build included.
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
