@@ -37,21 +37,6 @@ fn spawn_node(mut command: Command, enclave: &str, log: &Path) -> Child {
         .unwrap()
 }
 
-/// Waits (up to two minutes: the node loads its trees first) for the node logging to `log`
-/// to say it is up.
-fn wait_up(log: &Path) {
-    for _ in 0..1200 {
-        if std::fs::read_to_string(log).is_ok_and(|l| l.contains("up: node")) {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    panic!(
-        "the node never said it was up:\n{}",
-        std::fs::read_to_string(log).unwrap_or_default()
-    );
-}
-
 /// Stops `node` with SIGTERM; its exit status and log.
 fn stop(mut node: Child, log: &Path) -> (std::process::ExitStatus, String) {
     Command::new("kill")
@@ -134,7 +119,7 @@ fn permissive_without_files_starts_and_says_it_is_unsecured() {
         &log,
     );
     let reap = common::Reap(vec![node.id()]);
-    wait_up(&log);
+    common::wait_up(&log);
     let (status, log) = stop(node, &log);
     drop(reap);
     assert!(status.success(), "{log}");
@@ -220,7 +205,7 @@ fn secured_peers_exchange_data_and_an_unsecured_one_gets_nothing() {
         &log,
     );
     let mut reap = common::Reap(vec![node.id()]);
-    wait_up(&log);
+    common::wait_up(&log);
     let record = |mut c: Command, out: &Path| {
         c.args([
             "record",

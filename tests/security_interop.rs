@@ -19,7 +19,6 @@ mod common;
 use common::cyclone::{build_peer, keystore_tool, peer_json};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::time::Duration;
 
 const POLICY: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -108,20 +107,6 @@ fn spawn_peer(exe: &Path, enclave: Option<&Path>, args: &[&str], trace: PathBuf)
         .unwrap()
 }
 
-/// Waits (up to two minutes) for the node logging to `log` to say it is up.
-fn wait_up(log: &Path) {
-    for _ in 0..1200 {
-        if std::fs::read_to_string(log).is_ok_and(|l| l.contains("up: node")) {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    panic!(
-        "the node never said it was up:\n{}",
-        std::fs::read_to_string(log).unwrap_or_default()
-    );
-}
-
 /// The first log line of `text` that holds `needle`.
 fn line_with<'a>(text: &'a str, needle: &str) -> Option<&'a str> {
     text.lines().find(|l| l.contains(needle))
@@ -204,7 +189,7 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
         .spawn()
         .unwrap();
     let mut reap = common::Reap(vec![node.id()]);
-    wait_up(&log);
+    common::wait_up(&log);
 
     let e = |ks: &Path, name: &str| ks.join("enclaves/cell").join(name);
     let far = path(&far_points);

@@ -365,3 +365,18 @@ impl Rng {
         lo + (hi - lo) * self.next()
     }
 }
+
+/// Waits (up to two minutes: the node loads its trees first) for the node logging to `log`
+/// to say it is up.
+pub fn wait_up(log: &Path) {
+    for _ in 0..1200 {
+        if std::fs::read_to_string(log).is_ok_and(|l| l.contains("up: node")) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    panic!(
+        "the node never said it was up:\n{}",
+        std::fs::read_to_string(log).unwrap_or_default()
+    );
+}
