@@ -112,6 +112,64 @@ fn line_with<'a>(text: &'a str, needle: &str) -> Option<&'a str> {
     text.lines().find(|l| l.contains(needle))
 }
 
+/// The cell's keystore and another CA's, in `dir`: sros2's layout and the cell policy's
+/// enclaves, every submessage encrypted and the payload left to that (metadata ENCRYPT, data
+/// NONE: RustDDS 0.15.1 cannot carry payload-protected samples in fragments, node::security).
+/// The other keystore has the same enclave names and governance kinds.
+fn keystores(dir: &Path) -> (PathBuf, PathBuf) {
+    let (ks, other) = (dir.join("ks"), dir.join("other"));
+    for (k, enclaves) in [
+        (
+            &ks,
+            &["/cell/camera", "/cell/ist_monitor", "/cell/operator"][..],
+        ),
+        (&other, &["/cell/camera", "/cell/operator"][..]),
+    ] {
+        keystore_tool(&[
+            "create_keystore",
+            "--metadata-protection",
+            "ENCRYPT",
+            "--data-protection",
+            "NONE",
+            path(k),
+        ]);
+        let mut a = vec!["generate_artifacts", path(k), POLICY];
+        a.extend(enclaves);
+        keystore_tool(&a);
+    }
+    (ks, other)
+}
+
+/// The node, secured in `/cell/ist_monitor` of `ks` (Enforce), with `args` (`node` and its
+/// `--ros-args`), logging to `log`.
+fn secured_node(ks: &Path, args: &[String], log: &Path) -> Child {
+    common::demo_trees();
+    common::ist_monitor()
+        .env("ROS_SECURITY_ENABLE", "true")
+        .env("ROS_SECURITY_STRATEGY", "Enforce")
+        .env("ROS_SECURITY_KEYSTORE", ks)
+        .env_remove("ROS_SECURITY_ENCLAVE_OVERRIDE")
+        .env("RUST_LOG", "info")
+        .args(["node", "--config", common::DEMO_CONFIG])
+        .args(&args[1..])
+        .args(["--enclave", "/cell/ist_monitor"])
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(log).unwrap())
+        .spawn()
+        .unwrap()
+}
+
+/// The known defects whose log line one of `logs` shows, each with that line.
+fn known_defects_seen(logs: &[&str]) -> Vec<String> {
+    (KNOWN_DEFECTS.iter())
+        .filter_map(|(what, needle)| {
+            (logs.iter())
+                .find_map(|log| line_with(log, needle))
+                .map(|l| format!("  {what}:\n    {}", l.trim()))
+        })
+        .collect()
+}
+
 #[test]
 fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
     if !common::in_private_network(
@@ -123,44 +181,8 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
     let Some(exe) = build_peer(dir.path()) else {
         return;
     };
-    // The keystore: sros2's layout and the cell policy's enclaves, every submessage encrypted
-    // and the payload left to that (metadata ENCRYPT, data NONE: RustDDS 0.15.1 cannot carry
-    // payload-protected samples in fragments, node::security).
-    let (ks, other) = (dir.path().join("ks"), dir.path().join("other"));
-    keystore_tool(&[
-        "create_keystore",
-        "--metadata-protection",
-        "ENCRYPT",
-        "--data-protection",
-        "NONE",
-        path(&ks),
-    ]);
-    keystore_tool(&[
-        "generate_artifacts",
-        path(&ks),
-        POLICY,
-        "/cell/camera",
-        "/cell/ist_monitor",
-        "/cell/operator",
-    ]);
-    // Another CA, the same enclave names and governance kinds.
-    keystore_tool(&[
-        "create_keystore",
-        "--metadata-protection",
-        "ENCRYPT",
-        "--data-protection",
-        "NONE",
-        path(&other),
-    ]);
-    keystore_tool(&[
-        "generate_artifacts",
-        path(&other),
-        POLICY,
-        "/cell/camera",
-        "/cell/operator",
-    ]);
-
-    let mut args = common::at_rest_args();
+    let (ks, other) = keystores(dir.path());
+    let args = common::at_rest_args();
     let expected = library_distance(&args, &plane(0.0));
     let far_distance = library_distance(&args, &plane(3.0));
     assert!(
@@ -173,21 +195,8 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
         .collect();
     std::fs::write(&far_points, text).unwrap();
 
-    common::demo_trees();
     let log = dir.path().join("node.log");
-    args.extend(["--enclave".into(), "/cell/ist_monitor".into()]);
-    let node = common::ist_monitor()
-        .env("ROS_SECURITY_ENABLE", "true")
-        .env("ROS_SECURITY_STRATEGY", "Enforce")
-        .env("ROS_SECURITY_KEYSTORE", &ks)
-        .env_remove("ROS_SECURITY_ENCLAVE_OVERRIDE")
-        .env("RUST_LOG", "info")
-        .args(["node", "--config", common::DEMO_CONFIG])
-        .args(&args[1..])
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&log).unwrap())
-        .spawn()
-        .unwrap();
+    let node = secured_node(&ks, &args, &log);
     let mut reap = common::Reap(vec![node.id()]);
     common::wait_up(&log);
 
@@ -265,14 +274,7 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
         let traces: String = (peers.iter())
             .filter_map(|(name, _, _)| std::fs::read_to_string(trace(name)).ok())
             .collect();
-        let seen: Vec<String> = (KNOWN_DEFECTS.iter())
-            .filter_map(|(what, needle)| {
-                line_with(&node_log, needle)
-                    .or_else(|| line_with(&peer_err, needle))
-                    .or_else(|| line_with(&traces, needle))
-                    .map(|l| format!("  {what}:\n    {}", l.trim()))
-            })
-            .collect();
+        let seen = known_defects_seen(&[&node_log, &peer_err, &traces]);
         assert!(
             !seen.is_empty(),
             "the secured Cyclone operator got no distance, and no known defect explains it: \
