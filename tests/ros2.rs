@@ -233,27 +233,16 @@ fn overrides(args: &[String]) -> Vec<(String, String)> {
         .collect()
 }
 
-/// rclpy publishes what a camera driver publishes — a PointCloud2, or a 16UC1 depth image with
-/// its CameraInfo — deserialized by rclpy from our own CDR and stamped by it; the node's
-/// `~/min_distance`, `~/closest_points` and fused `/diagnostics` equal what the library computes
-/// for the same message in-process (within 1e-6 m), and once the camera stops, the source's
-/// timeout turns the cell to ERROR.
-#[test]
-fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
+/// A plane 0.6 m ahead of the camera, stamped now: a cloud of 20 × 20 points in camera_link,
+/// and a 64 × 48 depth image of it in camera_optical_frame with its CameraInfo.
+fn plane_inputs() -> (
+    ist_monitor::msg::PointCloud2<'static>,
+    ist_monitor::msg::Image<'static>,
+    ist_monitor::msg::CameraInfo,
+) {
     use ist_monitor::cloud::pointcloud2;
-    use ist_monitor::msg::{self, CameraInfo, Header, Image, Time};
-    if !common::in_private_network(
-        "rclpy_clouds_and_depth_images_are_answered_as_the_library_answers",
-    ) {
-        return;
-    }
-    let Some(python) = common::rclpy_python() else {
-        return;
-    };
-    common::demo_trees();
-    let dir = tempfile::tempdir().unwrap();
-    // A plane 0.6 m ahead of the camera: 20 × 20 points in camera_link (x ahead), or a 64 × 48
-    // depth image of it in camera_optical_frame (z ahead).
+    use ist_monitor::msg::{CameraInfo, Header, Image, Time};
+    // 20 × 20 points in camera_link (x ahead), or a depth image in camera_optical_frame (z ahead).
     let plane: Vec<[f32; 3]> = (0..400)
         .map(|i| {
             let (u, v) = ((i % 20) as f32, (i / 20) as f32);
@@ -293,6 +282,28 @@ fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
         p: [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
         ..Default::default()
     };
+    (cloud, image, info)
+}
+
+/// rclpy publishes what a camera driver publishes — a PointCloud2, or a 16UC1 depth image with
+/// its CameraInfo — deserialized by rclpy from our own CDR and stamped by it; the node's
+/// `~/min_distance`, `~/closest_points` and fused `/diagnostics` equal what the library computes
+/// for the same message in-process (within 1e-6 m), and once the camera stops, the source's
+/// timeout turns the cell to ERROR.
+#[test]
+fn rclpy_clouds_and_depth_images_are_answered_as_the_library_answers() {
+    use ist_monitor::msg::{self, Time};
+    if !common::in_private_network(
+        "rclpy_clouds_and_depth_images_are_answered_as_the_library_answers",
+    ) {
+        return;
+    }
+    let Some(python) = common::rclpy_python() else {
+        return;
+    };
+    common::demo_trees();
+    let dir = tempfile::tempdir().unwrap();
+    let (cloud, image, info) = plane_inputs();
     let write = |name: &str, bytes: Vec<u8>| {
         let p = dir.path().join(name);
         std::fs::write(&p, bytes).unwrap();

@@ -72,11 +72,15 @@ fn enforce_without_a_file_refuses_to_start_naming_it() {
     ] {
         std::fs::write(dir.join(f), "x").unwrap();
     }
-    let out = secured(ist_monitor(), "Enforce", ks.path())
-        .args(common::at_rest_args())
-        .args(["--enclave", "/cell/ist_monitor"])
-        .output()
-        .unwrap();
+    // The node started in `/cell/ist_monitor` with Enforce, to its end.
+    let enforce = || {
+        secured(ist_monitor(), "Enforce", ks.path())
+            .args(common::at_rest_args())
+            .args(["--enclave", "/cell/ist_monitor"])
+            .output()
+            .unwrap()
+    };
+    let out = enforce();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "started without its files:\n{err}");
     let missing = dir.join("identity_ca.cert.pem");
@@ -87,11 +91,7 @@ fn enforce_without_a_file_refuses_to_start_naming_it() {
     assert!(!err.contains("up: node"), "{err}");
     // A file that is there but is not what it must be is named too (the first one checked).
     std::fs::write(&missing, "not a certificate").unwrap();
-    let out = secured(ist_monitor(), "Enforce", ks.path())
-        .args(common::at_rest_args())
-        .args(["--enclave", "/cell/ist_monitor"])
-        .output()
-        .unwrap();
+    let out = enforce();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(

@@ -163,14 +163,12 @@ pub fn record(args: RecordArgs) -> Result<()> {
     let n = node::record::record(transport, &args.node, &args.out, args.duration)?;
     println!("{n} messages recorded to {}", args.out.display());
     let ms = node::record::distance_latencies(&args.out, &args.node)?;
-    if !ms.is_empty() {
-        let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
+    let at = |q: f64| ist_monitor::stats::percentile(&ms, q);
+    if let (Some(p50), Some(p99), Some(max)) = (at(0.5), at(0.99), at(1.0)) {
         println!(
-            "~/distance: {} frames, received − stamped: p50 {:.1} ms, p99 {:.1} ms, max {:.1} ms",
-            ms.len(),
-            at(0.5),
-            at(0.99),
-            at(1.0)
+            "~/distance: {} frames, received − stamped: p50 {p50:.1} ms, p99 {p99:.1} ms, max \
+             {max:.1} ms",
+            ms.len()
         );
     }
     Ok(())
