@@ -9,13 +9,18 @@
 //! camera's answers keep flowing: an intruder that got through would make frames the fault
 //! `second_publisher`) and nothing gets out (they receive no distance, match no endpoint).
 //!
-//! RustDDS 0.15.1 does not complete the handshake with Cyclone DDS 0.10 (three defects, see
-//! [`KNOWN_DEFECTS`]); where the node's log shows one, the test prints what fails and checks
-//! what still holds (the intruders get nothing through), so that it turns into the full check
-//! by itself once RustDDS is fixed.
+//! The wire: a capture on the namespace's loopback (tests/common/capture.rs) must hold none of
+//! the secured camera's cloud bytes (every submessage is encrypted), while the unsecured
+//! intruder's cloud, which an unsecured Cyclone reader on the side takes, is there in clear
+//! (so the capture sees clouds at all). The capture is kept as a pcap file in the target's
+//! test folder.
+//!
+//! The handshake needs RustDDS's three interop fixes (vendor/rustdds/PATCHES.md); without them
+//! no secured Cyclone participant matches the node and the operator reads nothing.
 
 mod common;
 
+use common::capture::{frames_with, write_pcap, Capture};
 use common::cyclone::{build_peer, keystore_tool, peer_json};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -27,23 +32,6 @@ const POLICY: &str = concat!(
 
 /// How long the peers run (s): the handshakes take a few seconds on a loaded machine.
 const PEER_SECONDS: &str = "15";
-
-/// Log lines of RustDDS 0.15.1's known interop defects with Cyclone DDS 0.10, in the order the
-/// handshake meets them: (where, what the log says).
-const KNOWN_DEFECTS: [(&str, &str); 3] = [
-    (
-        "node (RustDDS): Cyclone's c.kagree_algo carries its C string's NUL",
-        "Unexpected c_kagree_algo in handshake request",
-    ),
-    (
-        "node (RustDDS): Cyclone's HandshakeFinalMessageToken leaves out dh1/dh2 (optional, DDS-Security 1.1 Table 51)",
-        "dh1 not found",
-    ),
-    (
-        "Cyclone: RustDDS sends a crypto token of transformation kind NONE (the payload's, data NONE)",
-        "Invalid Crypto token",
-    ),
-];
 
 /// The `--ros-args` `-p NAME:=VALUE` pairs of `args`.
 fn overrides(args: &[String]) -> Vec<(String, String)> {
@@ -107,11 +95,6 @@ fn spawn_peer(exe: &Path, enclave: Option<&Path>, args: &[&str], trace: PathBuf)
         .unwrap()
 }
 
-/// The first log line of `text` that holds `needle`.
-fn line_with<'a>(text: &'a str, needle: &str) -> Option<&'a str> {
-    text.lines().find(|l| l.contains(needle))
-}
-
 /// The cell's keystore and another CA's, in `dir`: sros2's layout and the cell policy's
 /// enclaves, every submessage encrypted and the payload left to that (metadata ENCRYPT, data
 /// NONE: RustDDS 0.15.1 cannot carry payload-protected samples in fragments, node::security).
@@ -159,14 +142,104 @@ fn secured_node(ks: &Path, args: &[String], log: &Path) -> Child {
         .unwrap()
 }
 
-/// The known defects whose log line one of `logs` shows, each with that line.
-fn known_defects_seen(logs: &[&str]) -> Vec<String> {
-    (KNOWN_DEFECTS.iter())
-        .filter_map(|(what, needle)| {
-            (logs.iter())
-                .find_map(|log| line_with(log, needle))
-                .map(|l| format!("  {what}:\n    {}", l.trim()))
+/// The bytes the peer puts on the wire for points `from..from + n` of `points` (x y z float32
+/// and a 4-byte pad, point_step 16, cyclone_secure_peer.c's layout).
+fn wire_bytes(points: &[[f32; 3]], from: usize, n: usize) -> Vec<u8> {
+    (points[from..from + n].iter())
+        .flat_map(|p| {
+            (p.iter().flat_map(|c| c.to_le_bytes()))
+                .chain([0; 4])
+                .collect::<Vec<u8>>()
         })
+        .collect()
+}
+
+/// The peers, each with its enclave (None: unsecured) and arguments: the cell's camera and
+/// operator; an unsecured intruder and another CA's camera and operator, whose camera sends
+/// the far cloud in `far`; and an unsecured Cyclone reader of the cloud topic that answers on a
+/// topic of its own, so that the unsecured intruder's cloud crosses the wire in clear.
+fn peers<'a>(
+    ks: &Path,
+    other: &Path,
+    far: &'a str,
+) -> Vec<(&'static str, Option<PathBuf>, Vec<&'a str>)> {
+    let e = |ks: &Path, name: &str| ks.join("enclaves/cell").join(name);
+    vec![
+        ("camera", Some(e(ks, "camera")), vec!["--no-float"]),
+        ("operator", Some(e(ks, "operator")), vec!["--no-cloud"]),
+        ("unsecured", None, vec!["--points", far]),
+        (
+            "wrong_ca_camera",
+            Some(e(other, "camera")),
+            vec!["--no-float", "--points", far],
+        ),
+        (
+            "wrong_ca_operator",
+            Some(e(other, "operator")),
+            vec!["--no-cloud"],
+        ),
+        (
+            "clear_reader",
+            None,
+            vec!["--monitor", "--float-topic", "rt/wire_check/nearest"],
+        ),
+    ]
+}
+
+/// What one run gave: each peer's JSON line, the node's log, the captured frames.
+struct Run {
+    out: Vec<serde_json::Value>,
+    node_log: String,
+    frames: Vec<Vec<u8>>,
+}
+
+/// Starts the secured node, captures the loopback while the peers run, stops the node.
+fn run(dir: &Path, exe: &Path, ks: &Path, other: &Path, args: &[String], far: &str) -> Run {
+    let log = dir.join("node.log");
+    let node = secured_node(ks, args, &log);
+    let mut reap = common::Reap(vec![node.id()]);
+    common::wait_up(&log);
+    let capture = Capture::start().expect("a packet capture on lo inside the namespace");
+    let peers = peers(ks, other, far);
+    let trace = |name: &str| dir.join(format!("{name}.trace"));
+    let children: Vec<Child> = (peers.iter())
+        .map(|(name, enclave, a)| spawn_peer(exe, enclave.as_deref(), a, trace(name)))
+        .collect();
+    reap.0.extend(children.iter().map(|c| c.id()));
+    let outputs: Vec<std::process::Output> = children
+        .into_iter()
+        .map(|c| c.wait_with_output().unwrap())
+        .collect();
+    let frames = capture.stop();
+    Command::new("kill")
+        .arg(node.id().to_string())
+        .status()
+        .unwrap();
+    let mut node = node;
+    let status = node.wait().unwrap();
+    drop(reap);
+    let node_log = std::fs::read_to_string(&log).unwrap();
+    assert!(status.success(), "the node: {node_log}");
+    let out: Vec<serde_json::Value> = outputs.iter().map(peer_json).collect();
+    for ((name, _, _), o) in peers.iter().zip(&out) {
+        let mut short = o.clone();
+        let v = values(o);
+        short["values"] = match (v.first(), v.last()) {
+            (Some(a), Some(b)) => format!("{} values, first {a}, last {b}", v.len()).into(),
+            _ => "none".into(),
+        };
+        eprintln!("{name}: {short}");
+    }
+    Run {
+        out,
+        node_log,
+        frames,
+    }
+}
+
+fn values(o: &serde_json::Value) -> Vec<f64> {
+    (o["values"].as_array().unwrap().iter())
+        .map(|v| v.as_f64().unwrap())
         .collect()
 }
 
@@ -194,56 +267,11 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
         .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
         .collect();
     std::fs::write(&far_points, text).unwrap();
-
-    let log = dir.path().join("node.log");
-    let node = secured_node(&ks, &args, &log);
-    let mut reap = common::Reap(vec![node.id()]);
-    common::wait_up(&log);
-
-    let e = |ks: &Path, name: &str| ks.join("enclaves/cell").join(name);
-    let far = path(&far_points);
-    let trace = |name: &str| dir.path().join(format!("{name}.trace"));
-    let peers = [
-        ("camera", Some(e(&ks, "camera")), vec!["--no-float"]),
-        ("operator", Some(e(&ks, "operator")), vec!["--no-cloud"]),
-        ("unsecured", None, vec!["--points", far]),
-        (
-            "wrong_ca_camera",
-            Some(e(&other, "camera")),
-            vec!["--no-float", "--points", far],
-        ),
-        (
-            "wrong_ca_operator",
-            Some(e(&other, "operator")),
-            vec!["--no-cloud"],
-        ),
-    ];
-    let children: Vec<Child> = (peers.iter())
-        .map(|(name, enclave, a)| spawn_peer(&exe, enclave.as_deref(), a, trace(name)))
-        .collect();
-    reap.0.extend(children.iter().map(|c| c.id()));
-    let outputs: Vec<std::process::Output> = children
-        .into_iter()
-        .map(|c| c.wait_with_output().unwrap())
-        .collect();
-    Command::new("kill")
-        .arg(node.id().to_string())
-        .status()
-        .unwrap();
-    let mut node = node;
-    let status = node.wait().unwrap();
-    drop(reap);
-    let node_log = std::fs::read_to_string(&log).unwrap();
-    assert!(status.success(), "the node: {node_log}");
-    let out: Vec<serde_json::Value> = outputs.iter().map(peer_json).collect();
-    for ((name, _, _), o) in peers.iter().zip(&out) {
-        eprintln!("{name}: {o}");
-    }
-    let values = |o: &serde_json::Value| -> Vec<f64> {
-        (o["values"].as_array().unwrap().iter())
-            .map(|v| v.as_f64().unwrap())
-            .collect()
-    };
+    let Run {
+        out,
+        node_log,
+        frames,
+    } = run(dir.path(), &exe, &ks, &other, &args, path(&far_points));
 
     // Nothing out: the intruders receive no distance and match no endpoint of the node.
     for (i, name) in [
@@ -257,7 +285,12 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
             out[i]
         );
         assert_eq!(out[i]["float_matched"], 0, "{name}: {}", out[i]);
-        assert_eq!(out[i]["cloud_matched"], 0, "{name}: {}", out[i]);
+        assert_eq!(
+            out[i]["cloud_matched"],
+            u64::from(i == 2),
+            "{name}: {}",
+            out[i]
+        );
     }
     assert!(
         (out[2]["clouds_sent"].as_u64().unwrap() > 0)
@@ -265,33 +298,13 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
         "the intruders published nothing: {out:?}"
     );
 
-    let operator = values(&out[1]);
-    if operator.is_empty() {
-        // The handshake between RustDDS and Cyclone failed: say where, from either side's log.
-        let peer_err: String = (outputs.iter())
-            .map(|o| String::from_utf8_lossy(&o.stderr).into_owned())
-            .collect();
-        let traces: String = (peers.iter())
-            .filter_map(|(name, _, _)| std::fs::read_to_string(trace(name)).ok())
-            .collect();
-        let seen = known_defects_seen(&[&node_log, &peer_err, &traces]);
-        assert!(
-            !seen.is_empty(),
-            "the secured Cyclone operator got no distance, and no known defect explains it: \
-             {out:?}\nnode log:\n{node_log}"
-        );
-        eprintln!(
-            "KNOWN DEFECT: RustDDS 0.15.1 and Cyclone DDS 0.10 complete no DDS-Security \
-             handshake, so the secured Cyclone camera's clouds and the node's distances are not \
-             exchanged (checked instead: the intruders get nothing through). Seen:\n{}",
-            seen.join("\n")
-        );
-        assert_eq!(out[0]["cloud_matched"], 0, "{out:?}");
-        return;
-    }
-
     // In and out: the secured camera's clouds are measured, and every distance the secured
     // operator read is the library's for that cloud (never the intruders' far one).
+    let operator = values(&out[1]);
+    assert!(
+        !operator.is_empty(),
+        "the secured Cyclone operator got no distance: {out:?}\nnode log:\n{node_log}"
+    );
     assert!(out[0]["cloud_matched"].as_u64().unwrap() >= 1, "{out:?}");
     assert!(out[1]["float_matched"].as_u64().unwrap() >= 1, "{out:?}");
     for v in &operator {
@@ -312,5 +325,27 @@ fn cyclone_secured_peers_talk_to_the_secured_node_and_intruders_get_nothing() {
     assert!(
         !node_log.contains("second_publisher"),
         "an intruder's writer got through:\n{node_log}"
+    );
+
+    // The wire: the secured cloud never in clear, the unsecured one in clear (the control).
+    let pcap = Path::new(env!("CARGO_TARGET_TMPDIR")).join("security_interop.pcap");
+    write_pcap(&pcap, &frames);
+    let secured = frames_with(&frames, &wire_bytes(&plane(0.0), 21, 4));
+    let clear = frames_with(&frames, &wire_bytes(&plane(3.0), 21, 4));
+    eprintln!(
+        "wire: {} frames ({}), the secured cloud's bytes in {secured}, the unsecured one's in {clear}",
+        frames.len(),
+        pcap.display()
+    );
+    assert!(
+        out[5]["clouds_received"].as_u64().unwrap() > 0 && clear > 0,
+        "the capture must see the unsecured cloud in clear ({clear} frames; the clear reader: {})",
+        out[5]
+    );
+    assert_eq!(
+        secured,
+        0,
+        "the secured camera's cloud is in clear on the wire ({})",
+        pcap.display()
     );
 }

@@ -4,7 +4,7 @@ made from it, at a given rate with fresh stamps, and measures the node's answers
 ~/link_distances (stamped with the cloud's stamp): how many came back and how late.
 
     camera_peer.py BAG --mode cloud|depth [--transport dds|zenoh|rclpy] [--rate HZ]
-                   [--duration S] [--node /ist_monitor] [--connect tcp/localhost:7447]
+                   [--duration S] [--node /ist_monitor] [--topic T] [--connect tcp/localhost:7447]
                    [--node-pid PID]
 
 BAG is a rosbag2 holding an organized PointCloud2 (the first is used; the real Kinect bag of
@@ -166,6 +166,7 @@ def run_rclpy(args):
     from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2, PointField
 
     topic, cloud = read_cloud(args.bag)
+    topic = args.topic or topic
     width, height = cloud.width, cloud.height
     rclpy.init()
     node = rclpy.create_node("camera_peer")
@@ -258,6 +259,7 @@ def main():
     ap.add_argument("--rate", type=float, default=30.0)
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--node", default="/ist_monitor")
+    ap.add_argument("--topic", help="the topic to publish the cloud on (default: the bag's)")
     ap.add_argument("--wait", type=float, default=3.0, help="discovery time before publishing, s")
     ap.add_argument("--transport", choices=["dds", "zenoh", "rclpy"], default="dds")
     ap.add_argument("--node-pid", type=int, help="report this process's CPU and peak memory")
@@ -348,6 +350,7 @@ def main():
         effort: sequence[float64]
 
     topic, cloud = read_cloud(args.bag)
+    topic = args.topic or topic
     frame = cloud.header.frame_id
     width, height = cloud.width, cloud.height
     header = lambda stamp_ns: Header_(Time_(stamp_ns // 10**9, stamp_ns % 10**9), frame)

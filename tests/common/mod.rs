@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+pub mod capture;
 pub mod cyclone;
 
 /// Says that the running test skips, and why, on the process's standard error itself: the

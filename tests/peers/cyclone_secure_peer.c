@@ -4,7 +4,7 @@
  *   cyclone_secure_peer [--enclave DIR] [--plugins DIR] [--trace FILE] [--domain N]
  *                       [--cloud-topic T] [--points FILE] [--frame F]
  *                       [--float-topic T] [--timeout S] [--count N] [--monitor]
- *                       [--no-cloud] [--no-float]
+ *                       [--no-cloud] [--no-float] [--cdr FILE] [--rate HZ]
  *
  * Default: publishes a sensor_msgs/PointCloud2 on --cloud-topic (rt/camera/depth/points) at
  * 10 Hz, best effort as camera drivers do, and reads std_msgs/Float64 on --float-topic
@@ -14,6 +14,11 @@
  * 0.6 m ahead of camera_link); fields x y z float32 and a 4-byte pad, point_step 16.
  * --monitor: the other role, for a Cyclone-only check: reads the clouds on --cloud-topic and
  * answers each with the distance of its nearest point to the origin on --float-topic.
+ *
+ * --cdr FILE: publish this cloud instead, a serialized sensor_msgs/PointCloud2 as a bag holds it
+ * (CDR, little endian, with its 4-byte encapsulation header; e.g. the real Kinect frame), its
+ * stamp replaced by the time of each write. --rate HZ: the clouds' rate (default 10), paced
+ * from the start (a late write is not made up for).
  *
  * --no-cloud, --no-float: leave that side out (a process per enclave: in the cell policy the camera
  * publishes the cloud and the operator reads the outputs). A reader or writer the local
@@ -44,9 +49,9 @@
 #define DEFAULT_PLUGINS "/usr/lib/x86_64-linux-gnu/libddsc0debian"
 
 struct options {
-  const char *enclave, *plugins, *trace, *cloud_topic, *float_topic, *points, *frame;
+  const char *enclave, *plugins, *trace, *cloud_topic, *float_topic, *points, *frame, *cdr;
   int domain, count, monitor, no_cloud, no_float;
-  double timeout;
+  double timeout, rate;
 };
 
 static void die(const char *what, dds_return_t rc) {
@@ -132,14 +137,17 @@ static float *load_points(const char *path, uint32_t *n) {
   return xyz;
 }
 
+static void stamp_now(sensor_msgs_msg_dds__PointCloud2_ *c) {
+  double t = now_s();
+  c->header.stamp.sec = (int32_t)t;
+  c->header.stamp.nanosec = (uint32_t)((t - (double)(int32_t)t) * 1e9);
+}
 static void fill_cloud(sensor_msgs_msg_dds__PointCloud2_ *c, const float *xyz, uint32_t n,
                        const char *frame) {
   static sensor_msgs_msg_dds__PointField_ fields[3] = {
       {"x", 0, 7, 1}, {"y", 4, 7, 1}, {"z", 8, 7, 1}};
   memset(c, 0, sizeof *c);
-  double t = now_s();
-  c->header.stamp.sec = (int32_t)t;
-  c->header.stamp.nanosec = (uint32_t)((t - (double)(int32_t)t) * 1e9);
+  stamp_now(c);
   c->header.frame_id = (char *)frame;
   c->height = 1;
   c->width = n;
@@ -154,6 +162,89 @@ static void fill_cloud(sensor_msgs_msg_dds__PointCloud2_ *c, const float *xyz, u
   c->is_dense = true;
 }
 
+/* A reader of little-endian CDR (XCDR1 as ROS 2 writes it): alignment counted from the end of
+ * the 4-byte encapsulation header; every length is checked against the bytes present. */
+struct cdr {
+  const uint8_t *p;
+  size_t len, pos;
+  const char *file;
+};
+static void cdr_need(struct cdr *c, size_t align, size_t n) {
+  c->pos = (c->pos + align - 1) / align * align;
+  if (c->pos > c->len || n > c->len - c->pos) {
+    fprintf(stderr, "cyclone_secure_peer: --cdr %s: truncated at byte %zu (a PointCloud2?)\n",
+            c->file, c->pos + 4);
+    exit(2);
+  }
+}
+static uint32_t cdr_u32(struct cdr *c) {
+  uint32_t v;
+  cdr_need(c, 4, 4);
+  memcpy(&v, c->p + c->pos, 4);
+  c->pos += 4;
+  return v;
+}
+static uint8_t cdr_u8(struct cdr *c) {
+  cdr_need(c, 1, 1);
+  return c->p[c->pos++];
+}
+/* A string or byte sequence: its length, then its bytes (a copy, NUL-terminated). */
+static char *cdr_bytes(struct cdr *c, uint32_t *n) {
+  *n = cdr_u32(c);
+  cdr_need(c, 1, *n);
+  char *b = malloc((size_t)*n + 1);
+  memcpy(b, c->p + c->pos, *n);
+  b[*n] = 0;
+  c->pos += *n;
+  return b;
+}
+/* The cloud of --cdr FILE, its fields and data as the file has them. */
+static void load_cdr(const char *path, sensor_msgs_msg_dds__PointCloud2_ *cloud) {
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    fprintf(stderr, "cyclone_secure_peer: --cdr %s: %s\n", path, strerror(errno));
+    exit(2);
+  }
+  fseek(f, 0, SEEK_END);
+  long size = ftell(f);
+  rewind(f);
+  uint8_t *bytes = malloc(size > 0 ? (size_t)size : 1);
+  if (size < 4 || fread(bytes, 1, (size_t)size, f) != (size_t)size || bytes[1] != 1) {
+    fprintf(stderr, "cyclone_secure_peer: --cdr %s: not little-endian CDR (encapsulation %s)\n",
+            path, size < 4 ? "missing" : "not CDR_LE");
+    exit(2);
+  }
+  fclose(f);
+  struct cdr c = {bytes + 4, (size_t)size - 4, 0, path};
+  memset(cloud, 0, sizeof *cloud);
+  uint32_t n;
+  cdr_u32(&c), cdr_u32(&c); /* the stamp: replaced at each write */
+  cloud->header.frame_id = cdr_bytes(&c, &n);
+  cloud->height = cdr_u32(&c);
+  cloud->width = cdr_u32(&c);
+  uint32_t nfields = cdr_u32(&c);
+  if (nfields > (c.len - c.pos) / 9) {
+    fprintf(stderr, "cyclone_secure_peer: --cdr %s: %u fields in %zu bytes\n", path, nfields,
+            c.len - c.pos);
+    exit(2);
+  }
+  cloud->fields._length = cloud->fields._maximum = nfields;
+  cloud->fields._buffer = calloc(nfields ? nfields : 1, sizeof *cloud->fields._buffer);
+  for (uint32_t i = 0; i < nfields; i++) {
+    sensor_msgs_msg_dds__PointField_ *pf = &cloud->fields._buffer[i];
+    pf->name = cdr_bytes(&c, &n);
+    pf->offset = cdr_u32(&c);
+    pf->datatype = cdr_u8(&c);
+    pf->count = cdr_u32(&c);
+  }
+  cloud->is_bigendian = cdr_u8(&c);
+  cloud->point_step = cdr_u32(&c);
+  cloud->row_step = cdr_u32(&c);
+  cloud->data._buffer = (uint8_t *)cdr_bytes(&c, &n);
+  cloud->data._length = cloud->data._maximum = n;
+  cloud->is_dense = cdr_u8(&c);
+  free(bytes);
+}
 /* The distance of a cloud's nearest point to the origin (the --monitor role). */
 static double nearest(const sensor_msgs_msg_dds__PointCloud2_ *c) {
   double best = INFINITY;
@@ -175,7 +266,7 @@ static void entity_state(dds_entity_t e, char *out, size_t size) {
 
 static void parse(int argc, char **argv, struct options *o) {
   *o = (struct options){NULL, DEFAULT_PLUGINS, NULL, "rt/camera/depth/points",
-                        "rt/ist_monitor/min_distance", NULL, "camera_link", 0, 0, 0, 0, 0, 30.0};
+                        "rt/ist_monitor/min_distance", NULL, "camera_link", NULL, 0, 0, 0, 0, 0, 30.0, 10.0};
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     int *flag = !strcmp(a, "--monitor")    ? &o->monitor
@@ -201,6 +292,8 @@ static void parse(int argc, char **argv, struct options *o) {
     else if (!strcmp(a, "--domain")) o->domain = atoi(v);
     else if (!strcmp(a, "--count")) o->count = atoi(v);
     else if (!strcmp(a, "--timeout")) o->timeout = atof(v);
+    else if (!strcmp(a, "--cdr")) o->cdr = v;
+    else if (!strcmp(a, "--rate")) o->rate = atof(v);
     else {
       fprintf(stderr, "cyclone_secure_peer: unknown option %s\n", a);
       exit(2);
@@ -242,18 +335,29 @@ int main(int argc, char **argv) {
   entity_state(float_e, float_state, sizeof float_state);
 
   uint32_t n = 0;
-  float *xyz = o.monitor ? NULL : load_points(o.points, &n);
+  float *xyz = o.monitor || o.cdr ? NULL : load_points(o.points, &n);
+  sensor_msgs_msg_dds__PointCloud2_ file_cloud;
+  if (o.cdr && !o.monitor) load_cdr(o.cdr, &file_cloud);
+  if (!(o.rate > 0)) {
+    fprintf(stderr, "cyclone_secure_peer: --rate %g: must be above 0\n", o.rate);
+    exit(2);
+  }
   static double values[MAX_VALUES];
   int nvalues = 0, sent = 0, received = 0;
-  double end = now_s() + o.timeout;
+  double start = now_s(), end = start + o.timeout;
   while (now_s() < end && !(o.count > 0 && nvalues >= o.count)) {
     void *samples[16] = {NULL};
     dds_sample_info_t infos[16];
     if (!o.monitor) {
-      sensor_msgs_msg_dds__PointCloud2_ c;
-      fill_cloud(&c, xyz, n, o.frame);
-      if (cloud_e > 0 && dds_write(cloud_e, &c) == DDS_RETCODE_OK) sent++;
-      free(c.data._buffer);
+      if (o.cdr) {
+        stamp_now(&file_cloud);
+        if (cloud_e > 0 && dds_write(cloud_e, &file_cloud) == DDS_RETCODE_OK) sent++;
+      } else {
+        sensor_msgs_msg_dds__PointCloud2_ c;
+        fill_cloud(&c, xyz, n, o.frame);
+        if (cloud_e > 0 && dds_write(cloud_e, &c) == DDS_RETCODE_OK) sent++;
+        free(c.data._buffer);
+      }
       int k = float_e > 0 ? dds_take(float_e, samples, infos, 16, 16) : 0;
       for (int i = 0; i < k; i++)
         if (infos[i].valid_data && nvalues < MAX_VALUES)
@@ -270,7 +374,13 @@ int main(int argc, char **argv) {
         }
       if (k > 0) dds_return_loan(cloud_e, samples, k);
     }
-    dds_sleepfor(DDS_MSECS(100));
+    if (o.monitor) {
+      dds_sleepfor(DDS_MSECS(100));
+    } else {
+      /* The next write's time on the schedule from the start; none made up for. */
+      double next = start + ceil((now_s() - start) * o.rate + 1e-9) / o.rate;
+      if (next > now_s()) dds_sleepfor((dds_duration_t)(1e9 * (next - now_s())));
+    }
   }
   dds_publication_matched_status_t pm = {0};
   dds_subscription_matched_status_t sm = {0};
