@@ -7,10 +7,11 @@
 //! Branch and bound, as `packing::gap` in f32: g is 1-Lipschitz, so a triangle with longest
 //! edge L is bounded by its largest corner gap + L/√3, and by the convex bound of one sphere
 //! (largest corner distance to it less its radius, with the spheres nearest its corners). A
-//! sub-triangle is done when its bound is within `eps_m` of the largest of the floor (the
-//! packing's claim), the largest gap at any corner of the input outside the solid (found first)
-//! and what its own triangle sampled; never what other threads found meanwhile, so the value
-//! has the same bits on any thread count. Otherwise its longest edge is split, down to
+//! sub-triangle is done when its bound is at most the floor (a bound known already: the
+//! packing's claim plus its accuracy, or the packed surface's h for a file's own triangles, so
+//! that the two slacks do not add up), or within `eps_m` of the largest gap at any corner of the
+//! input outside the solid (found first) or of what its own triangle sampled; never what other
+//! threads found meanwhile, so the value has the same bits on any thread count. Otherwise its longest edge is split, down to
 //! `tolerance` (see `validate`'s module doc for the leaves and the solid's inside).
 //!
 //! Cost: a nearest-sphere walk of the tree per corner visited; where the floor is exceeded the
@@ -113,7 +114,9 @@ impl GapBound {
 }
 
 /// Measures the gap of `triangles` (index in their source, corners) to the spheres (see the
-/// module doc): `floor_m` is the claim below which nothing is refined, and with `inside`
+/// module doc): `floor_m` is a bound already known for the whole (the packing's claim with its
+/// accuracy, or the packed surface's measured h) at or below which nothing is refined; samples
+/// above it are refined to within `eps_m`. With `inside`
 /// (whether a point lies inside the solid at least a depth deep) points inside the solid are
 /// excused. `lower_m` is the largest gap sampled outside the solid, or at most `floor_m`
 /// anywhere (whether those lie inside is not asked: on a file's own surface most do so within
@@ -137,10 +140,9 @@ pub(super) fn measure(
         .par_iter()
         .zip(&start)
         .flat_map_iter(|((_, t), gs)| t.iter().zip(gs))
-        .filter(|&(&p, &(gap, _))| gap > floor_m && outside(p))
+        .filter(|&(&p, &(gap, _))| gap + accuracy.eps_m > floor_m && outside(p))
         .map(|(_, &(gap, _))| gap)
         .reduce(|| 0.0, f64::max);
-    let known = floor_m.max(seed);
     triangles
         .par_iter()
         .zip(&start)
@@ -168,7 +170,7 @@ pub(super) fn measure(
                     .fold(f64::INFINITY, f64::min)
                     .max(0.0);
                 let bound = lipschitz.min(convex);
-                if bound <= known.max(out.lower_m) + accuracy.eps_m {
+                if bound <= floor_m.max(seed.max(out.lower_m) + accuracy.eps_m) {
                     out.upper_m = out.upper_m.max(bound);
                     continue;
                 }

@@ -23,11 +23,12 @@
 //! The branch and bound is that of `packing::gap` in f64: g, the distance to the spheres, is
 //! 1-Lipschitz, so a triangle with longest edge L is bounded by its largest corner gap + L/√3,
 //! and by the convex bound of one sphere (largest corner distance to it less its radius). A
-//! sub-triangle is done when its bound is within `eps_m` of the largest of: the claim (the
-//! packing's estimate: where it is sound the splits are those of a yes/no check), the largest
-//! gap at any corner of the input outside the solid, and what this triangle sampled itself.
-//! Never what other triangles found meanwhile, so the value has the same bits on any thread
-//! count. A file's sub-triangle deeper inside the solid than L/√3 everywhere is excused. A
+//! sub-triangle is done when its bound is at most a floor (on the packed surface the claim, the
+//! packing's estimate, plus `eps_m`: where the claim is sound the splits are those of the old
+//! yes/no check; on a file's own triangles the packed surface's measured h, so the two slacks
+//! do not add up), or within `eps_m` of the largest gap at any corner of the input outside the
+//! solid or of what this triangle sampled itself. Never what other triangles found meanwhile,
+//! so the value has the same bits on any thread count. A file's sub-triangle deeper inside the solid than L/√3 everywhere is excused. A
 //! leaf (L/√3 ≤ `tolerance`) is bounded by its corners, adding L/√3: those outside the solid
 //! by their gap, those inside by the packed surface's h (a point outside the solid within L/√3
 //! of one inside it is that near the solid's boundary). That is exact for a closed mesh; for a
@@ -238,7 +239,8 @@ fn measure_elements(
             .enumerate()
             .collect();
         triangles += corners.len();
-        let floor = tree.quality.gap_m - e.tessellation_error_m;
+        // The claim with its accuracy, as the old yes/no check had it: the same splits.
+        let floor = tree.quality.gap_m - e.tessellation_error_m + accuracy.eps_m;
         let bound = measure(&corners, floor, accuracy, index, None);
         let upper = bound.upper_m + e.tessellation_error_m;
         if !upper.is_finite() {
