@@ -47,6 +47,16 @@ pub fn widen(p: [f32; 3]) -> P3 {
     [p[0] as f64, p[1] as f64, p[2] as f64]
 }
 
+/// The smallest f32 at least `x`: a bound (a radius, a gap) narrowed to f32 must not shrink,
+/// and `as f32` rounds to the nearest, down as often as up.
+pub fn f32_at_least(x: f64) -> f32 {
+    let mut y = x as f32;
+    while (y as f64) < x {
+        y = y.next_up();
+    }
+    y
+}
+
 /// Closest point to `p` on the triangle `abc` (Ericson's Voronoi-region method).
 pub fn closest_point_triangle(p: P3, a: P3, b: P3, c: P3) -> P3 {
     let ab = sub(b, a);
@@ -329,6 +339,15 @@ mod tests {
     }
 
     proptest! {
+        /// The f32 of a bound is the smallest at least the bound: never below it (as `as f32`
+        /// is for about half of them), and the f32 before it is below.
+        #[test]
+        fn f32_at_least_rounds_up_by_less_than_one_step(x in 1e-9f64..1.0) {
+            let y = f32_at_least(x);
+            prop_assert!(y as f64 >= x);
+            prop_assert!((y.next_down() as f64) < x);
+        }
+
         /// The closest point is never farther than any sampled point of the triangle.
         #[test]
         fn closest_point_beats_samples(

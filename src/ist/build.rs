@@ -142,11 +142,7 @@ pub fn enclosing_sphere(children: &[(P3, f64)]) -> ([f32; 3], f32) {
     }
     let center = best.1.map(|x| x as f32);
     let exact = radius_at(widen(center));
-    let mut radius = exact as f32;
-    while (radius as f64) < exact {
-        radius = radius.next_up();
-    }
-    (center, radius)
+    (center, crate::geometry::f32_at_least(exact))
 }
 
 /// Splits at the median of the longest axis of the centres, recursively into `parts` groups

@@ -1,9 +1,10 @@
 //! On-disk cache of inner sphere trees, one file per link, named by its key.
 //!
-//! The key is a BLAKE3 hash of the format version, the build options, the link name and its collision
-//! meshes as packed (link-frame vertices and triangles, tessellation error), so any change of
-//! mesh content, scale, origin or parameter misses the cache. A file holds:
-//! `magic "ISTCACHE" | version u32 | key [32] | name len u32 | name | quality (9 × f64, no
+//! The key is a BLAKE3 hash of the format version, the build options, the link name, its collision
+//! meshes as packed (link-frame vertices and triangles, tessellation error) and its mesh files'
+//! own triangles as read (on which h is measured too), so any change of mesh content, scale,
+//! origin or parameter misses the cache. A file holds:
+//! `magic "ISTCACHE" | version u32 | key [32] | name len u32 | name | quality (19 × f64, no
 //! wall time; the last the mark that the tree passed `ist::validate`) |
 //! node count u32 | sphere count u32 | nodes | spheres | BLAKE3 of all before [32]`, little
 //! endian. A file that fails any check (length, checksum, magic, version, key, link name) is
@@ -12,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::link_tree::{IstNode, LinkQuality, LinkTree};
+use super::link_tree::{IstNode, LinkQuality, LinkTree, Uncovered};
 use super::options::BuildOptions;
 use crate::packing::InnerSphere;
 use crate::robot::LinkGeometry;
@@ -23,7 +24,9 @@ const MAGIC: &[u8; 8] = b"ISTCACHE";
 /// grown budget recorded, no wall times; deterministic intake.
 /// 4: walls thinner than the fill's voxel packed (each closed shell's own inside test), the
 /// gap pass's second seed at half the thickness, T-junction cracks sewn in full.
-pub const FORMAT_VERSION: u32 = 4;
+/// 5: h is the validation's measured value (not the packing's estimate plus a slack); the
+/// quality holds the packed surface's and the files' h and the uncovered point of the files.
+pub const FORMAT_VERSION: u32 = 5;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CacheError {
@@ -63,6 +66,15 @@ pub fn key(link: &LinkGeometry, options: &BuildOptions) -> [u8; 32] {
             h.update(&fill.voxel_m.to_le_bytes());
             h.update(fill.labels());
         }
+    }
+    // Two files that differ only in what the intake dropped pack alike, but their h differs.
+    for i in &link.intake {
+        let (vertices, triangles) = &*i.original;
+        h.update(&(i.element as u64).to_le_bytes());
+        h.update(&(vertices.len() as u64).to_le_bytes());
+        h.update(bytemuck::cast_slice(vertices));
+        h.update(&(triangles.len() as u64).to_le_bytes());
+        h.update(bytemuck::cast_slice(triangles));
     }
     *h.finalize().as_bytes()
 }
@@ -127,6 +139,7 @@ impl TreeCache {
 /// machine and thread count; the last field records that the tree passed `ist::validate` (the
 /// cache stores no other).
 fn quality_fields(q: &LinkQuality) -> [f64; QUALITY_FIELDS] {
+    let u = q.uncovered;
     [
         q.spheres as f64,
         q.coverage,
@@ -136,11 +149,21 @@ fn quality_fields(q: &LinkQuality) -> [f64; QUALITY_FIELDS] {
         q.tree_volume_m3,
         q.file_gap_sampled_m,
         q.budget as f64,
+        q.elements_gap_m,
+        q.file_gap_m,
+        f64::from(u8::from(u.is_some())),
+        u.map_or(0.0, |u| u.element as f64),
+        u.map_or(0.0, |u| u.triangle as f64),
+        u.map_or(0.0, |u| u.point[0]),
+        u.map_or(0.0, |u| u.point[1]),
+        u.map_or(0.0, |u| u.point[2]),
+        u.map_or(0.0, |u| u.gap_m),
+        u.map_or(0.0, |u| u.packed_surface_m),
         VALIDATED,
     ]
 }
 
-const QUALITY_FIELDS: usize = 9;
+const QUALITY_FIELDS: usize = 19;
 /// The "validated" mark.
 const VALIDATED: f64 = 1.0;
 
@@ -246,6 +269,15 @@ pub fn decode(bytes: &[u8], key: &[u8; 32], link: &str) -> Result<LinkTree, Stri
             build_s: 0.0,
             validate_s: 0.0,
             file_gap_sampled_m: q[6],
+            elements_gap_m: q[8],
+            file_gap_m: q[9],
+            uncovered: (q[10] != 0.0).then_some(Uncovered {
+                element: q[11] as usize,
+                triangle: q[12] as usize,
+                point: [q[13], q[14], q[15]],
+                gap_m: q[16],
+                packed_surface_m: q[17],
+            }),
         },
     })
 }
@@ -279,7 +311,16 @@ mod tests {
                 tree_volume_m3: 4.0,
                 build_s: 0.0,
                 validate_s: 0.0,
+                elements_gap_m: 0.08,
+                file_gap_m: 0.1,
                 file_gap_sampled_m: 0.05,
+                uncovered: Some(Uncovered {
+                    element: 2,
+                    triangle: 191,
+                    point: [0.25, -0.5, 1.0],
+                    gap_m: 0.095,
+                    packed_surface_m: 0.01,
+                }),
             },
         }
     }

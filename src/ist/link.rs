@@ -1,26 +1,29 @@
 //! One link's tree, built: its elements packed (a sphere primitive gets its inscribed sphere),
-//! the budget doubled from `start_spheres` while the certified h is above `target_gap_m`, the
-//! hierarchy built over the spheres, and the whole validated before it is returned. Input: the
-//! link's collision geometry (link frame, m); output: a [`LinkTree`] or an [`IstError`].
+//! the budget doubled from `start_spheres` while the packing's estimate of h is above
+//! `target_gap_m`, the hierarchy built over the spheres, and the whole validated before it is
+//! returned; the h the link reports is the one the validation measured. Input: the link's
+//! collision geometry (link frame, m); output: a [`LinkTree`] or an [`IstError`]; a part of a
+//! file the packing cannot reach, or an absurd h, is logged as a warning naming the file.
 
 use std::time::Instant;
 
 use super::build;
 use super::error::IstError;
-use super::link_tree::{LinkQuality, LinkTree};
+use super::link_tree::{LinkQuality, LinkTree, Uncovered};
 use super::options::BuildOptions;
 use super::validate;
 use crate::packing::gap::surface_gap;
 use crate::packing::grid::SphereGrid;
 use crate::packing::{pack_sphere, Packer, Packing};
-use crate::robot::LinkGeometry;
+use crate::robot::{LinkGeometry, TriangleFate};
 
 /// Tolerance of the validation every tree passes, m.
 pub const VALIDATION_TOLERANCE_M: f64 = 1e-6;
 
 /// Packs every element of a link (a sphere primitive gets its inscribed sphere, which no packing
-/// beats), measures the gap, builds the tree and validates it (`validate`): a tree that fails
-/// is an error naming the link and the sphere or surface point.
+/// beats), estimates the gap, builds the tree and validates it (`validate`): a tree that fails
+/// is an error naming the link, the file and the sphere; one that passes reports the h the
+/// validation measured (the packing's estimate only decides the budget).
 pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTree, IstError> {
     let start = Instant::now();
     let params = &options.packing;
@@ -111,7 +114,10 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
             tree_volume_m3: build::tree_volume(&nodes),
             build_s: start.elapsed().as_secs_f64(),
             validate_s: 0.0,
+            elements_gap_m: gap_m,
+            file_gap_m: 0.0,
             file_gap_sampled_m: 0.0,
+            uncovered: None,
         },
         nodes,
         spheres,
@@ -122,29 +128,108 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         VALIDATION_TOLERANCE_M,
         options.gap_tolerance_m as f64,
     )?;
-    // The h the independent check certified is the one the link reports.
+    // The h the independent check measured is the one the link reports.
     tree.quality.gap_m = checked.gap_m;
+    tree.quality.elements_gap_m = checked.elements_gap_m;
+    tree.quality.file_gap_m = checked.file_gap_m;
     tree.quality.validate_s = checked.seconds;
     tree.quality.file_gap_sampled_m = checked.file_gap_sampled_m;
+    tree.quality.uncovered = checked.uncovered.first().copied();
+    for u in &checked.uncovered {
+        log::warn!(
+            "link {}: {}",
+            link.name,
+            describe_uncovered(u, &tree.quality, link)
+        );
+    }
+    if let Some(w) = absurd_gap(&tree.quality, link) {
+        log::warn!("link {}: {w}", link.name);
+    }
     Ok(tree)
 }
 
-/// The certified gap h of a link (its elements' surfaces against all its spheres, primitives'
-/// tessellation error added) and the largest sampled gap, m.
+/// Above this h, m, (or above the link's own size) a link's h is absurd for monitoring: it is
+/// still certified, and reported loudly rather than refused.
+pub const ABSURD_GAP_M: f64 = 0.05;
+
+/// The file an element's mesh came from, or the element's source.
+fn element_source(link: &LinkGeometry, element: usize) -> String {
+    match link.intake.iter().find(|i| i.element == element) {
+        Some(i) => format!("mesh {}", i.file.display()),
+        None => format!("collision element {element}"),
+    }
+}
+
+/// What the intake did with the triangle of an [`Uncovered`] point; None for a triangle the
+/// intake never saw.
+pub fn uncovered_fate(u: &Uncovered, link: &LinkGeometry) -> Option<TriangleFate> {
+    link.intake
+        .iter()
+        .find(|i| i.element == u.element)
+        .and_then(|i| i.fates.get(u.triangle).copied())
+}
+
+/// Says where a file's own triangles are farther from the spheres than the packed surface, and
+/// what the intake did with that triangle (from the intake of this load: it is deterministic,
+/// so a cached tree's triangle is the same).
+pub fn describe_uncovered(u: &Uncovered, quality: &LinkQuality, link: &LinkGeometry) -> String {
+    let fate =
+        uncovered_fate(u, link).map_or("not in the intake's record".into(), |f| f.describe());
+    format!(
+        "{} triangle {} (as read; {fate}): the point [{:.5}, {:.5}, {:.5}] (link frame, m) lies \
+         {:.4} mm from every sphere and outside the link's solid, {:.4} mm from the packed \
+         surface (more spheres cannot reach it); h is {:.4} mm (the packed surface alone: {:.4} \
+         mm)",
+        element_source(link, u.element),
+        u.triangle,
+        u.point[0],
+        u.point[1],
+        u.point[2],
+        u.gap_m * 1e3,
+        u.packed_surface_m * 1e3,
+        quality.gap_m * 1e3,
+        quality.elements_gap_m * 1e3
+    )
+}
+
+/// A warning when the link's h is absurd: above [`ABSURD_GAP_M`] or the diagonal of the link's
+/// bounding box, naming the file that sets it.
+pub fn absurd_gap(quality: &LinkQuality, link: &LinkGeometry) -> Option<String> {
+    let (lo, hi) = link_bounds(link);
+    let size_m = crate::geometry::dist(crate::geometry::widen(lo), crate::geometry::widen(hi));
+    (quality.gap_m > ABSURD_GAP_M.min(size_m)).then(|| {
+        format!(
+            "h {:.2} mm is absurd for a link of {:.1} mm (above the smaller of {:.0} mm and its \
+             size), set by {}: check that file",
+            quality.gap_m * 1e3,
+            size_m * 1e3,
+            ABSURD_GAP_M * 1e3,
+            match &quality.uncovered {
+                Some(u) => format!(
+                    "{} triangle {}",
+                    element_source(link, u.element),
+                    u.triangle
+                ),
+                None => {
+                    let mut sources: Vec<&str> =
+                        link.elements.iter().map(|e| e.source.as_str()).collect();
+                    sources.dedup();
+                    format!("the packed surface of {}", sources.join(", "))
+                }
+            }
+        )
+    })
+}
+
+/// The packing's estimate of a link's h (its elements' surfaces against all its spheres in f32,
+/// primitives' tessellation error added), which decides the budget, and the largest sampled
+/// gap, m.
 fn link_gap(link: &LinkGeometry, grids: &[&SphereGrid], options: &BuildOptions) -> (f64, f64) {
     // The link's solid is the union of its elements, so a sphere of one element covers the
     // surface of another that lies against it (a mesh file's shells, overlapping
     // primitives). With one element that is its own packing's grid.
     let union = (grids.len() > 1).then(|| {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for e in &link.elements {
-            let (a, b) = e.mesh.bounds();
-            for k in 0..3 {
-                lo[k] = lo[k].min(a[k]);
-                hi[k] = hi[k].max(b[k]);
-            }
-        }
+        let (lo, hi) = link_bounds(link);
         let mut grid = SphereGrid::new(lo, hi, 2.0 * options.packing.min_radius_m);
         for g in grids {
             for s in g.spheres() {
@@ -172,4 +257,18 @@ fn link_gap(link: &LinkGeometry, grids: &[&SphereGrid], options: &BuildOptions) 
         gap_sampled_m = gap_sampled_m.max(gap.lower_m as f64);
     }
     (gap_m, gap_sampled_m)
+}
+
+/// The bounding box of a link's elements, link frame, m.
+fn link_bounds(link: &LinkGeometry) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for e in &link.elements {
+        let (a, b) = e.mesh.bounds();
+        for k in 0..3 {
+            lo[k] = lo[k].min(a[k]);
+            hi[k] = hi[k].max(b[k]);
+        }
+    }
+    (lo, hi)
 }

@@ -32,9 +32,14 @@ pub struct LinkQuality {
     /// Sphere volume / mesh volume.
     pub coverage: f64,
     /// Certified upper bound of the surface gap h, m (tessellation error of primitives
-    /// included): the bound `validate` confirmed, in f64, on the packed surface and on the
-    /// mesh files' own triangles.
+    /// included): the value `validate` measured, in f64, on the packed surface and on the mesh
+    /// files' own triangles (the larger of `elements_gap_m` and `file_gap_m`).
     pub gap_m: f64,
+    /// Certified bound of the gap on the packed surface (the intake's closed meshes), m.
+    pub elements_gap_m: f64,
+    /// Certified bound of the gap on the mesh files' own triangles outside the solid, m (0
+    /// where every file was taken as it was: its triangles are the packed surface).
+    pub file_gap_m: f64,
     /// Largest sampled surface-to-spheres distance, m (h lies in [gap_sampled_m, gap_m]).
     pub gap_sampled_m: f64,
     pub mesh_volume_m3: f64,
@@ -46,9 +51,30 @@ pub struct LinkQuality {
     /// Wall time of its validation (`validate`), s; 0 for a tree from the cache, which was
     /// validated before it was stored.
     pub validate_s: f64,
-    /// Largest distance sampled from the mesh files' own triangles, outside the solid, to the
-    /// spheres, m (validation certified it at most `gap_m` + 1e-6 m).
+    /// Largest distance sampled from the mesh files' own triangles to the spheres, m, outside
+    /// the solid where above `elements_gap_m` (at most `gap_m`).
     pub file_gap_sampled_m: f64,
+    /// The farthest point of the files' own triangles that is neither inside the solid nor
+    /// within `elements_gap_m` of the spheres, where there is one: what sets h above the
+    /// packed surface's.
+    pub uncovered: Option<Uncovered>,
+}
+
+/// A point of a mesh file's own triangles (as read, before the intake's repairs) outside the
+/// link's solid and farther from the spheres than any point of the packed surface: a part of
+/// the file the intake dropped or moved (no sphere can reach it, since spheres stay inside).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Uncovered {
+    /// The collision element whose mesh file holds it (`robot::MeshIntake::element`).
+    pub element: usize,
+    /// The triangle's index in the file as read.
+    pub triangle: usize,
+    /// The point, link frame, m.
+    pub point: [f64; 3],
+    /// Its distance to the spheres, m.
+    pub gap_m: f64,
+    /// Its distance to the packed surface, m: how far the intake's closed meshes pass from it.
+    pub packed_surface_m: f64,
 }
 
 /// The inner sphere tree of one link.

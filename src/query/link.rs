@@ -63,7 +63,8 @@ impl QueryLink {
             pose_index,
             tree.nodes.clone(),
             tree.spheres.clone(),
-            tree.quality.gap_m as f32,
+            // Rounded up: h is a bound the lower bound subtracts.
+            crate::geometry::f32_at_least(tree.quality.gap_m),
             solids,
         );
         link.convex_hull = geometry.is_some_and(|g| g.hull_of_volume_m3.is_some());

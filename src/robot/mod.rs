@@ -25,7 +25,7 @@ pub mod urdf;
 
 pub use attach::AttachedObject;
 pub use error::RobotError;
-pub use intake::MeshReport;
+pub use intake::{MeshReport, TriangleFate};
 pub use kinematics::{Kinematics, LinkVelocity};
 pub use mesh::{ClosedMesh, MeshError};
 pub use selection::LinkSelection;

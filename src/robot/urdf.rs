@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Point3};
 
 use super::error::RobotError;
-use super::intake::{intake, MeshReport};
+use super::intake::{intake, MeshReport, TriangleFate};
 use super::kinematics::{pose_from_urdf, Kinematics};
 use super::mesh::{
     load_mesh_file, tessellate_box, tessellate_capsule, tessellate_cylinder, tessellate_sphere,
@@ -80,8 +80,10 @@ pub struct MeshIntake {
     pub file: PathBuf,
     pub report: MeshReport,
     /// The file's own triangles in the link frame (metres, the URDF's scale and origin
-    /// applied), before any repair: what `ist::validate` certifies h against.
+    /// applied), before any repair: on which `ist::validate` measures h too.
     pub original: std::sync::Arc<TriangleSoup>,
+    /// What the intake did with each of those triangles, by index.
+    pub fates: std::sync::Arc<Vec<TriangleFate>>,
 }
 
 /// A robot loaded from a URDF: kinematics and the collision geometry of its links.
@@ -474,9 +476,10 @@ fn take_in(
     vertices: Vec<[f32; 3]>,
     triangles: Vec<[u32; 3]>,
 ) -> Result<(Vec<ClosedMesh>, MeshIntake), RobotError> {
-    let (shells, report) =
+    let (shells, report, fates) =
         intake(&vertices, &triangles).map_err(|source| at.mesh(&file, source))?;
     let original = std::sync::Arc::new((vertices, triangles));
+    let fates = std::sync::Arc::new(fates);
     Ok((
         shells,
         MeshIntake {
@@ -488,6 +491,7 @@ fn take_in(
                 ..report
             },
             original,
+            fates,
         },
     ))
 }

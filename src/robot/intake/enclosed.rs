@@ -33,13 +33,14 @@ pub(super) fn compact(
 }
 
 /// The solid of several closed shells together: everything the outside cannot reach
-/// (`robot::fill`), with the triangles that face the outside as its surface.
+/// (`robot::fill`), with the triangles that face the outside as its surface; and whether each
+/// triangle given (`loose`, then each shell's) faces the outside.
 pub(super) fn filled(
     shells: &[ClosedMesh],
     loose: Vec<[u32; 3]>,
     loose_vertices: &[[f32; 3]],
     report: &mut MeshReport,
-) -> Result<ClosedMesh, MeshError> {
+) -> Result<(ClosedMesh, Vec<bool>), MeshError> {
     let mut vertices = loose_vertices.to_vec();
     let mut triangles = loose;
     for s in shells {
@@ -74,20 +75,22 @@ pub(super) fn filled(
     };
     // The packing's solid takes it: checked here, never panicked on later.
     Solid::try_new(&mesh)?;
-    Ok(mesh)
+    Ok((mesh, facing))
 }
 
-/// Drops the shells that lie wholly inside another shell (see the module doc for the test).
-pub(super) fn drop_inner(
-    mut shells: Vec<(ClosedMesh, Solid)>,
+/// Drops the shells that lie wholly inside another shell (see the module doc for the test):
+/// the shells kept, each with its `tag`, and the tags of those dropped.
+pub(super) fn drop_inner<T>(
+    mut shells: Vec<(ClosedMesh, Solid, T)>,
     report: &mut MeshReport,
-) -> Vec<ClosedMesh> {
+) -> (Vec<(ClosedMesh, T)>, Vec<T>) {
     // Largest first: an inner shell is enclosed by a larger one.
     shells.sort_by(|a, b| b.0.volume_m3.total_cmp(&a.0.volume_m3));
-    let mut kept: Vec<(ClosedMesh, Solid)> = Vec::new();
-    for (shell, solid) in shells {
+    let mut kept: Vec<(ClosedMesh, Solid, T)> = Vec::new();
+    let mut dropped = Vec::new();
+    for (shell, solid, tag) in shells {
         let (lo, hi) = shell.bounds();
-        let inside = kept.iter().any(|(outer, outer_solid)| {
+        let inside = kept.iter().any(|(outer, outer_solid, _)| {
             let (olo, ohi) = outer.bounds();
             (0..3).all(|k| olo[k] <= lo[k] && hi[k] <= ohi[k])
                 && shell
@@ -101,9 +104,10 @@ pub(super) fn drop_inner(
         });
         if inside {
             report.inner_shells += 1;
+            dropped.push(tag);
         } else {
-            kept.push((shell, solid));
+            kept.push((shell, solid, tag));
         }
     }
-    kept.into_iter().map(|(m, _)| m).collect()
+    (kept.into_iter().map(|(m, _, t)| (m, t)).collect(), dropped)
 }

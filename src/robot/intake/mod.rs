@@ -1,7 +1,8 @@
 //! Mesh intake: collision meshes as vendors ship them (STL with CAD noise, COLLADA with a few
 //! open edges, visual meshes used as collision meshes: hollow shells with thin walls) made into
 //! the closed, outward-oriented meshes the packing needs, each change counted in a
-//! [`MeshReport`]. Input and output in the link frame, metres.
+//! [`MeshReport`], and each triangle's [`TriangleFate`]. Input and output in the link frame,
+//! metres.
 //!
 //! The steps, in order:
 //! 1. **Weld** vertices closer than `WELD_RELATIVE` × the mesh's extent (reported as
@@ -51,5 +52,5 @@ mod shells;
 mod weld;
 
 pub use pipeline::intake;
-pub use report::MeshReport;
+pub use report::{MeshReport, TriangleFate};
 pub use weld::WELD_RELATIVE;

@@ -1,6 +1,8 @@
 //! What the intake did to one mesh file, counted per step (`super`'s module doc numbers them):
 //! the pieces read, vertices welded, triangles dropped, holes closed or sewn, shells reoriented,
-//! nested, emptied or filled. The log's one line per mesh and `--json`'s per-element report.
+//! nested, emptied or filled. The log's one line per mesh and `--json`'s per-element report;
+//! and per triangle of the file, its [`TriangleFate`], which `ist::validate`'s report of a
+//! point the spheres cannot reach names.
 
 /// What the intake did to one mesh file.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -115,5 +117,65 @@ impl MeshReport {
         }
         parts.push(format!("{} shells", self.shells));
         parts.join(", ")
+    }
+}
+
+/// What the intake did with one triangle of the file (by its index in the file as read).
+/// `shell` numbers the file's shells in the order of their first triangle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TriangleFate {
+    /// In a closed shell taken as the element.
+    Kept { shell: u32 },
+    /// A repeated vertex after welding, or no area: dropped.
+    Degenerate,
+    /// A copy of another triangle: dropped.
+    Repeated,
+    /// Present in both orientations (a wall between two glued solids): dropped.
+    InternalWall,
+    /// In a shell that encloses no volume: dropped.
+    EmptyShell { shell: u32 },
+    /// In a shell wholly inside another (a hollow part's inner wall): dropped, the solid fills
+    /// it.
+    InnerShell { shell: u32 },
+    /// Given to the exterior flood fill, its shell closed (`open` false) or not closed by the
+    /// repairs: kept where it faces the outside (`facing`), dropped inside the solid.
+    Filled {
+        shell: u32,
+        open: bool,
+        facing: bool,
+    },
+}
+
+impl TriangleFate {
+    /// In words, for messages.
+    pub fn describe(&self) -> String {
+        match *self {
+            Self::Kept { shell } => format!("kept, in closed shell {shell}"),
+            Self::Degenerate => "dropped by the intake as degenerate".into(),
+            Self::Repeated => "dropped by the intake as a repeated triangle".into(),
+            Self::InternalWall => {
+                "dropped by the intake as an internal wall (both orientations)".into()
+            }
+            Self::EmptyShell { shell } => {
+                format!("dropped by the intake with empty shell {shell} (no volume)")
+            }
+            Self::InnerShell { shell } => {
+                format!("dropped by the intake with inner shell {shell} (inside another)")
+            }
+            Self::Filled {
+                shell,
+                open,
+                facing,
+            } => format!(
+                "{} shell {shell}, taken by the flood fill, {}",
+                if open { "open" } else { "closed" },
+                if facing {
+                    "kept as facing the outside"
+                } else {
+                    "dropped as inside the solid"
+                }
+            ),
+        }
     }
 }

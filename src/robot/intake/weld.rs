@@ -5,7 +5,7 @@
 
 use std::collections::HashMap;
 
-use super::report::MeshReport;
+use super::report::{MeshReport, TriangleFate};
 
 /// Welding tolerance relative to the mesh's largest extent.
 pub const WELD_RELATIVE: f64 = 1e-6;
@@ -68,10 +68,15 @@ pub(super) fn weld(
     (welded, triangles)
 }
 
-/// Keeps one triangle of each orientation per vertex set, none where both orientations occur.
-pub(super) fn drop_repeated(triangles: Vec<[u32; 3]>, report: &mut MeshReport) -> Vec<[u32; 3]> {
+/// Keeps one triangle of each orientation per vertex set, none where both orientations occur:
+/// per triangle, None where kept, else why it is dropped.
+pub(super) fn drop_repeated(
+    triangles: &[[u32; 3]],
+    report: &mut MeshReport,
+) -> Vec<Option<TriangleFate>> {
     // Key: the sorted vertices; value: (a representative per orientation, count).
     let mut seen: HashMap<[u32; 3], [(usize, usize); 2]> = HashMap::with_capacity(triangles.len());
+    let mut keys = Vec::with_capacity(triangles.len());
     for (i, t) in triangles.iter().enumerate() {
         let mut key = *t;
         key.sort_unstable();
@@ -87,21 +92,23 @@ pub(super) fn drop_repeated(triangles: Vec<[u32; 3]>, report: &mut MeshReport) -
             e[orientation].0 = i;
         }
         e[orientation].1 += 1;
+        keys.push(key);
     }
-    let mut keep = vec![false; triangles.len()];
-    for v in seen.values() {
-        match (v[0].1, v[1].1) {
-            (a, b) if a > 0 && b > 0 => report.repeated_triangles += a + b,
-            (a, b) => {
-                let (i, n) = if a > 0 { (v[0].0, a) } else { (v[1].0, b) };
-                keep[i] = true;
-                report.repeated_triangles += n - 1;
+    keys.iter()
+        .enumerate()
+        .map(|(i, key)| {
+            let v = seen.get(key).copied().unwrap_or_default();
+            match (v[0].1, v[1].1) {
+                (a, b) if a > 0 && b > 0 => {
+                    report.repeated_triangles += 1;
+                    Some(TriangleFate::InternalWall)
+                }
+                (a, _) => {
+                    let first = if a > 0 { v[0].0 } else { v[1].0 };
+                    report.repeated_triangles += usize::from(first != i);
+                    (first != i).then_some(TriangleFate::Repeated)
+                }
             }
-        }
-    }
-    triangles
-        .into_iter()
-        .zip(keep)
-        .filter_map(|(t, k)| k.then_some(t))
+        })
         .collect()
 }

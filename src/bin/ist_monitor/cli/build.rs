@@ -60,10 +60,20 @@ struct LinkRow<'a> {
     /// The budget the link was packed with (grown from start_spheres while h > target_gap).
     budget: usize,
     coverage: f64,
+    /// The certified h the validation measured: the larger of the two below.
     gap_m: f64,
+    /// h on the packed surface (the intake's closed meshes).
+    elements_gap_m: f64,
+    /// h on the mesh files' own triangles outside the solid (0: no file needed that pass).
+    file_gap_m: f64,
     gap_sampled_m: f64,
     /// Largest distance sampled from the mesh files' own triangles to the spheres.
     file_gap_sampled_m: f64,
+    /// The farthest point of the files' own triangles outside the solid where it is farther
+    /// than the packed surface: element, triangle (index in the file as read), point, gap.
+    uncovered: Option<ist::Uncovered>,
+    /// What the intake did with that triangle (null: not in its record, or no such point).
+    uncovered_fate: Option<ist_monitor::robot::TriangleFate>,
     /// This run's build, s; null for a tree from the cache.
     build_s: Option<f64>,
     /// Every tree passed validation: this run's, or the one before it was cached.
@@ -159,20 +169,26 @@ fn print_validation(model: &RobotModel, trees: &[(LinkTree, Origin)]) {
             );
         }
         println!(
-                "  checked ({}): {} spheres inside the solid (centre inside by ray winding \
-                 number or flood fill, radius within the f64 distance to the surface), no overlap \
-                 beyond {tol:.0e} m, every node bounds its children; h {:.3} mm certified (+{tol:.0e} m) \
-                 on the packed surface and on the files' own triangles (largest sampled there {:.3} mm)",
-                if *origin == Origin::Cache {
-                    "before it was cached".to_string()
-                } else {
-                    format!("{:.2} s", tree.quality.validate_s)
-                },
-                tree.spheres.len(),
-                tree.quality.gap_m * 1e3,
-                tree.quality.file_gap_sampled_m * 1e3,
-                tol = ist::VALIDATION_TOLERANCE_M,
-            );
+            "  checked ({}): {} spheres inside the solid (centre inside by ray winding number or \
+             flood fill, radius within the f64 distance to the surface), no overlap beyond \
+             {tol:.0e} m, every node bounds its children; h measured (certified, f64): {:.3} mm \
+             on the packed surface, {:.3} mm on the files' own triangles outside the solid \
+             (largest sampled there {:.3} mm); the link reports {:.3} mm",
+            if *origin == Origin::Cache {
+                "before it was cached".to_string()
+            } else {
+                format!("{:.2} s", tree.quality.validate_s)
+            },
+            tree.spheres.len(),
+            tree.quality.elements_gap_m * 1e3,
+            tree.quality.file_gap_m * 1e3,
+            tree.quality.file_gap_sampled_m * 1e3,
+            tree.quality.gap_m * 1e3,
+            tol = ist::VALIDATION_TOLERANCE_M,
+        );
+        if let Some(u) = &tree.quality.uncovered {
+            println!("  {}", ist::describe_uncovered(u, &tree.quality, geometry));
+        }
     }
 }
 
@@ -192,18 +208,28 @@ fn link_row<'a>(
             100.0 * t.quality.coverage
         ));
     }
+    let set_by_file =
+        t.quality.uncovered.is_some() && t.quality.file_gap_m > t.quality.elements_gap_m;
+    if let Some(u) = &t.quality.uncovered {
+        warnings.push(ist::describe_uncovered(u, &t.quality, geometry));
+    }
     if t.quality.gap_m > options.packing.target_gap_m as f64 {
         warnings.push(format!(
             "h {:.3} mm above the target {:.3} mm at a budget of {} spheres ({})",
             1e3 * t.quality.gap_m,
             1e3 * options.packing.target_gap_m,
             t.quality.budget,
-            if t.quality.budget >= options.packing.max_spheres as usize {
+            if set_by_file {
+                "set by the file's own surface outside the solid: more spheres cannot lower it"
+            } else if t.quality.budget >= options.packing.max_spheres as usize {
                 "the cap max_spheres"
             } else {
                 "the packing found no room for more spheres of min_radius"
             }
         ));
+    }
+    if let Some(w) = ist::absurd_gap(&t.quality, geometry) {
+        warnings.push(w);
     }
     LinkRow {
         name: &t.link,
@@ -211,8 +237,15 @@ fn link_row<'a>(
         budget: t.quality.budget,
         coverage: t.quality.coverage,
         gap_m: t.quality.gap_m,
+        elements_gap_m: t.quality.elements_gap_m,
+        file_gap_m: t.quality.file_gap_m,
         gap_sampled_m: t.quality.gap_sampled_m,
         file_gap_sampled_m: t.quality.file_gap_sampled_m,
+        uncovered: t.quality.uncovered,
+        uncovered_fate: t
+            .quality
+            .uncovered
+            .and_then(|u| ist::uncovered_fate(&u, geometry)),
         build_s: (!cached).then_some(t.quality.build_s),
         validated: true,
         validate_s: (!cached).then_some(t.quality.validate_s),
@@ -265,8 +298,8 @@ fn print_table(model: &RobotModel, rows: &[LinkRow], total_s: f64) {
         }
     }
     println!(
-        "total {total_s:.2} s; every tree validated (f64: spheres inside, h certified on the \
-         packed surface and the files' own triangles){}",
+        "total {total_s:.2} s; every tree validated (f64: spheres inside; h the bound measured \
+         on the packed surface and the files' own triangles){}",
         if rows.iter().any(|r| r.from_cache) {
             "; cached trees were validated before they were stored"
         } else {
