@@ -69,16 +69,20 @@ fn build(link: &LinkGeometry, spheres: u32) -> LinkTree {
     build_with(link, spheres, 512)
 }
 
-fn build_with(link: &LinkGeometry, spheres: u32, prototypes: u32) -> LinkTree {
-    let options = BuildOptions {
+/// The defaults with a small sphere budget and few prototypes: quick builds of test meshes.
+fn small_options(spheres: u32, prototypes: u32) -> BuildOptions {
+    BuildOptions {
         packing: PackingParams {
             max_spheres: spheres,
             prototypes,
             ..PackingParams::default()
         },
         ..BuildOptions::default()
-    };
-    let tree = build_link(link, &options).expect("builds");
+    }
+}
+
+fn build_with(link: &LinkGeometry, spheres: u32, prototypes: u32) -> LinkTree {
+    let tree = build_link(link, &small_options(spheres, prototypes)).expect("builds");
     validate_link(&tree, link, 1e-6, 0.0).expect("every sphere inside its shell (f64)");
     tree
 }
@@ -700,14 +704,7 @@ fn an_open_edged_mesh_builds_the_same_bits_on_one_and_two_threads() {
     }
     let urdf = dir.path().join("robot.urdf");
     let model = RobotModel::load(&urdf, &[], &LinkSelection::default()).expect("loads");
-    let options = BuildOptions {
-        packing: PackingParams {
-            max_spheres: 600,
-            prototypes: 512,
-            ..PackingParams::default()
-        },
-        ..BuildOptions::default()
-    };
+    let options = small_options(600, 512);
     let files: Vec<Vec<(String, Vec<u8>)>> = [1, 2, 1]
         .iter()
         .map(|&threads| cache_files(&model, &options, threads))
@@ -793,14 +790,7 @@ fn a_claim_disproved_by_a_hair_builds_with_its_certified_h() {
     let tree0 = build_with(&link0, 600, 512);
     // The fin's tip above the +z face's centre, where its gap is h + 2 × the packing's
     // accuracy (the estimate is within it of the truth) + 10 µm (xArm: 8.8 µm).
-    let options = BuildOptions {
-        packing: PackingParams {
-            max_spheres: 600,
-            prototypes: 512,
-            ..PackingParams::default()
-        },
-        ..BuildOptions::default()
-    };
+    let options = small_options(600, 512);
     let target = tree0.quality.gap_m + 2.0 * options.gap_tolerance_m as f64 + 1e-5;
     let c = [0.05f64, 0.05, 0.1];
     let above = |p: f64| [c[0], c[1], c[2] + p];
