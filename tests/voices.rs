@@ -258,3 +258,70 @@ fn two_camera_info_writers_are_a_fault_of_the_depth_source() {
     }
     assert_eq!(kinds, ["", "", "second_publisher", "second_publisher"]);
 }
+
+/// The hole that messages alone leave (issue 46's flaky rclpy check): the camera's clouds are
+/// all lost for longer than the window while a second writer's far clouds get through. By the
+/// messages, that writer is alone, and its frame would release the stop; discovery still matches
+/// both writers, so every frame is the fault `second_publisher` naming both, and the stop is
+/// held. Once discovery matches only the camera (and the intruder has been silent for the
+/// window), the camera's frames are measured again. Without discovery (`None`, a replay) the
+/// same frames show the hole: the intruder's far cloud is measured and the stop released.
+#[test]
+fn a_writer_whose_clouds_are_all_lost_still_holds_the_stop_by_discovery() {
+    let names_of = |ws: &[Writer]| Some(ws.iter().map(Writer::to_string).collect::<Vec<_>>());
+    let mut released_without_discovery = false;
+    for discovery in [true, false] {
+        let (mut m, names, top) = monitor();
+        let (near_z, far_z) = (top + 0.05, top + 3.05);
+        let both = discovery.then(|| names_of(&[CAMERA, INTRUDER])).flatten();
+        // The camera sees the obstacle; the intruder's publisher is matched but silent.
+        for k in 0..5 {
+            let t = T0 + k * 100 * MS;
+            camera_pose(&mut m, t, 0.0, CAMERA);
+            joints(&mut m, &names, t, 0.0, CAMERA);
+            m.matched_writers(0, both.clone());
+            let f = cloud(&mut m, t, near_z, CAMERA);
+            assert!(f.outputs.safety_stop.data, "frame {k}");
+        }
+        // The camera's clouds are all lost for 2 s (four windows); the intruder's get through.
+        let mut stops = String::new();
+        for k in 5..25 {
+            let t = T0 + k * 100 * MS;
+            camera_pose(&mut m, t, 0.0, CAMERA);
+            joints(&mut m, &names, t, 0.0, CAMERA);
+            m.matched_writers(0, both.clone());
+            let f = cloud(&mut m, t, far_z, INTRUDER);
+            stops.push(if f.outputs.safety_stop.data { '1' } else { '0' });
+            if discovery {
+                assert_eq!(fault_kind(&f), "second_publisher", "frame {k}");
+                assert!(f.outputs.min_distance.is_none(), "frame {k}");
+                let message = &f.outputs.diagnostics.status[0].message;
+                for w in [CAMERA, INTRUDER] {
+                    assert!(message.contains(&w.to_string()), "{message}");
+                }
+            }
+        }
+        if discovery {
+            assert!(!stops.contains('0'), "the stop was released: {stops}");
+            // The intruder leaves: the camera alone by discovery, and by its messages once the
+            // intruder's newest stamp is a window old.
+            let mut measured = false;
+            for k in 25..35 {
+                let t = T0 + k * 100 * MS;
+                camera_pose(&mut m, t, 0.0, CAMERA);
+                joints(&mut m, &names, t, 0.0, CAMERA);
+                m.matched_writers(0, names_of(&[CAMERA]));
+                let f = cloud(&mut m, t, near_z, CAMERA);
+                assert!(f.outputs.safety_stop.data, "frame {k}");
+                measured |= f.outputs.min_distance.is_some();
+            }
+            assert!(measured, "the camera alone is measured again");
+        } else {
+            released_without_discovery = stops.contains('0');
+        }
+    }
+    assert!(
+        released_without_discovery,
+        "the control: by the messages alone the intruder's far cloud is measured"
+    );
+}

@@ -392,10 +392,23 @@ fn zenoh_without_acl_or_tls_the_intruders_get_through() {
         "ZENOH_SESSION_CONFIG_URI",
         format!("{root}/config/zenoh/secure_session.json5"),
     )];
-    // The one-voice rule off (a window of 1 ns): an intruder's cloud that gets through is then
-    // measured, and its distance is the proof. With the rule on it would be the fault
-    // second_publisher instead, no distance at all (docs/security.md, tests/voices.rs).
-    let no_voices = ["-p", "second_publisher_window:=0.000000001"];
+    // With the access control off, the HMI's publisher token reaches the node too: by
+    // discovery two publishers of the camera's topic, the fault second_publisher, and no
+    // distance at all, neither the camera's nor the HMI's, with the rule by messages off (a
+    // window of 1 ns). With the access control on (the tests above), the router drops the
+    // HMI's token and the camera's distances come.
+    let by_discovery = ["-p", "second_publisher_window:=0.000000001"];
+    let (report, log) = cell.run_with(&python, &router_env, &node_env, &by_discovery, &plan("tls"));
+    assert_eq!(report["hmi_not_allowed"]["opened"], true, "{report}");
+    assert!(distances(&report, "camera").is_empty(), "{report}\n{log}");
+    // The one-voice rule off (not by discovery, and a window of 1 ns): an intruder's cloud
+    // that gets through is then measured, and its distance is the proof.
+    let no_voices = [
+        "-p",
+        "second_publisher_window:=0.000000001",
+        "-p",
+        "writers_from_discovery:=false",
+    ];
     let (report, _) = cell.run_with(&python, &router_env, &node_env, &no_voices, &plan("tls"));
     let camera = distances(&report, "camera");
     assert!(reported(&cell, &camera, "camera"), "{report}");

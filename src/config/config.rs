@@ -54,6 +54,9 @@ pub struct Config {
     /// Two writers of one source topic, joint or TF frame heard within this of a stamp are
     /// the fault `second_publisher` (`crate::msg::Voices`), s.
     pub second_publisher_window_s: f64,
+    /// One voice per source by discovery too: two or more writers matched on a source topic
+    /// are the fault `second_publisher` while they are matched.
+    pub writers_from_discovery: bool,
     /// Which parameter changes the running node takes.
     pub parameter_changes: ParameterChanges,
     /// The clock is `/clock`'s (`use_sim_time`); a silence of `clock_timeout_s` (wall) is a
@@ -179,6 +182,7 @@ impl Config {
             future_stamp_tolerance_s: v
                 .distance("future_stamp_tolerance", "future_stamp_tolerance")?,
             second_publisher_window_s: Self::positive_s(&v, "second_publisher_window")?,
+            writers_from_discovery: v.bool("writers_from_discovery", "writers_from_discovery")?,
             parameter_changes: v.choice("parameter_changes", "parameter_changes")?,
             use_sim_time: v.bool("use_sim_time", "use_sim_time")?,
             clock_timeout_s: Self::positive_s(&v, "clock_timeout")?,

@@ -60,6 +60,18 @@ pub enum Fault {
         writers: String,
         window_s: f64,
     },
+    /// More than one writer on the source's topic by discovery (DDS SEDP, rmw_zenoh's
+    /// liveliness tokens), whatever reaches the node: a writer whose messages are all lost is
+    /// still there, so the other's frames are not the scene either.
+    #[error(
+        "{count} publishers matched on {topic} by discovery: {writers} (one voice per source: \
+         ERROR until only one is left)"
+    )]
+    MatchedWriters {
+        topic: String,
+        count: usize,
+        writers: String,
+    },
     #[error("source {source_name}: {what} for {silent_s:.2} s (source_timeout {timeout_s} s)")]
     SourceTimeout {
         source_name: String,
@@ -90,7 +102,7 @@ impl Fault {
             Fault::SourceTimeout { .. } => "stale_source",
             Fault::Clock(_) => "clock",
             Fault::ExclusionFrame { .. } => "exclusion_tf",
-            Fault::SecondPublisher { .. } => "second_publisher",
+            Fault::SecondPublisher { .. } | Fault::MatchedWriters { .. } => "second_publisher",
         }
     }
 }

@@ -172,6 +172,13 @@ impl Monitor {
         if stamp_ns == 0 {
             return Err(Fault::NoStamp);
         }
+        if let Some(writers) = self.sources[source].matched_conflict() {
+            return Err(Fault::MatchedWriters {
+                topic: self.config.sources[source].topic.clone(),
+                count: writers.len(),
+                writers: writers.join(", "),
+            });
+        }
         let window_s = self.config.second_publisher_window_s;
         if let Err(writers) = self.sources[source].one_voice(stamp_ns, window_s) {
             return Err(Fault::SecondPublisher {

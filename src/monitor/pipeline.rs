@@ -184,6 +184,12 @@ impl Monitor {
         self.sources[source].hear_writer(writer, stamp_ns);
     }
 
+    /// The writers that discovery matches on source `source`'s topic now (`None`: no
+    /// discovery): two or more is the fault `second_publisher` ([`Source::set_matched`]).
+    pub fn matched_writers(&mut self, source: usize, writers: Option<Vec<String>>) {
+        self.sources[source].set_matched(writers);
+    }
+
     /// Which source, if any, publishes on `topic`.
     pub fn source_of(&self, topic: &str) -> Option<usize> {
         self.config

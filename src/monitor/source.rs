@@ -14,6 +14,13 @@
 //! stamp is the fault `second_publisher` naming both (`Source::one_voice`), whichever of them sent
 //! it: the fused rule keeps one latest result per source, so two writers would otherwise take
 //! turns deciding the stop. The same holds for a depth image source's CameraInfo.
+//!
+//! Messages alone cannot hear a writer whose messages are lost: a camera whose clouds all drop
+//! for longer than the window leaves a second writer alone by the rule above, and its frame
+//! would be measured. So the node also tells a source which writers **discovery** matches on its
+//! topic now (DDS SEDP, rmw_zenoh's liveliness tokens: `Source::set_matched`); two or more
+//! matched is the fault `second_publisher` for as long as they are matched, whatever reaches the
+//! node (`Source::matched_conflict`). A replay has no discovery (`None`): its messages decide.
 
 use crate::cloud::depth::PinholeCamera;
 use crate::config::{Config, SourceConfig};
@@ -43,6 +50,8 @@ pub struct Source {
     voices: Voices,
     /// Who wrote its CameraInfo (depth image sources).
     camera_voices: Voices,
+    /// The writers discovery matches on its topic now, by name (`None`: no discovery).
+    matched: Option<Vec<String>>,
 }
 
 /// A source's latest frame.
@@ -109,7 +118,22 @@ impl Source {
             watch: Watch::default(),
             voices: Voices::default(),
             camera_voices: Voices::default(),
+            matched: None,
         }
+    }
+
+    /// The writers that discovery matches on its topic now (`None`: the transport has no
+    /// discovery, or the node does not ask it).
+    pub fn set_matched(&mut self, writers: Option<Vec<String>>) {
+        self.matched = writers;
+    }
+
+    /// The writers discovery matches on its topic, when there are two or more (see the module
+    /// doc), sorted so that a report is stable.
+    pub fn matched_conflict(&self) -> Option<Vec<String>> {
+        let mut writers = self.matched.clone().filter(|w| w.len() > 1)?;
+        writers.sort();
+        Some(writers)
     }
 
     /// `writer` sent a message stamped `stamp_ns` (each one received, also those the node's
@@ -259,6 +283,7 @@ impl Source {
         std::mem::swap(&mut self.watch, &mut old.watch);
         std::mem::swap(&mut self.voices, &mut old.voices);
         std::mem::swap(&mut self.camera_voices, &mut old.camera_voices);
+        std::mem::swap(&mut self.matched, &mut old.matched);
     }
 
     /// Enabled at `now_ns`: not heard from yet, its silence counted from now.

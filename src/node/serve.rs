@@ -32,7 +32,7 @@ use super::publishers::PANIC_AFTER_ENV;
 use super::qos::{RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS};
 use super::ros_args::input_topic;
 use super::socket::{mib, warn_burst};
-use super::transport::{RosNode, Transport};
+use super::transport::{RosNode, TopicWriters, Transport};
 use super::up::log_up;
 use crate::config::{Config, SourceConfig, SourceKind};
 use crate::monitor::{Heard, Monitor, Outputs};
@@ -73,7 +73,7 @@ pub(super) fn serve(
         }),
         info,
     };
-    let (inputs, source_tasks) = wiring.subscribe(node, tasks, camera_info)?;
+    let (inputs, source_inputs) = wiring.subscribe(node, tasks, camera_info)?;
     log_up(config, monitor, node);
     let clock = runtime.clock.clone();
     let mut serving = Serving {
@@ -82,7 +82,7 @@ pub(super) fn serve(
         outputs,
         runtime,
         inputs,
-        source_tasks,
+        source_inputs,
         heartbeat: Duration::from_secs_f64(config.heartbeat_period_s),
         last_published: Instant::now(),
         published_frames: 0,
@@ -137,18 +137,18 @@ impl Wiring<'_> {
         node: &mut RosNode,
         tasks: &mut Vec<smol::Task<()>>,
         camera_info: Receiver<(usize, CameraInfo, Writer)>,
-    ) -> Result<(Inputs, Vec<Vec<smol::Task<()>>>)> {
+    ) -> Result<(Inputs, Vec<SourceInput>)> {
         let config = self.config;
         let (tf_tx, tf) = std::sync::mpsc::channel::<(TfMessage, bool, Writer)>();
         let (js_tx, joints) = std::sync::mpsc::channel::<(JointState, Writer)>();
         // Each source's subscriptions, made while it is enabled (also when it is enabled at run
         // time), dropped when it is disabled.
-        let mut source_tasks: Vec<Vec<smol::Task<()>>> = Vec::new();
+        let mut source_inputs: Vec<SourceInput> = Vec::new();
         for (k, s) in config.sources.iter().enumerate() {
-            source_tasks.push(if s.enabled {
+            source_inputs.push(if s.enabled {
                 self.subscribe_source(node, k, s)?
             } else {
-                Vec::new()
+                SourceInput::default()
             });
         }
         for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
@@ -187,16 +187,17 @@ impl Wiring<'_> {
             joints,
             camera_info,
         };
-        Ok((inputs, source_tasks))
+        Ok((inputs, source_inputs))
     }
 
-    /// Subscribes to source `k`'s messages (and a depth source's camera info).
+    /// Subscribes to source `k`'s messages (and a depth source's camera info), and watches who
+    /// publishes them (`writers_from_discovery`).
     fn subscribe_source(
         &self,
         node: &mut RosNode,
         k: usize,
         s: &SourceConfig,
-    ) -> Result<Vec<smol::Task<()>>> {
+    ) -> Result<SourceInput> {
         let (executor, shared) = (self.executor, &self.shared);
         let mut tasks = Vec::new();
         let topic = input_topic(self.config, &s.topic);
@@ -204,6 +205,11 @@ impl Wiring<'_> {
             RELIABLE_QOS.history(History::KeepLast { depth: 1 })
         } else {
             SENSOR_QOS
+        };
+        let writers = match (self.config.writers_from_discovery, s.kind) {
+            (false, _) => None,
+            (true, SourceKind::PointCloud) => Some(node.publishers::<PointCloud2>(&topic)?),
+            (true, SourceKind::DepthImage) => Some(node.publishers::<Image>(&topic)?),
         };
         match s.kind {
             SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
@@ -240,7 +246,11 @@ impl Wiring<'_> {
                 )?);
             }
         }
-        Ok(tasks)
+        Ok(SourceInput {
+            _tasks: tasks,
+            writers,
+            last_writers: Vec::new(),
+        })
     }
 
     /// Empties every source's slot (`whole`: also forgets when it last received).
@@ -256,6 +266,17 @@ impl Wiring<'_> {
     }
 }
 
+/// An enabled source's subscriptions, and who publishes its topic by discovery (`None` with
+/// `writers_from_discovery` false); dropped when the source is disabled.
+#[derive(Default)]
+struct SourceInput {
+    /// Its subscriptions' tasks, held for as long as it is enabled.
+    _tasks: Vec<smol::Task<()>>,
+    writers: Option<TopicWriters>,
+    /// The writers discovery gave last, for the log.
+    last_writers: Vec<String>,
+}
+
 /// The serving loop's state between its phases.
 struct Serving<'a> {
     wiring: Wiring<'a>,
@@ -263,7 +284,7 @@ struct Serving<'a> {
     outputs: &'a Publishers,
     runtime: Runtime,
     inputs: Inputs,
-    source_tasks: Vec<Vec<smol::Task<()>>>,
+    source_inputs: Vec<SourceInput>,
     heartbeat: Duration,
     last_published: Instant,
     published_frames: u64,
@@ -368,12 +389,12 @@ impl Serving<'_> {
                     s.name,
                     input_topic(config, &s.topic)
                 );
-                self.source_tasks[k] = self.wiring.subscribe_source(node, k, s)?;
+                self.source_inputs[k] = self.wiring.subscribe_source(node, k, s)?;
                 monitor.enable_source(k, self.runtime.clock.monotonic_ns());
                 *lock(&self.wiring.shared.slots[k]) = Slot::default();
             } else if !now[k] && was[k] {
                 log::info!("source {}: disabled", s.name);
-                self.source_tasks[k].clear();
+                self.source_inputs[k] = SourceInput::default();
                 *lock(&self.wiring.shared.slots[k]) = Slot::default();
             }
         }
@@ -458,6 +479,7 @@ impl Serving<'_> {
             for (writer, stamp_ns) in writers {
                 monitor.hear_writer(k, writer, stamp_ns);
             }
+            self.matched_writers(monitor, k, s);
             if let Some((message, received, clock_ns)) = message {
                 self.frame(monitor, k, s, &message, received, clock_ns);
                 continue;
@@ -476,6 +498,37 @@ impl Serving<'_> {
                 self.publish(frame.outputs);
             }
         }
+    }
+
+    /// Tells the monitor who writes source `k`'s topic now, by discovery; says so in the log
+    /// when that changes (a second writer: WARN, with the names).
+    fn matched_writers(&mut self, monitor: &mut Monitor, k: usize, s: &SourceConfig) {
+        let input = &mut self.source_inputs[k];
+        let Some(writers) = input.writers.as_ref().map(TopicWriters::writers) else {
+            return;
+        };
+        if writers != input.last_writers {
+            let topic = input_topic(self.wiring.config, &s.topic);
+            match writers.len() {
+                0 | 1 => log::info!(
+                    "source {}: {} writer(s) on {topic} by discovery{}",
+                    s.name,
+                    writers.len(),
+                    writers
+                        .first()
+                        .map(|w| format!(": {w}"))
+                        .unwrap_or_default()
+                ),
+                n => log::warn!(
+                    "source {}: {n} writers on {topic} by discovery ({}): second_publisher, \
+                     ERROR until only one is left",
+                    s.name,
+                    writers.join(", ")
+                ),
+            }
+            input.last_writers = writers.clone();
+        }
+        monitor.matched_writers(k, Some(writers));
     }
 
     /// Source `k`'s message, received at `received` (the node's clock then: `clock_ns`),

@@ -15,12 +15,12 @@ use serde::Serialize;
 
 use super::error::{entity, NodeError};
 use super::qos::{source_topic_qos, SOURCE_SAMPLES};
-use super::rmw_zenoh::{config_from_env, ConfigFor, ZenohNode, ZenohPub};
+use super::rmw_zenoh::{config_from_env, ConfigFor, ZenohNode, ZenohPub, ZenohWriters};
 use super::ros_args::{topic_name, type_name};
 use super::security::{zenoh_endpoints, Security, SecurityEnv, SecurityError};
 use super::socket::{self, SOCKET_BUFFER};
 use crate::choice::Choice;
-use crate::msg::{Owned, OwnedMessage, RosMessage};
+use crate::msg::{Owned, OwnedMessage, RosMessage, Writer};
 
 /// Which middleware a node runs on (each one's meaning: its [`Choice::about`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -270,7 +270,56 @@ impl RosNode {
     }
 }
 
+/// Who publishes a topic now, by the transport's discovery: on DDS the remote writers that SEDP
+/// announced on the topic with its type (named by GUID, as a message's writer is), on zenoh the
+/// publishers' liveliness tokens (named by node and session). A writer leaves when it is deleted,
+/// or when its participant's lease runs out or its zenoh session drops (a killed process).
+pub enum TopicWriters {
+    Dds {
+        participant: ros2_client::dds::rustdds::DomainParticipant,
+        /// The topic and type as DDS names them (`rt/…`, `pkg::msg::dds_::T_`).
+        topic: String,
+        type_name: String,
+    },
+    Zenoh(ZenohWriters),
+}
+
+impl TopicWriters {
+    /// The writers of the topic now, by name.
+    pub fn writers(&self) -> Vec<String> {
+        match self {
+            TopicWriters::Dds {
+                participant,
+                topic,
+                type_name,
+            } => (participant.discovered_writers().iter())
+                .filter(|w| {
+                    let t = &w.publication_topic_data;
+                    t.topic_name == *topic && t.type_name == *type_name
+                })
+                .map(|w| {
+                    let gid = ros2_client::Gid::from(w.writer_proxy.remote_writer_guid);
+                    Writer(gid.to_bytes16()).to_string()
+                })
+                .collect(),
+            TopicWriters::Zenoh(z) => z.writers(),
+        }
+    }
+}
+
 impl RosNode {
+    /// Watches who publishes `T` on `topic` ([`TopicWriters`]).
+    pub fn publishers<T: RosMessage>(&self, topic: &str) -> Result<TopicWriters, NodeError> {
+        match &self.inner {
+            Inner::Dds { ctx, name, .. } => Ok(TopicWriters::Dds {
+                participant: ctx.domain_participant(),
+                topic: topic_name(topic)?.to_dds_name("rt", name, ""),
+                type_name: type_name::<T>().dds_msg_type(),
+            }),
+            Inner::Zenoh(z) => z.publishers(topic).map(TopicWriters::Zenoh),
+        }
+    }
+
     /// Answers the node's service `~/<service>` of type `rcl_interfaces/srv/<ty>` with
     /// `answer`: on DDS in a task on `executor`, on zenoh on zenoh's threads for as long as the
     /// task returned lives.

@@ -37,20 +37,22 @@ any ROS 2 node would.
         and NODE's lines on /rosout.
         Prints one JSON object.
 
-    rclpy_interop.py voices NODE TOPIC NEAR_CDR FAR_CDR [JOINTS_JSON]
+    rclpy_interop.py voices NODE TOPIC NEAR_CDR FAR_CDR MODE [JOINTS_JSON]
         One voice per source (issue 46). A camera node publishes the serialized PointCloud2 in
-        NEAR_CDR on TOPIC at 10 Hz, stamped now, with best-effort sensor QoS; once
-        NODE/safety_stop is raised, a second participant (another rclpy context: another DDS
-        participant, as a second driver or anyone on the network would be) publishes FAR_CDR on
-        the same topic 50 ms after each near one, for 4 s, then falls silent (once the fused
-        status is ERROR with a distance: the obstacle measured). With JOINTS_JSON
-        ({"names": [...], "positions": [...], "intruder": [...]}) the controller (the camera's
-        participant) also publishes /joint_states at 50 Hz, and the second participant
-        publishes the intruder's positions on /joint_states instead of the far cloud. Records
-        every NODE/safety_stop with the phase it came in, and the /diagnostics messages.
-        Prints one JSON object: "raised" (the stop was raised before the intruder), "during"
-        and "after" (the stops received while the intruder spoke and in the 2 s after it),
-        "messages" (the messages of the statuses above OK seen while it spoke).
+        NEAR_CDR on TOPIC at 10 Hz, stamped now, with best-effort sensor QoS; once the fused
+        status is ERROR with a distance (the obstacle measured) and NODE/safety_stop raised, a
+        second participant (another rclpy context: another DDS participant, as a second driver
+        or anyone on the network would be) makes a publisher on the same topic and publishes
+        FAR_CDR with it 50 ms after each near one, for 4 s, then destroys it. MODE interleaved:
+        as said; camera_lost: the camera publishes nothing while the second one speaks (its
+        clouds all lost). With JOINTS_JSON ({"names": [...], "positions": [...], "intruder":
+        [...]}) the controller (the camera's participant) also publishes /joint_states at 50 Hz,
+        and the second participant publishes the intruder's positions on /joint_states instead
+        of the far cloud. Records every NODE/safety_stop with the phase it came in, and the
+        /diagnostics messages. Prints one JSON object: "raised" (the stop was raised before the
+        intruder), "during" and "after" (the stops received while the intruder spoke and after
+        it), "messages" (the messages of the statuses above OK seen while it spoke),
+        "measured_after" (the obstacle measured again, within 20 s, once it was gone).
 """
 import json
 import math
@@ -438,7 +440,13 @@ def stamped(raw, now_ns):
     return bytes(out)
 
 
-def voices(node_name, topic, near_file, far_file, joints_json):
+def voices(node_name, topic, near_file, far_file, mode, joints_json):
+    """A second writer on the camera's topic (or on /joint_states with `joints_json`), in its
+    own participant, from the moment the node has measured the obstacle and raised the stop
+    until it is destroyed 4 s later. `mode` interleaved: the camera publishes the near cloud at
+    10 Hz and the intruder the far one 50 ms after each; camera_lost: the camera's clouds are all
+    lost while the intruder speaks (it publishes none). Prints the stops before, during and
+    after, the diagnostics' messages during, and whether the camera alone was measured again."""
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
@@ -474,11 +482,8 @@ def voices(node_name, topic, near_file, far_file, joints_json):
         far = f.read()
     joints = json.loads(joints_json) if joints_json else None
     camera = node.create_publisher(PointCloud2, topic, qos_profile_sensor_data)
-    second = intruder.create_publisher(PointCloud2, topic, qos_profile_sensor_data)
     js_pub = node.create_publisher(JointState, "/joint_states", qos_profile_sensor_data)
-    js_intruder = intruder.create_publisher(JointState, "/joint_states",
-                                            qos_profile_sensor_data)
-    running = {"on": True, "intruder": False}
+    running = {"on": True, "intruder": None}
 
     def joint_state(pub, positions):
         m = JointState()
@@ -490,14 +495,15 @@ def voices(node_name, topic, near_file, far_file, joints_json):
         k = 0
         while running["on"]:
             now = time.time_ns()
-            if k % 5 == 0:
+            second = running["intruder"]
+            if k % 5 == 0 and not (second and mode == "camera_lost"):
                 camera.publish(stamped(near, now))
             if joints:
                 joint_state(js_pub, joints["positions"])
             time.sleep(0.01)
-            if running["intruder"]:
+            if second:
                 if joints:
-                    joint_state(js_intruder, joints["intruder"])
+                    joint_state(second, joints["intruder"])
                 elif k % 5 == 0:
                     time.sleep(0.04)
                     second.publish(stamped(far, time.time_ns()))
@@ -514,12 +520,22 @@ def voices(node_name, topic, near_file, far_file, joints_json):
            "distance_m": fused["distance_m"]}
     with lock:
         state["phase"] = "during"
-    running["intruder"] = True
+    second = (intruder.create_publisher(JointState, "/joint_states", qos_profile_sensor_data)
+              if joints else
+              intruder.create_publisher(PointCloud2, topic, qos_profile_sensor_data))
+    running["intruder"] = second
     time.sleep(4.0)
-    running["intruder"] = False
+    running["intruder"] = None
+    time.sleep(0.1)
+    intruder.destroy_publisher(second)
     with lock:
         state["phase"] = "after"
-    time.sleep(2.0)
+        fused["distance_m"] = None
+    # The camera alone again: measured once the intruder is gone from discovery and its last
+    # message is a window old.
+    out["measured_after"] = wait_for(lambda: fused["level"] == 2
+                                     and fused["distance_m"] is not None, 20)
+    time.sleep(0.5)
     running["on"] = False
     thread.join()
     with lock:
@@ -537,8 +553,8 @@ if __name__ == "__main__":
         params(sys.argv[2])
     elif len(sys.argv) == 4 and sys.argv[1] == "sim":
         sim(sys.argv[2], sys.argv[3])
-    elif len(sys.argv) in (6, 7) and sys.argv[1] == "voices":
-        voices(*sys.argv[2:6], sys.argv[6] if len(sys.argv) == 7 else None)
+    elif len(sys.argv) in (7, 8) and sys.argv[1] == "voices":
+        voices(*sys.argv[2:7], sys.argv[7] if len(sys.argv) == 8 else None)
     elif len(sys.argv) in (5, 6) and sys.argv[1] == "answers":
         answers(sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5] if len(sys.argv) == 6 else None)
     else:

@@ -14,6 +14,8 @@ publishes its cloud at 10 Hz until the node answers (at most `wait` s). Then eve
 tries to open with its own config (a failure is recorded, not fatal), subscribes to
 `/ist_monitor/min_distance` where it can, and for `seconds` s each session that opened publishes
 its cloud at 10 Hz, 50 ms after the camera's (the header stamp set to now, each with its own gid).
+Each session that opens declares its publisher's liveliness token as rmw_zenoh does (kind `MP`,
+node named after the session), so that the node's discovery sees it where the router lets it.
 Prints, as JSON, {name: {"opened": bool, "error": the reason it did not open, or null,
 "distances": [the distances this session received while they all published]}}.
 
@@ -26,7 +28,7 @@ import sys
 import threading
 import time
 
-from zenoh_interop import key, refuse_outside_private_network
+from zenoh_interop import ROS_2_HASH, key, refuse_outside_private_network
 
 CLOUD_TYPE = "sensor_msgs::msg::dds_::PointCloud2_"
 DISTANCE = ("/ist_monitor/min_distance", "std_msgs::msg::dds_::Float64_")
@@ -57,6 +59,12 @@ class Member:
             return
         self.sub = self.session.declare_subscriber(key(*DISTANCE), self.on_distance)
         self.pub = self.session.declare_publisher(key(topic, CLOUD_TYPE))
+        # rmw_zenoh's token of a publisher: node 0, entity 1, enclave and namespace empty,
+        # best-effort KeepLast 5 (sensor data).
+        mangled = "/" + topic.strip("/")
+        self.token = self.session.liveliness().declare_token(
+            f"@ros2_lv/0/{self.session.zid()}/0/1/MP/%/%/{self.name}/"
+            f"{mangled.replace('/', '%')}/{CLOUD_TYPE}/{ROS_2_HASH[CLOUD_TYPE]}/2::,5:,:,:,,")
 
     def on_distance(self, sample):
         payload = bytes(sample.payload.to_bytes())

@@ -50,9 +50,11 @@
 //!
 //! Here: `config`, the session's and the router's configs and the router itself; `keys`, the
 //! names, QoS strings and attachments of the wire protocol; `node`, the session and the node's
-//! tokens; `publish`, `subscribe` and `service`, the entities made on it.
+//! tokens; `publish`, `subscribe` and `service`, the entities made on it; `graph`, who
+//! publishes a topic, from the publishers' tokens.
 
 mod config;
+mod graph;
 mod keys;
 mod node;
 mod publish;
@@ -60,6 +62,7 @@ mod service;
 mod subscribe;
 
 pub use config::{config_from_env, rmw_zenoh_config, zenoh_router, ConfigFor, ZENOH_ROUTER};
+pub use graph::ZenohWriters;
 pub use keys::qos_key;
 pub use node::ZenohNode;
 pub use publish::ZenohPub;

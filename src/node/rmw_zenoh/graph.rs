@@ -1,0 +1,107 @@
+//! Who publishes a topic, by the graph rmw_zenoh keeps in liveliness tokens: every publisher
+//! declares one of kind `MP` (`@ros2_lv/<domain>/<session>/<node id>/<entity id>/MP/<enclave>/
+//! <namespace>/<node>/<topic>/<type>/<hash>/<qos>`) and undeclares it when it goes, or its
+//! session does (a killed process: when the router sees the link drop). A liveliness subscriber
+//! with history on the topic's tokens keeps the set current: the source's writers from
+//! discovery, for the one-voice rule (`crate::monitor`'s `Source::set_matched`).
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
+
+use zenoh::sample::SampleKind;
+use zenoh::Wait;
+
+use super::keys::mangle;
+use super::node::ZenohNode;
+use crate::node::error::{entity, NodeError};
+
+/// The publishers of one topic, kept by a liveliness subscriber.
+pub struct ZenohWriters {
+    /// Token key → the writer's name for a report (`/namespace/node (session id)`).
+    writers: Arc<Mutex<BTreeMap<String, String>>>,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+}
+
+impl ZenohWriters {
+    /// The publishers declared on the topic now, by name.
+    pub fn writers(&self) -> Vec<String> {
+        let writers = self.writers.lock().unwrap_or_else(|e| e.into_inner());
+        writers.values().cloned().collect()
+    }
+}
+
+/// The name of the writer behind publisher token `key`: its node's `/namespace/node` and its
+/// session id; the key itself where it is not rmw_zenoh's form.
+fn writer_name(key: &str) -> String {
+    let parts: Vec<&str> = key.split('/').collect();
+    if parts.len() < 10 || parts[5] != "MP" {
+        return key.to_string();
+    }
+    let unmangle = |s: &str| {
+        if s == "%" {
+            String::new()
+        } else {
+            s.replace('%', "/")
+        }
+    };
+    format!(
+        "{}/{} ({})",
+        unmangle(parts[7]),
+        unmangle(parts[8]),
+        parts[2]
+    )
+}
+
+impl ZenohNode {
+    /// Watches the publishers of `topic` (absolute, any type): the tokens declared before are
+    /// taken at once (history), later ones as they come and go.
+    pub fn publishers(&self, topic: &str) -> Result<ZenohWriters, NodeError> {
+        let topic = format!("/{}", topic.trim_matches('/'));
+        let key = format!(
+            "@ros2_lv/{}/*/*/*/MP/*/*/*/{}/**",
+            self.domain,
+            mangle(&topic)
+        );
+        let writers = Arc::new(Mutex::new(BTreeMap::new()));
+        let kept = writers.clone();
+        let subscriber = self
+            .session
+            .liveliness()
+            .declare_subscriber(key)
+            .history(true)
+            .callback(move |sample| {
+                let key = sample.key_expr().as_str().to_string();
+                let mut writers = kept.lock().unwrap_or_else(|e| e.into_inner());
+                match sample.kind() {
+                    SampleKind::Put => {
+                        let name = writer_name(&key);
+                        writers.insert(key, name);
+                    }
+                    SampleKind::Delete => {
+                        writers.remove(&key);
+                    }
+                }
+            })
+            .wait()
+            .map_err(|e| entity("publishers' liveliness subscriber", &topic, e))?;
+        Ok(ZenohWriters {
+            writers,
+            _subscriber: subscriber,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_publisher_token_names_its_node_and_session() {
+        let key = "@ros2_lv/0/8f3a/12/14/MP/%/%cell/camera_driver/%camera%points/\
+                   sensor_msgs::msg::dds_::PointCloud2_/RIHS01_abc/::,5:,:,:,,";
+        assert_eq!(writer_name(key), "/cell/camera_driver (8f3a)");
+        let root = "@ros2_lv/0/8f3a/12/14/MP/%/%/cam/%points/T/H/Q";
+        assert_eq!(writer_name(root), "/cam (8f3a)");
+        assert_eq!(writer_name("not/a/token"), "not/a/token");
+    }
+}
