@@ -1,14 +1,17 @@
-//! On-disk cache of inner sphere trees, one file per link, named by its key.
+//! On-disk cache of inner sphere trees, one file per solid, named by its key.
 //!
-//! The key is a BLAKE3 hash of the format version, the build options, the link name, its collision
+//! The key is a BLAKE3 hash of the format version, the build options, the link's collision
 //! meshes as packed (link-frame vertices and triangles, tessellation error) and its mesh files'
 //! own triangles as read (on which h is measured too), so any change of mesh content, scale,
-//! origin or parameter misses the cache. A file holds:
-//! `magic "ISTCACHE" | version u32 | key [32] | name len u32 | name | quality (19 × f64, no
-//! wall time; the last the mark that the tree passed `ist::validate`) |
-//! node count u32 | sphere count u32 | nodes | spheres | BLAKE3 of all before [32]`, little
-//! endian. A file that fails any check (length, checksum, magic, version, key, link name) is
-//! reported as an error, never trusted; the caller warns and rebuilds. Writes go to a temporary
+//! origin or parameter misses the cache. The link's name is not in it: two links whose solids are
+//! the same in their own frames (a left and a right arm sharing a file, mirrored through the
+//! joint frames; a link a mimic joint doubles) have one key, are packed once (`ist::robot`) and
+//! share one file, whichever of them built it. A file holds:
+//! `magic "ISTCACHE" | version u32 | key [32] | quality (19 × f64, no wall time; the last the
+//! mark that the tree passed `ist::validate`) | node count u32 | sphere count u32 | nodes |
+//! spheres | BLAKE3 of all before [32]`, little endian. A file that fails any check (length,
+//! checksum, magic, version, key) is reported as an error, never trusted; the caller warns and
+//! rebuilds. Writes go to a temporary
 //! file first and are renamed into place, so a crashed write leaves no half file.
 
 use std::path::{Path, PathBuf};
@@ -26,7 +29,8 @@ const MAGIC: &[u8; 8] = b"ISTCACHE";
 /// gap pass's second seed at half the thickness, T-junction cracks sewn in full.
 /// 5: h is the validation's measured value (not the packing's estimate plus a slack); the
 /// quality holds the packed surface's and the files' h and the uncovered point of the files.
-pub const FORMAT_VERSION: u32 = 5;
+/// 6: one file per solid: no link name in the key or the file.
+pub const FORMAT_VERSION: u32 = 6;
 
 #[derive(Debug, thiserror::Error)]
 pub enum CacheError {
@@ -53,9 +57,6 @@ pub fn key(link: &LinkGeometry, options: &BuildOptions) -> [u8; 32] {
             .unwrap_or_default()
             .as_bytes(),
     );
-    // Links with the same mesh (a left and a right finger) get files of their own.
-    h.update(&(link.name.len() as u64).to_le_bytes());
-    h.update(link.name.as_bytes());
     for e in &link.elements {
         h.update(&(e.mesh.vertices.len() as u64).to_le_bytes());
         h.update(bytemuck::cast_slice(&e.mesh.vertices));
@@ -172,8 +173,6 @@ pub fn encode(key: &[u8; 32], tree: &LinkTree) -> Vec<u8> {
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(key);
-    out.extend_from_slice(&(tree.link.len() as u32).to_le_bytes());
-    out.extend_from_slice(tree.link.as_bytes());
     for v in quality_fields(&tree.quality) {
         out.extend_from_slice(&v.to_le_bytes());
     }
@@ -232,11 +231,6 @@ pub fn decode(bytes: &[u8], key: &[u8; 32], link: &str) -> Result<LinkTree, Stri
     }
     if r.take(32)? != key {
         return Err("key does not match its file name".into());
-    }
-    let name_len = r.u32()? as usize;
-    let name = std::str::from_utf8(r.take(name_len)?).map_err(|e| e.to_string())?;
-    if name != link {
-        return Err(format!("holds link {name}, expected {link}"));
     }
     let mut q = [0.0f64; QUALITY_FIELDS];
     for v in &mut q {
@@ -340,6 +334,11 @@ mod tests {
         }
         assert!(decode(&bytes[..bytes.len() - 1], &key, "l").is_err());
         assert!(decode(&bytes, &[8u8; 32], "l").is_err());
-        assert!(decode(&bytes, &key, "other").is_err());
+        // One file per solid: another link with the same key takes it under its own name.
+        let other = decode(&bytes, &key, "other").expect("decodes");
+        assert_eq!(
+            (other.link.as_str(), &other.spheres),
+            ("other", &tree().spheres)
+        );
     }
 }

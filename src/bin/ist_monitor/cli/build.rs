@@ -174,10 +174,10 @@ fn print_validation(model: &RobotModel, trees: &[(LinkTree, Origin)]) {
              {tol:.0e} m, every node bounds its children; h measured (certified, f64): {:.3} mm \
              on the packed surface, {:.3} mm on the files' own triangles outside the solid \
              (largest sampled there {:.3} mm); the link reports {:.3} mm",
-            if *origin == Origin::Cache {
-                "before it was cached".to_string()
-            } else {
-                format!("{:.2} s", tree.quality.validate_s)
+            match origin {
+                Origin::Cache => "before it was cached".to_string(),
+                Origin::Shared => "as the link whose solid it shares".to_string(),
+                Origin::Built => format!("{:.2} s", tree.quality.validate_s),
             },
             tree.spheres.len(),
             tree.quality.elements_gap_m * 1e3,
@@ -199,7 +199,8 @@ fn link_row<'a>(
     geometry: &'a LinkGeometry,
     options: &BuildOptions,
 ) -> LinkRow<'a> {
-    let cached = origin == Origin::Cache;
+    // A cached or shared tree took no time in this build.
+    let cached = origin != Origin::Built;
     let mut warnings = Vec::new();
     if t.quality.coverage > 1.0 {
         warnings.push(format!(
@@ -251,7 +252,7 @@ fn link_row<'a>(
         validate_s: (!cached).then_some(t.quality.validate_s),
         tree_volume_m3: t.quality.tree_volume_m3,
         origin,
-        from_cache: cached,
+        from_cache: origin == Origin::Cache,
         warnings,
         intake: geometry
             .intake
@@ -290,6 +291,7 @@ fn print_table(model: &RobotModel, rows: &[LinkRow], total_s: f64) {
             match r.origin {
                 Origin::Built => "built",
                 Origin::Cache => "cache",
+                Origin::Shared => "shared",
             },
             if r.warnings.is_empty() { "" } else { "  (!)" }
         );
