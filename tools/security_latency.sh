@@ -6,6 +6,8 @@
 # cloud's stamp), the node's CPU over the publishing from /proc. The modes, alternated --rounds
 # times in one run:
 #   dds          Debian's Cyclone DDS 0.10 in C (tests/peers/cyclone_secure_peer.c --cdr), unsecured
+#   dds-messages-only  the same, the node with writers_from_discovery:=false (the cost of asking
+#                discovery for the source's writers on every frame)
 #   dds-sros2    the same, all three secured: SROS2 enclaves of config/security/cell_policy.xml
 #                (/cell/camera, /cell/ist_monitor, /cell/operator), Enforce, metadata ENCRYPT, data NONE
 #   zenoh        rmw_zenoh's default: peers that `ist_monitor zenoh-router` introduces, tcp; the camera
@@ -78,6 +80,7 @@ run() { # $1: a mode
   local mode=$1 env_node=() env_rec=() node_args=() camera=() router="" link=""
   case "$mode" in
     dds) ;;
+    dds-messages-only) node_args=(-p writers_from_discovery:=false) ;;
     dds-sros2)
       env_node=(ROS_SECURITY_ENABLE=true ROS_SECURITY_STRATEGY=Enforce ROS_SECURITY_KEYSTORE="$ks")
       env_rec=("${env_node[@]}" ROS_SECURITY_ENCLAVE_OVERRIDE=/cell/operator)
@@ -124,7 +127,7 @@ run() { # $1: a mode
   local t0 c0 sent
   t0=$(date +%s.%N) c0=$(cpu_ticks $node)
   case "$mode" in
-    dds | dds-sros2)
+    dds | dds-messages-only | dds-sros2)
       [ "$mode" = dds-sros2 ] && camera=(--enclave "$ks/enclaves/cell/camera")
       "$work/peer" "${camera[@]}" --cdr "$work/kinect.cdr" --rate "$rate" --no-float \
         --timeout "$seconds" >"$work/camera.json" 2>"$work/camera.log" || true
