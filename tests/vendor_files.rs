@@ -32,6 +32,59 @@ fn load(urdf: &Path) -> RobotModel {
         .unwrap_or_else(|e| panic!("{}: {e}", urdf.display()))
 }
 
+/// `urdf` written into `dir` and loaded.
+fn load_urdf(dir: &Path, urdf: &str) -> RobotModel {
+    let path = dir.join("r.urdf");
+    std::fs::write(&path, urdf).expect("write");
+    load(&path)
+}
+
+/// The one-link robot of `dir`'s `body.stl`.
+fn one_body(dir: &Path) -> RobotModel {
+    load_urdf(
+        dir,
+        &common::one_link_urdf(r#"<mesh filename="body.stl"/>"#),
+    )
+}
+
+/// A robot of two links fixed together, each `(name, the attributes of its <mesh>)`.
+fn two_links(dir: &Path, first: (&str, &str), second: (&str, &str)) -> RobotModel {
+    let link = |(name, mesh): (&str, &str)| {
+        format!(
+            r#"<link name="{name}"><collision><geometry><mesh {mesh}/></geometry></collision></link>"#
+        )
+    };
+    load_urdf(
+        dir,
+        &format!(
+            r#"<robot name="r">{}{}<joint name="j" type="fixed"><parent link="{}"/><child link="{}"/></joint></robot>"#,
+            link(first),
+            link(second),
+            first.0,
+            second.0
+        ),
+    )
+}
+
+/// Every tree built reaches `target_gap`.
+fn assert_at_target(trees: &[(LinkTree, Origin)]) {
+    for (tree, _) in trees {
+        assert!(
+            tree.quality.gap_m <= TARGET_GAP_M,
+            "{}: h {} m",
+            tree.link,
+            tree.quality.gap_m
+        );
+    }
+}
+
+/// Two links' bounds, equal within 1e-7 m.
+fn assert_same_bounds(a: &LinkGeometry, b: &LinkGeometry) {
+    let (a, b) = (bounds(a), bounds(b));
+    assert_close(a.0, b.0, 1e-7, "lower corner");
+    assert_close(a.1, b.1, 1e-7, "upper corner");
+}
+
 fn link<'a>(model: &'a RobotModel, name: &str) -> &'a LinkGeometry {
     (model.links.iter())
         .find(|l| l.name == name)
@@ -98,9 +151,7 @@ fn a_shared_file_is_packed_once_and_a_mirror_apart() {
         &dir.path().join("arm.stl"),
         &box_triangles([0.01, 0.0, 0.0], [0.07, 0.02, 0.03]),
     );
-    let urdf = dir.path().join("dual.urdf");
-    std::fs::write(&urdf, SHARED_URDF).expect("write");
-    let model = load(&urdf);
+    let model = load_urdf(dir.path(), SHARED_URDF);
     let cache = TreeCache::new(dir.path().join("cache"));
     let origins = |trees: &[(LinkTree, Origin)]| -> Vec<(String, Origin)> {
         (trees.iter()).map(|(t, o)| (t.link.clone(), *o)).collect()
@@ -176,24 +227,17 @@ fn a_millimetre_stl_with_the_urdf_scale_is_the_metre_solid() {
         &dir.path().join("millimetre.stl"),
         &box_triangles([0.0, 0.0, 0.0], [60.0, 40.0, 20.0]),
     );
-    let urdf = dir.path().join("r.urdf");
-    std::fs::write(
-        &urdf,
-        r#"<robot name="r">
-  <link name="m"><collision><geometry><mesh filename="metre.stl"/></geometry></collision></link>
-  <link name="mm"><collision><geometry><mesh filename="millimetre.stl" scale="0.001 0.001 0.001"/></geometry></collision></link>
-  <joint name="j" type="fixed"><parent link="m"/><child link="mm"/></joint>
-</robot>"#,
-    )
-    .expect("write");
-    let model = load(&urdf);
-    let (m, mm) = (bounds(link(&model, "m")), bounds(link(&model, "mm")));
-    assert_close(m.0, mm.0, 1e-7, "lower corner");
-    assert_close(m.1, mm.1, 1e-7, "upper corner");
+    let model = two_links(
+        dir.path(),
+        ("m", r#"filename="metre.stl""#),
+        (
+            "mm",
+            r#"filename="millimetre.stl" scale="0.001 0.001 0.001""#,
+        ),
+    );
+    assert_same_bounds(link(&model, "m"), link(&model, "mm"));
     let trees = build(&model, None);
-    for (tree, _) in &trees {
-        assert!(tree.quality.gap_m <= TARGET_GAP_M, "{}", tree.link);
-    }
+    assert_at_target(&trees);
     let volume = |t: &LinkTree| t.quality.tree_volume_m3;
     let (a, b) = (volume(&trees[0].0), volume(&trees[1].0));
     assert!((a - b).abs() <= 0.01 * a, "tree volumes {a} and {b} m³");
@@ -223,9 +267,10 @@ fn a_binary_stl_headed_solid_and_extensions_in_any_case() {
             ));
         }
     }
-    let urdf = dir.path().join("r.urdf");
-    std::fs::write(&urdf, format!(r#"<robot name="r">{links}{joints}</robot>"#)).expect("write");
-    let model = load(&urdf);
+    let model = load_urdf(
+        dir.path(),
+        &format!(r#"<robot name="r">{links}{joints}</robot>"#),
+    );
     for l in &model.links {
         assert_eq!(l.intake[0].report.triangles_in, 12, "{}", l.name);
         let (lo, hi) = bounds(l);
@@ -250,30 +295,24 @@ fn collada_in_millimetres_under_a_metre_unit_fixed_by_the_urdf_scale() {
         text.replace(unit, r#"<unit name="meter" meter="1"/>"#),
     )
     .expect("write");
-    let urdf = dir.path().join("r.urdf");
-    std::fs::write(
-        &urdf,
-        r#"<robot name="r">
-  <link name="honest"><collision><geometry><mesh filename="honest.dae"/></geometry></collision></link>
-  <link name="lying"><collision><geometry><mesh filename="lying.dae" scale="0.001 0.001 0.001"/></geometry></collision></link>
-  <joint name="j" type="fixed"><parent link="honest"/><child link="lying"/></joint>
-</robot>"#,
-    )
-    .expect("write");
-    let model = load(&urdf);
+    let model = two_links(
+        dir.path(),
+        ("honest", r#"filename="honest.dae""#),
+        ("lying", r#"filename="lying.dae" scale="0.001 0.001 0.001""#),
+    );
     let (h, l) = (link(&model, "honest"), link(&model, "lying"));
     for g in [h, l] {
         let r = &g.intake[0].report;
         assert_eq!((r.pieces, r.triangles_in), (5, 60), "{}: {r:?}", g.name);
     }
-    let (hb, lb) = (bounds(h), bounds(l));
-    assert_close(hb.0, lb.0, 1e-7, "lower corner");
-    assert_close(hb.1, lb.1, 1e-7, "upper corner");
-    assert_close(hb.1, [0.16, 0.04, 0.02], 1e-6, "the honest file's extent");
-    let trees = build(&model, None);
-    for (tree, _) in &trees {
-        assert!(tree.quality.gap_m <= TARGET_GAP_M, "{}", tree.link);
-    }
+    assert_same_bounds(h, l);
+    assert_close(
+        bounds(h).1,
+        [0.16, 0.04, 0.02],
+        1e-6,
+        "the honest file's extent",
+    );
+    assert_at_target(&build(&model, None));
 }
 
 /// A closed block wound inside out (every normal inward) that touches the main shell at one
@@ -288,13 +327,7 @@ fn an_inside_out_block_touching_the_shell_at_one_vertex_is_a_solid() {
         .collect();
     triangles.extend(block);
     write_stl(&dir.path().join("body.stl"), &triangles);
-    let urdf = dir.path().join("r.urdf");
-    std::fs::write(
-        &urdf,
-        common::one_link_urdf(r#"<mesh filename="body.stl"/>"#),
-    )
-    .expect("write");
-    let model = load(&urdf);
+    let model = one_body(dir.path());
     let trees = build(&model, None);
     let tree = &trees[0].0;
     assert!(
@@ -331,16 +364,13 @@ fn overlapping_collisions_and_a_sunk_thin_plate() {
         &dir.path().join("cover.stl"),
         &box_triangles([0.05, 0.01, 0.01], [0.1, 0.05, 0.03]),
     );
-    let urdf = dir.path().join("r.urdf");
-    std::fs::write(
-        &urdf,
+    let model = load_urdf(
+        dir.path(),
         r#"<robot name="r"><link name="body">
   <collision><geometry><mesh filename="housing.stl"/></geometry></collision>
   <collision><geometry><mesh filename="cover.stl"/></geometry></collision>
 </link></robot>"#,
-    )
-    .expect("write");
-    let model = load(&urdf);
+    );
     let trees = build(&model, None);
     let tree = &trees[0].0;
     assert!(
@@ -367,13 +397,7 @@ fn a_stray_triangle_gives_an_absurd_h_that_names_it() {
     let mut triangles = box_triangles([0.0; 3], [0.05, 0.04, 0.03]);
     triangles.push([[0.25, 0.0, 0.0], [0.26, 0.0, 0.0], [0.25, 0.01, 0.0]]);
     write_stl(&dir.path().join("body.stl"), &triangles);
-    let urdf = dir.path().join("r.urdf");
-    std::fs::write(
-        &urdf,
-        common::one_link_urdf(r#"<mesh filename="body.stl"/>"#),
-    )
-    .expect("write");
-    let model = load(&urdf);
+    let model = one_body(dir.path());
     let trees = build(&model, None);
     let (tree, geometry) = (&trees[0].0, &model.links[0]);
     assert!(tree.quality.gap_m > 0.19, "h {} m", tree.quality.gap_m);
@@ -386,7 +410,7 @@ fn a_stray_triangle_gives_an_absurd_h_that_names_it() {
     );
     // The box alone: no warning.
     write_stl(&dir.path().join("body.stl"), &triangles[..12]);
-    let model = load(&urdf);
+    let model = one_body(dir.path());
     let trees = build(&model, None);
     assert_eq!(
         ist_monitor::ist::absurd_gap(&trees[0].0.quality, &model.links[0]),
@@ -403,9 +427,7 @@ fn shared_files_build_the_same_cache_on_any_thread_count() {
         &dir.path().join("arm.stl"),
         &box_triangles([0.01, 0.0, 0.0], [0.07, 0.02, 0.03]),
     );
-    let urdf = dir.path().join("dual.urdf");
-    std::fs::write(&urdf, SHARED_URDF).expect("write");
-    let model = load(&urdf);
+    let model = load_urdf(dir.path(), SHARED_URDF);
     let files = |threads: usize| -> Vec<(std::ffi::OsString, Vec<u8>)> {
         let cache_dir = dir.path().join(format!("cache{threads}"));
         let cache = TreeCache::new(cache_dir.clone());
