@@ -16,7 +16,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::link_tree::{IstNode, LinkQuality, LinkTree, Uncovered};
+use super::link_tree::{IstNode, LinkQuality, LinkTree, StageTimes, Uncovered};
 use super::options::BuildOptions;
 use crate::packing::InnerSphere;
 use crate::robot::LinkGeometry;
@@ -262,6 +262,7 @@ pub fn decode(bytes: &[u8], key: &[u8; 32], link: &str) -> Result<LinkTree, Stri
             // Not stored (see `quality_fields`): this run built nothing.
             build_s: 0.0,
             validate_s: 0.0,
+            stages: StageTimes::default(),
             file_gap_sampled_m: q[6],
             elements_gap_m: q[8],
             file_gap_m: q[9],
@@ -305,6 +306,7 @@ mod tests {
                 tree_volume_m3: 4.0,
                 build_s: 0.0,
                 validate_s: 0.0,
+                stages: StageTimes::default(),
                 elements_gap_m: 0.08,
                 file_gap_m: 0.1,
                 file_gap_sampled_m: 0.05,

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use super::build;
 use super::error::IstError;
-use super::link_tree::{LinkQuality, LinkTree, Uncovered};
+use super::link_tree::{LinkQuality, LinkTree, StageTimes, Uncovered};
 use super::options::BuildOptions;
 use super::validate;
 use crate::packing::gap::surface_gap;
@@ -45,8 +45,10 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         .collect();
     let cap = params.max_spheres.max(1) as usize;
     let mut budget = (params.start_spheres.max(1) as usize).min(cap);
+    let mut stages = StageTimes::default();
     let (gap_m, gap_sampled_m) = loop {
         let t = Instant::now();
+        stages.rounds += 1;
         // Whether some growing element used (nearly) all of its budget: one that stopped
         // short has no room left for spheres of the minimal radius, and more budget is idle.
         let mut room = false;
@@ -58,6 +60,8 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
                 room |= packer.grid().spheres().len() >= element_budget * 9 / 10;
             }
         }
+        stages.packing_s += t.elapsed().as_secs_f64();
+        let t_gap = Instant::now();
         let grids: Vec<&SphereGrid> = packers
             .iter()
             .map(|p| match p {
@@ -66,6 +70,7 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
             })
             .collect();
         let (gap_m, gap_sampled_m) = link_gap(link, &grids, options);
+        stages.gap_estimate_s += t_gap.elapsed().as_secs_f64();
         log::debug!(
             "link {}: budget {budget}, {} spheres, h {:.3} mm ({:.2} s)",
             link.name,
@@ -101,7 +106,9 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         .iter()
         .map(|s| crate::geometry::ball_volume(s.radius as f64))
         .sum();
+    let t_tree = Instant::now();
     let (nodes, spheres) = build::build_tree(spheres, options.tree);
+    stages.tree_s = t_tree.elapsed().as_secs_f64();
     let mut tree = LinkTree {
         link: link.name.clone(),
         quality: LinkQuality {
@@ -114,6 +121,7 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
             tree_volume_m3: build::tree_volume(&nodes),
             build_s: start.elapsed().as_secs_f64(),
             validate_s: 0.0,
+            stages,
             elements_gap_m: gap_m,
             file_gap_m: 0.0,
             file_gap_sampled_m: 0.0,

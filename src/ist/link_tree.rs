@@ -51,6 +51,9 @@ pub struct LinkQuality {
     /// Wall time of its validation (`validate`), s; 0 for a tree from the cache, which was
     /// validated before it was stored.
     pub validate_s: f64,
+    /// Where `build_s` went, per stage (zero from the cache).
+    #[serde(default)]
+    pub stages: StageTimes,
     /// Largest distance sampled from the mesh files' own triangles to the spheres, m, outside
     /// the solid where above `elements_gap_m` (at most `gap_m`).
     pub file_gap_sampled_m: f64,
@@ -58,6 +61,17 @@ pub struct LinkQuality {
     /// within `elements_gap_m` of the spheres, where there is one: what sets h above the
     /// packed surface's.
     pub uncovered: Option<Uncovered>,
+}
+
+/// The wall time of a link's build by stage, s, summed over the budget's doublings: the
+/// packing's growth, the gap estimate that decides whether to grow again, and the tree.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct StageTimes {
+    pub packing_s: f64,
+    pub gap_estimate_s: f64,
+    pub tree_s: f64,
+    /// How many budgets were packed (1 + the doublings).
+    pub rounds: u32,
 }
 
 /// A point of a mesh file's own triangles (as read, before the intake's repairs) outside the

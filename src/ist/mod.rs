@@ -30,6 +30,6 @@ pub use link::{
     absurd_gap, build_link, describe_uncovered, uncovered_fate, ABSURD_GAP_M,
     VALIDATION_TOLERANCE_M,
 };
-pub use link_tree::{IstNode, LinkQuality, LinkTree, Uncovered};
+pub use link_tree::{IstNode, LinkQuality, LinkTree, StageTimes, Uncovered};
 pub use options::BuildOptions;
 pub use robot::{build_links, build_robot, Origin};

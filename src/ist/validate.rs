@@ -407,7 +407,7 @@ pub fn check_tree(
 mod tests {
     use super::*;
     use crate::ist::build::{build_tree, TreeBuilder};
-    use crate::ist::link_tree::LinkQuality;
+    use crate::ist::link_tree::{LinkQuality, StageTimes};
     use crate::robot::mesh::{tessellate_box, ClosedMesh};
     use crate::robot::CollisionElement;
 
@@ -440,6 +440,7 @@ mod tests {
                 tree_volume_m3: 0.0,
                 build_s: 0.0,
                 validate_s: 0.0,
+                stages: StageTimes::default(),
                 elements_gap_m: claim_m,
                 file_gap_m: 0.0,
                 file_gap_sampled_m: 0.0,

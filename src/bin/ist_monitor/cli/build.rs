@@ -80,6 +80,9 @@ struct LinkRow<'a> {
     validated: bool,
     /// This run's validation, s; null for a tree from the cache.
     validate_s: Option<f64>,
+    /// Where this run's build went (packing, gap estimate, tree, rounds); null for a tree from
+    /// the cache or shared.
+    stages: Option<ist::StageTimes>,
     tree_volume_m3: f64,
     origin: Origin,
     from_cache: bool,
@@ -250,6 +253,7 @@ fn link_row<'a>(
         build_s: (!cached).then_some(t.quality.build_s),
         validated: true,
         validate_s: (!cached).then_some(t.quality.validate_s),
+        stages: (!cached).then_some(t.quality.stages),
         tree_volume_m3: t.quality.tree_volume_m3,
         origin,
         from_cache: origin == Origin::Cache,
