@@ -583,7 +583,11 @@ impl Discovery {
       builtin_topic_type_names::DCPS_PARTICIPANT_STATELESS_MESSAGE,
       ParticipantStatelessMessage,
       Some(Self::create_participant_stateless_message_qos()),
-      None, // Reader QoS: as above
+      // Reader QoS: every message kept until Discovery takes it. The topic has no key, so
+      // with the writer's KeepLast(1) the handshake messages of several participants that
+      // arrive in one burst would overwrite each other in the reader's cache, and a lost
+      // final message leaves that handshake stalled for good.
+      Some(Self::create_participant_stateless_message_reader_qos()),
       true, // Important: STATELESS RTPS Reader & Writer (see Security spec. section 7.4.3)
       EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER,
       P2P_PARTICIPANT_STATELESS_MESSAGE_TOKEN,
@@ -2106,6 +2110,17 @@ impl Discovery {
     QosPolicyBuilder::new()
       .reliability(Reliability::BestEffort) // Important!
       .history(History::KeepLast { depth: 1 })
+      .build()
+  }
+
+  #[cfg(feature = "security")]
+  pub const fn create_participant_stateless_message_reader_qos() -> QosPolicies {
+    // As the writer's, but keeping every message until it is taken: one reader serves the
+    // handshakes with all remote participants, and stateless messages are never resent by
+    // the remote once its handshake has completed (a final message is sent once).
+    QosPolicyBuilder::new()
+      .reliability(Reliability::BestEffort)
+      .history(History::KeepAll)
       .build()
   }
 
