@@ -18,8 +18,8 @@
 //!
 //! The spheres found are the same as with the earlier grid (finest cells capped at the link's
 //! extent/128, 3 mm on a 0.4 m link, so every sphere under 1.5 mm shared level 0, searched
-//! first with the full bound): the packings are identical, byte for byte, and 25–35 % faster
-//! (docs/robots.md, "Where a first build's time goes").
+//! first with the full bound): the packings are identical, byte for byte, and their time fell by
+//! up to a third, none on small links (docs/robots.md, "Where a first build's time goes").
 
 use super::sphere::InnerSphere;
 
