@@ -59,6 +59,13 @@ impl Level {
         }
     }
 
+    /// Puts sphere `i` at the head of its cell's list.
+    fn link(&mut self, origin: [f32; 3], spheres: &[InnerSphere], next: &mut [u32], i: u32) {
+        let slot = self.slot(self.cell_of(origin, spheres[i as usize].center));
+        next[i as usize] = self.heads[slot];
+        self.heads[slot] = i;
+    }
+
     fn cell_of(&self, origin: [f32; 3], p: [f32; 3]) -> [usize; 3] {
         std::array::from_fn(|k| {
             (((p[k] - origin[k]) * self.inv_cell).max(0.0) as usize).min(self.dims[k] - 1)
@@ -140,15 +147,11 @@ impl SphereGrid {
         if level.hashed && 2 * level.members.len() > level.heads.len() {
             // Twice the slots, every list relinked in insertion order (as if built anew).
             level.heads = vec![NONE; 2 * level.heads.len()];
-            for &i in &level.members {
-                let slot = level.slot(level.cell_of(origin, self.spheres[i as usize].center));
-                self.next[i as usize] = level.heads[slot];
-                level.heads[slot] = i;
+            for m in 0..level.members.len() {
+                level.link(origin, &self.spheres, &mut self.next, level.members[m]);
             }
         } else {
-            let slot = level.slot(level.cell_of(origin, sphere.center));
-            self.next[index as usize] = level.heads[slot];
-            level.heads[slot] = index;
+            level.link(origin, &self.spheres, &mut self.next, index);
         }
     }
 
