@@ -10,7 +10,9 @@
 //! - COLLADA whose data are millimetres under `<unit meter="1">`, fixed by the URDF's scale;
 //! - a closed block wound inside out that touches the main shell at one vertex;
 //! - two overlapping `<collision>` elements, and a thin closed plate (2 mm) half sunk into a
-//!   housing, as a logo is.
+//!   housing, as a logo is;
+//! - all of it in one dual-arm description (mirrored arms sharing files, a mimic-doubled torso,
+//!   thin plates on the torso's faces, an inside-out block), also built on 1, 2 and 16 threads.
 
 mod common;
 
@@ -419,8 +421,20 @@ fn a_stray_triangle_gives_an_absurd_h_that_names_it() {
 /// byte.
 #[test]
 fn shared_files_build_the_same_cache_on_any_thread_count() {
+    same_cache_on_any_thread_count(shared_robot, 2);
+}
+
+/// The dual-arm description below, every trait of the issue in one robot, built on 1, 2 and 16
+/// threads: the same cache files, byte for byte.
+#[test]
+fn the_dual_arm_description_builds_the_same_cache_on_any_thread_count() {
+    same_cache_on_any_thread_count(dual_arm_robot, 3);
+}
+
+/// The robot `make` writes, built on 1, 2 and 16 threads: `solids` cache files, the same bytes.
+fn same_cache_on_any_thread_count(make: fn(&Path) -> RobotModel, solids: usize) {
     let dir = tempfile::tempdir().expect("tempdir");
-    let model = shared_robot(dir.path());
+    let model = make(dir.path());
     let files = |threads: usize| -> Vec<(std::ffi::OsString, Vec<u8>)> {
         let cache_dir = dir.path().join(format!("cache{threads}"));
         let cache = TreeCache::new(cache_dir.clone());
@@ -440,7 +454,128 @@ fn shared_files_build_the_same_cache_on_any_thread_count() {
         files
     };
     let one = files(1);
-    assert_eq!(one.len(), 2);
+    assert_eq!(one.len(), solids);
     assert!(one == files(2), "1 and 2 threads differ");
     assert!(one == files(16), "1 and 16 threads differ");
+}
+
+/// A whole dual-arm description in one URDF, with the traits of the issue's dual-arm robot
+/// together: a torso housing with closed plates 1.5 and 3 mm thick lying on its faces and a block
+/// wound inside out touching it at one vertex; a second torso link that a mimic joint puts on
+/// the first; a left and a right arm whose upper arm and forearm files are shared, the right
+/// side turned by π about z in its joint frames (mirrored only through the joints). Every link
+/// builds at the defaults with h ≤ `target_gap`, each shared solid is packed once (one cache file
+/// per solid: torso, upper arm, forearm), and each link's tree is sound for its own geometry.
+const DUAL_ARM_URDF: &str = r#"<robot name="dual_arm">
+  <link name="base"/>
+  <link name="torso"><collision><geometry><mesh filename="torso.stl"/></geometry></collision></link>
+  <link name="torso_b"><collision><geometry><mesh filename="torso.stl"/></geometry></collision></link>
+  <link name="arm_left_1"><collision><geometry><mesh filename="upper.stl"/></geometry></collision></link>
+  <link name="arm_left_2"><collision><geometry><mesh filename="fore.stl"/></geometry></collision></link>
+  <link name="arm_right_1"><collision><geometry><mesh filename="upper.stl"/></geometry></collision></link>
+  <link name="arm_right_2"><collision><geometry><mesh filename="fore.stl"/></geometry></collision></link>
+  <joint name="torso_joint" type="revolute"><parent link="base"/><child link="torso"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="torso_joint_b" type="revolute"><parent link="base"/><child link="torso_b"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/><mimic joint="torso_joint"/></joint>
+  <joint name="left_1" type="revolute"><parent link="torso"/><child link="arm_left_1"/>
+    <origin xyz="0 0.09 0.14"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="left_2" type="revolute"><parent link="arm_left_1"/><child link="arm_left_2"/>
+    <origin xyz="0.1 0 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="right_1" type="revolute"><parent link="torso"/><child link="arm_right_1"/>
+    <origin xyz="0 -0.09 0.14" rpy="0 0 3.14159265"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="right_2" type="revolute"><parent link="arm_right_1"/><child link="arm_right_2"/>
+    <origin xyz="0.1 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>"#;
+
+/// [`DUAL_ARM_URDF`] in `dir`, with its three mesh files.
+fn dual_arm_robot(dir: &Path) -> RobotModel {
+    // The torso: a housing, a 1.5 mm plate on its front face, a 3 mm plate on its side, and a
+    // block wound inside out touching the housing's top corner at one vertex.
+    let mut torso = box_triangles([-0.04, -0.05, 0.0], [0.04, 0.05, 0.12]);
+    torso.extend(box_triangles([0.04, -0.03, 0.02], [0.0415, 0.03, 0.10]));
+    torso.extend(box_triangles([-0.03, 0.05, 0.02], [0.03, 0.053, 0.08]));
+    torso.extend(
+        box_triangles([0.04, 0.05, 0.12], [0.055, 0.065, 0.135])
+            .into_iter()
+            .map(|[a, b, c]| [a, c, b]),
+    );
+    write_stl(&dir.join("torso.stl"), &torso);
+    // The upper arm: two overlapping closed boxes in one file (an elbow housing over a tube).
+    let mut upper = box_triangles([0.0, -0.02, -0.02], [0.1, 0.02, 0.02]);
+    upper.extend(box_triangles([0.07, -0.025, -0.025], [0.11, 0.025, 0.025]));
+    write_stl(&dir.join("upper.stl"), &upper);
+    write_stl(
+        &dir.join("fore.stl"),
+        &box_triangles([0.0, -0.015, -0.015], [0.09, 0.015, 0.015]),
+    );
+    load_urdf(dir, DUAL_ARM_URDF)
+}
+
+#[test]
+fn a_dual_arm_description_builds_at_target_with_each_shared_file_packed_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dual_arm_robot(dir.path());
+    let cache = TreeCache::new(dir.path().join("cache"));
+    let trees = build(&model, Some(&cache));
+    let origin = |name: &str| {
+        (trees.iter())
+            .find(|(t, _)| t.link == name)
+            .map(|(_, o)| *o)
+            .unwrap_or_else(|| panic!("no tree for {name}"))
+    };
+    for (name, expected) in [
+        ("torso", Origin::Built),
+        ("torso_b", Origin::Shared),
+        ("arm_left_1", Origin::Built),
+        ("arm_left_2", Origin::Built),
+        ("arm_right_1", Origin::Shared),
+        ("arm_right_2", Origin::Shared),
+    ] {
+        assert_eq!(origin(name), expected, "{name}");
+    }
+    let files = std::fs::read_dir(dir.path().join("cache"))
+        .expect("cache")
+        .count();
+    assert_eq!(
+        files, 3,
+        "one cache file per solid: torso, upper arm, forearm"
+    );
+    assert_at_target(&trees);
+    // Each link's tree, shared or not, passes the validation against its own geometry (every
+    // sphere inside, no overlap, h bounded). Its bound there may be a little looser than the
+    // build's: the branch and bound starts from the claim, which is now the build's h.
+    for (tree, _) in &trees {
+        let geometry = link(&model, &tree.link);
+        let v = validate_link(tree, geometry, 1e-6, 2e-5)
+            .unwrap_or_else(|e| panic!("{}: {e}", tree.link));
+        println!(
+            "{}: {} spheres, h {:.3} mm (validated again: {:.3} mm)",
+            tree.link,
+            tree.spheres.len(),
+            tree.quality.gap_m * 1e3,
+            v.gap_m * 1e3
+        );
+    }
+    // The thin plates and the inside-out block are packed, not left to h.
+    let torso = &trees
+        .iter()
+        .find(|(t, _)| t.link == "torso")
+        .expect("torso")
+        .0;
+    for (what, lo, hi) in [
+        (
+            "the 1.5 mm plate",
+            [0.04, -0.03, 0.02],
+            [0.0415, 0.03, 0.10],
+        ),
+        ("the 3 mm plate", [-0.03, 0.05, 0.02], [0.03, 0.053, 0.08]),
+        (
+            "the inside-out block",
+            [0.04, 0.05, 0.12],
+            [0.055, 0.065, 0.135],
+        ),
+    ] {
+        assert!(centres_in(torso, lo, hi) > 0, "{what} is packed");
+    }
 }

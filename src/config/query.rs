@@ -86,7 +86,8 @@ pub(super) fn check_self_filter_padding(
     }
 }
 
-/// The packing budget of the tree build: `max_spheres`, `start_spheres`, `target_gap`.
+/// The packing budget of the tree build: `max_spheres`, `start_spheres`, `target_gap`,
+/// `target_gap_per_m`.
 pub(super) fn build_options(v: &Values) -> Result<BuildOptions, ConfigError> {
     let mut build = BuildOptions::default();
     build.packing.max_spheres = v.count("max_spheres")?;
@@ -99,6 +100,7 @@ pub(super) fn build_options(v: &Values) -> Result<BuildOptions, ConfigError> {
         ));
     }
     build.packing.target_gap_m = target_gap as f32;
+    build.packing.target_gap_per_m = v.distance("target_gap_per_m", "target_gap_per_m")? as f32;
     Ok(build)
 }
 

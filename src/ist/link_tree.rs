@@ -26,8 +26,8 @@ const _: () = assert!(std::mem::size_of::<IstNode>() == 32);
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LinkQuality {
     pub spheres: usize,
-    /// The sphere budget the link was packed with: `start_spheres`, doubled while its h was
-    /// above `target_gap_m`, up to `max_spheres`.
+    /// The sphere budget the link was packed with: `start_spheres`, or the spheres its gap pass
+    /// placed beyond it, grown while its h was above its target, up to `max_spheres`.
     pub budget: usize,
     /// Sphere volume / mesh volume.
     pub coverage: f64,

@@ -1,6 +1,6 @@
 //! Inner sphere tree (IST) stage: per link, the inner spheres from `packing` (the budget grown
-//! from `start_spheres`, doubling while the packing's estimate of h is above `target_gap_m`, up to
-//! `max_spheres`), a hierarchy of bounding spheres over them (`build`), the measured quality
+//! from `start_spheres` while h is above the link's target, `target_gap_m` or a share of a large
+//! link's size, up to `max_spheres`), a hierarchy of bounding spheres over them (`build`), the measured quality
 //! (coverage and surface gap h), the checks every tree passes before it is used or cached
 //! (`validate`: they refuse a wrong tree, and the h they measure is the h reported) and the
 //! cache (`cache`).
@@ -27,7 +27,7 @@ pub use crate::packing::InnerSphere;
 pub use build::TreeBuilder;
 pub use error::IstError;
 pub use link::{
-    absurd_gap, build_link, describe_uncovered, uncovered_fate, ABSURD_GAP_M,
+    absurd_gap, build_link, describe_uncovered, target_gap, uncovered_fate, ABSURD_GAP_M,
     VALIDATION_TOLERANCE_M,
 };
 pub use link_tree::{IstNode, LinkQuality, LinkTree, StageTimes, Uncovered};

@@ -25,8 +25,11 @@
 //! radii), so the pass never stalls on its worst samples. On the Panda at 8192 spheres
 //! per link the gap pass brought the worst h from 3.47 mm (volume pass alone, `--target-gap 1`)
 //! to 1.99 mm, at the same coverage (85.3 % on the worst link either way) for 15 % more build
-//! time. A [`Packer`] can grow: `ist::build_link` doubles a link's budget while its certified h
-//! is above `target_gap_m`.
+//! time. A [`Packer`] can grow, and its gap pass goes on where it stopped (its samples and heap
+//! are kept): `ist::build_link` runs a one-element link's gap pass first until its samples are
+//! within 0.85 × `target_gap_m` (h, which exceeds the samples' largest gap by a fraction of
+//! their spacing, then usually meets the target), and only if the estimate says otherwise on to
+//! the proof.
 //!
 //! Prototypes settle in parallel (rayon). Each settling step is one point-to-mesh query (parry3d,
 //! BVH, f32) and one nearest-sphere query ([`grid::SphereGrid`]). A sphere's radius is its
@@ -40,12 +43,13 @@
 //! Files, in the order of the data flow: `params` (what a link is packed for), `sphere` (the
 //! output unit and its radius), `prototype` (the climb), `cells` (where prototypes start),
 //! `packer` (one element's packing and its acceptance step), `volume` and `gap_pass` (the two
-//! passes), `pack` (their order and the entry points); `grid` (the spheres' grid) and `gap` (the
-//! measured h).
+//! passes; `gap_samples`, the gap pass's samples and heap), `pack` (their order and the entry
+//! points); `grid` (the spheres' grid) and `gap` (the measured h).
 
 mod cells;
 pub mod gap;
 mod gap_pass;
+mod gap_samples;
 pub mod grid;
 mod pack;
 mod packer;

@@ -13,12 +13,20 @@ use crate::robot::ClosedMesh;
 const VOLUME_SHARE: f64 = 0.5;
 
 impl Packer<'_> {
-    /// Packs up to `budget` spheres in all: the volume pass to half of it, the gap pass, the
-    /// volume pass to the rest; a packing already past a step's limit skips it.
-    pub fn grow(&mut self, budget: usize) {
+    /// Packs to `budget` spheres: the volume pass to half of it, the gap pass until its samples
+    /// are within `stop` (m; at least the gap that proves `target_gap_m`, which 0 asks for) or
+    /// the packing has `gap_limit` spheres (at least `budget`), the volume pass to the rest of
+    /// `budget`; a packing already past a step's limit skips it, and the gap pass goes on where
+    /// the last call left it. Returns the largest gap from a gap-pass sample of the surface to
+    /// the spheres, m: a point of the element's surface that far from every sphere (a lower
+    /// bound of its h, which the link's budget decision may use instead of a whole gap
+    /// estimate), or None when every sample lies within the proof target.
+    pub fn grow(&mut self, budget: usize, gap_limit: usize, stop: f32) -> Option<f32> {
         self.volume_pass((budget as f64 * VOLUME_SHARE).ceil() as usize);
-        self.gap_pass(budget);
+        self.gap_pass(gap_limit.max(budget), stop);
         self.volume_pass(budget);
+        let grid = &self.grid;
+        self.gap.as_mut().and_then(|state| state.worst(grid))
     }
 }
 
@@ -27,7 +35,7 @@ impl Packer<'_> {
 /// above `target_gap_m`, and the volume pass spends what budget is left.
 pub fn pack(mesh: &ClosedMesh, budget: usize, params: &PackingParams) -> Packing {
     let mut packer = Packer::new(mesh, params);
-    packer.grow(budget);
+    packer.grow(budget, budget, 0.0);
     packer.finish()
 }
 

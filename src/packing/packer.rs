@@ -4,6 +4,7 @@
 //! inside the solid. The passes that grow it are `volume` and `gap_pass`; `pack` runs them.
 
 use super::cells::first_grid;
+use super::gap_samples::GapState;
 use super::grid::{distance, SphereGrid};
 use super::params::PackingParams;
 use super::prototype::{Prototype, State};
@@ -36,6 +37,8 @@ pub struct Packer<'a> {
     pub(super) prototypes: Vec<Prototype>,
     pub(super) cells: Vec<[f32; 3]>,
     pub(super) cell: f32,
+    /// The gap pass's samples and heap, once it has run.
+    pub(super) gap: Option<GapState>,
 }
 
 impl<'a> Packer<'a> {
@@ -58,6 +61,7 @@ impl<'a> Packer<'a> {
             prototypes,
             cells,
             cell,
+            gap: None,
         }
     }
 

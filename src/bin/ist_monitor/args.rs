@@ -75,8 +75,8 @@ impl RobotArgs {
 
 #[derive(Args)]
 pub struct PackingArgs {
-    /// Most spheres per link: the budget starts at --start-spheres and doubles while the
-    /// link's certified h is above --target-gap (parameter max_spheres; equal to
+    /// Most spheres per link: the budget starts at --start-spheres and grows (at most doubling)
+    /// while the link's certified h is above its target (parameter max_spheres; equal to
     /// --start-spheres for a fixed budget).
     #[arg(long, default_value = param("max_spheres"))]
     pub max_spheres: u32,
@@ -96,6 +96,10 @@ pub struct PackingArgs {
     /// and the budget grows until h is at most this (parameter target_gap).
     #[arg(long, default_value = param("target_gap"))]
     target_gap: f32,
+    /// A large link is packed for this share of its bounding box's diagonal where that is
+    /// above --target-gap; 0: --target-gap on every link (parameter target_gap_per_m).
+    #[arg(long, default_value = param("target_gap_per_m"))]
+    target_gap_per_m: f32,
     /// Hierarchy build.
     #[arg(long, value_parser = choice::<TreeBuilder>(), default_value = BuildOptions::default().tree.name())]
     tree: TreeBuilder,
@@ -118,6 +122,9 @@ impl PackingArgs {
         if !(self.target_gap > 0.0 && self.target_gap.is_finite()) {
             bail!("--target-gap must be a positive number of metres");
         }
+        if !(self.target_gap_per_m >= 0.0 && self.target_gap_per_m.is_finite()) {
+            bail!("--target-gap-per-m must be a finite number ≥ 0");
+        }
         Ok(BuildOptions {
             packing: PackingParams {
                 max_spheres: self.max_spheres,
@@ -126,6 +133,7 @@ impl PackingArgs {
                 target_coverage: self.target_coverage,
                 prototypes: self.prototypes,
                 target_gap_m: self.target_gap,
+                target_gap_per_m: self.target_gap_per_m,
                 ..PackingParams::default()
             },
             tree: self.tree,

@@ -57,7 +57,8 @@ pub struct PosesArgs {
 struct LinkRow<'a> {
     name: &'a str,
     spheres: usize,
-    /// The budget the link was packed with (grown from start_spheres while h > target_gap).
+    /// The budget the link was packed with (grown from start_spheres while h was above the
+    /// link's target).
     budget: usize,
     coverage: f64,
     /// The certified h the validation measured: the larger of the two below.
@@ -217,11 +218,12 @@ fn link_row<'a>(
     if let Some(u) = &t.quality.uncovered {
         warnings.push(ist::describe_uncovered(u, &t.quality, geometry));
     }
-    if t.quality.gap_m > options.packing.target_gap_m as f64 {
+    let target = ist::target_gap(geometry, &options.packing);
+    if t.quality.gap_m > target as f64 {
         warnings.push(format!(
             "h {:.3} mm above the target {:.3} mm at a budget of {} spheres ({})",
             1e3 * t.quality.gap_m,
-            1e3 * options.packing.target_gap_m,
+            1e3 * target,
             t.quality.budget,
             if set_by_file {
                 "set by the file's own surface outside the solid: more spheres cannot lower it"
