@@ -397,3 +397,97 @@ fn exclusion_volumes_fault_without_their_frame_and_clear_when_all_is_known() {
     let r = wall(&mut other).result.unwrap();
     assert!(r.excluded.is_empty() && r.nearest.is_some());
 }
+
+/// A first start whose trees are not cached (issue 47): the monitor comes on coarse trees (a
+/// fixed budget of `start_spheres`, validated, their larger h certified and reported), and the
+/// trees of the config's options, built meanwhile, are swapped in without a gap: the level,
+/// the inputs and the sources stay, the certified interval narrows. A second start finds them
+/// in the cache and needs no coarse trees; trees for other links are refused.
+#[test]
+fn a_first_start_monitors_on_coarse_trees_and_swaps_in_the_fine_ones() {
+    let cache = tempfile::tempdir().unwrap();
+    let model = RobotModel::load(Path::new(common::DEMO_URDF), &[], &Default::default()).unwrap();
+    let names = model.kinematics.variables().to_vec();
+    let overrides: Vec<(String, String)> = vec![
+        ("robot_description".into(), common::DEMO_URDF.into()),
+        ("links".into(), "[wrist_1_link]".into()),
+        ("start_spheres".into(), "1024".into()),
+        ("max_spheres".into(), "8192".into()),
+        ("cache_dir".into(), cache.path().display().to_string()),
+        ("static_transforms".into(), "[cam]".into()),
+        ("cam.parent_frame".into(), "world".into()),
+        ("cam.child_frame".into(), "cam".into()),
+        ("fixed_joint_state.names".into(), format!("{names:?}")),
+        (
+            "fixed_joint_state.positions".into(),
+            format!("{:?}", vec![0.0; names.len()]),
+        ),
+        ("backend".into(), "cpu".into()),
+    ];
+    let config = Config::from_overrides(&overrides).unwrap();
+    let load = || Monitor::model(&config).unwrap();
+    let (mut m, refinement) =
+        Monitor::with_model_first(config.clone(), load(), &|_| {}, true).unwrap();
+    let refinement = refinement.expect("nothing cached: coarse trees first");
+    let coarse_h = m.link_gaps()[0].1;
+    // A point 5 cm above the link's top sphere, in the root frame (the joints at 0).
+    let poses = m.model.kinematics.link_poses(&vec![0.0; names.len()]);
+    let link = m.model.kinematics.link_index("wrist_1_link").unwrap();
+    let top = (m.model.links.iter())
+        .find(|l| l.name == "wrist_1_link")
+        .unwrap()
+        .elements
+        .iter()
+        .flat_map(|e| e.mesh.vertices.iter())
+        .map(|v| poses[link] * Point3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+        .unwrap();
+    let top = [top.x as f32, top.y as f32, (top.z + 0.05) as f32];
+    let width = |f: &Frame| {
+        let upper: f64 = common::status_value(f, "distance_m")
+            .unwrap()
+            .parse()
+            .unwrap();
+        let lower: f64 = common::status_value(f, "lower_m").unwrap().parse().unwrap();
+        upper - lower
+    };
+    let before = frame(&mut m, &[top]);
+    assert!(before.outputs.min_distance.is_some());
+    let level = before.outputs.level;
+    // The trees of the config's options, built on the side, then swapped in.
+    let trees = refinement.build(&|_| {}).unwrap();
+    m.swap_trees(&trees, &refinement.attached).unwrap();
+    let fine_h = m.link_gaps()[0].1;
+    assert!(
+        fine_h < coarse_h && fine_h <= 0.0015,
+        "h {coarse_h} m coarse, {fine_h} m fine"
+    );
+    let after = frame(&mut m, &[top]);
+    assert_eq!(after.outputs.level, level, "the level goes on");
+    assert!(
+        width(&after) < width(&before),
+        "the certified interval narrows: {} m, then {} m",
+        width(&before),
+        width(&after)
+    );
+    assert!(width(&before) <= coarse_h + 1e-6 && width(&after) <= fine_h + 1e-6);
+    // Trees without the monitored link are refused, and so are trees for other attached
+    // objects; the monitor keeps its own.
+    let other: Vec<_> = (common::demo_trees().1.into_iter())
+        .filter(|t| t.link != "wrist_1_link")
+        .collect();
+    assert!(m.swap_trees(&other, &refinement.attached).is_err());
+    let object = ist_monitor::robot::AttachedObject {
+        name: "tool".into(),
+        link: "wrist_1_link".into(),
+        shape: ist_monitor::geometry::Primitive::Sphere { radius: 0.01 }.into(),
+        link_from_object: nalgebra::Isometry3::identity(),
+    };
+    let e = m.swap_trees(&trees, &[object]).unwrap_err();
+    assert!(e.to_string().contains("not for the monitored links"), "{e}");
+    assert_eq!(m.link_gaps()[0].1, fine_h);
+    // Started again: the config's trees are in the cache, no coarse ones.
+    let (again, none) = Monitor::with_model_first(config.clone(), load(), &|_| {}, true).unwrap();
+    assert!(none.is_none());
+    assert_eq!(again.link_gaps(), m.link_gaps());
+}

@@ -110,6 +110,11 @@ impl TreeCache {
         self.dir.join(format!("{}.ist", hex(key)))
     }
 
+    /// Whether the cache holds a file under `key` (whose contents are checked when loaded).
+    pub fn holds(&self, key: &[u8; 32]) -> bool {
+        self.path(key).is_file()
+    }
+
     /// The tree stored under `key`, None when there is none, an error when the file is bad.
     pub fn load(&self, key: &[u8; 32], link: &str) -> Result<Option<LinkTree>, CacheError> {
         let path = self.path(key);

@@ -15,6 +15,19 @@ pub struct BuildOptions {
     pub gap_tolerance_m: f32,
 }
 
+impl BuildOptions {
+    /// The options of a coarse tree to monitor with while the tree of these is built: the
+    /// budget fixed at `start_spheres` (the h it reaches is certified and reported, like any);
+    /// None when the budget is fixed already.
+    pub fn coarse(&self) -> Option<BuildOptions> {
+        (self.packing.start_spheres < self.packing.max_spheres).then(|| {
+            let mut coarse = self.clone();
+            coarse.packing.max_spheres = coarse.packing.start_spheres;
+            coarse
+        })
+    }
+}
+
 impl Default for BuildOptions {
     fn default() -> Self {
         Self {

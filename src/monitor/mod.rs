@@ -51,5 +51,5 @@ pub use fault::{Fault, InputError};
 pub use level::{Level, LevelTracker};
 pub use outputs::Outputs;
 pub use pipeline::{Frame, Monitor};
-pub use setup::MonitorError;
+pub use setup::{MonitorError, Refinement};
 pub use source::{Heard, Latest, Part, Silence, Source};

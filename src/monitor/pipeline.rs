@@ -89,6 +89,13 @@ impl Monitor {
         self.engine.links().len()
     }
 
+    /// Each monitored link's certified surface gap h, m (the width of its certified interval).
+    pub fn link_gaps(&self) -> Vec<(String, f64)> {
+        (self.engine.links().iter())
+            .map(|l| (l.name.clone(), l.gap_m as f64))
+            .collect()
+    }
+
     /// Takes `config`, a run-time change of the running one that `Config::with_changes` made
     /// (only settable parameters differ: thresholds, the stray filter, sources' enabled flags,
     /// exclusion volumes). Levels held stay held; a source enabled now is in fault until its

@@ -46,6 +46,37 @@ pub enum MonitorError {
          robot_description for replay and the command line)"
     )]
     FromTopic(String),
+    #[error(
+        "the refined trees are not for the monitored links and attached objects (they changed \
+         while the trees were built)"
+    )]
+    Refined,
+}
+
+/// The trees of a monitor started on coarse ones ([`Monitor::with_model_first`]), to build on a
+/// thread of their own and hand to [`Monitor::swap_trees`].
+pub struct Refinement {
+    model: RobotModel,
+    selection: crate::robot::LinkSelection,
+    options: ist::BuildOptions,
+    cache_dir: Option<std::path::PathBuf>,
+    /// The attached objects the trees are for.
+    pub attached: Vec<crate::robot::AttachedObject>,
+}
+
+impl Refinement {
+    /// Builds (or loads) the selected links' trees at the config's options, caching them;
+    /// `built` is called with each link's name as its tree is ready.
+    pub fn build(&self, built: &(dyn Fn(&str) + Sync)) -> Result<Vec<LinkTree>, ist::IstError> {
+        let cache = TreeCache::at(self.cache_dir.as_deref());
+        let selected = |name: &str| self.selection.selects(name);
+        Ok(
+            ist::build_links(&self.model, &selected, &self.options, Some(&cache), built)?
+                .into_iter()
+                .map(|(t, _)| t)
+                .collect(),
+        )
+    }
 }
 
 impl Monitor {
@@ -53,15 +84,21 @@ impl Monitor {
     /// static transforms and fixed joints; `built` is called with each link's name as its tree
     /// is ready. Errors here are start-up errors.
     pub fn new(config: Config, built: &(dyn Fn(&str) + Sync)) -> Result<Self, MonitorError> {
-        let model = match config.robot_source()? {
+        let model = Self::model(&config)?;
+        Self::with_model(config, model, built)
+    }
+
+    /// The robot of the config's `robot_description` (a file or the URDF text; a topic is an
+    /// error: only the node reads one).
+    pub fn model(config: &Config) -> Result<RobotModel, MonitorError> {
+        match config.robot_source()? {
             RobotSource::File(urdf) => {
                 RobotModel::load(&urdf, &config.package_paths, &config.selection)
-                    .map_err(|source| MonitorError::Robot { urdf, source })?
+                    .map_err(|source| MonitorError::Robot { urdf, source })
             }
-            RobotSource::Text(xml) => Self::model_from_text(&config, &xml, "robot_description")?,
-            RobotSource::Topic(topic) => return Err(MonitorError::FromTopic(topic)),
-        };
-        Self::with_model(config, model, built)
+            RobotSource::Text(xml) => Self::model_from_text(config, &xml, "robot_description"),
+            RobotSource::Topic(topic) => Err(MonitorError::FromTopic(topic)),
+        }
     }
 
     /// The robot of URDF text that came from `from` (the parameter or the topic): relative
@@ -85,9 +122,23 @@ impl Monitor {
     /// As [`Monitor::new`], with the robot loaded.
     pub fn with_model(
         config: Config,
-        mut model: RobotModel,
+        model: RobotModel,
         built: &(dyn Fn(&str) + Sync),
     ) -> Result<Self, MonitorError> {
+        Ok(Self::with_model_first(config, model, built, false)?.0)
+    }
+
+    /// As [`Monitor::with_model`]; with `coarse_first`, where some selected link's tree is not
+    /// in the cache and the budget may grow (`BuildOptions::coarse`), every link gets a coarse
+    /// tree first (a fixed budget of `start_spheres`, validated like any, its larger h
+    /// certified and reported), and the [`Refinement`] returned builds the trees of the
+    /// config's options, for [`Monitor::swap_trees`].
+    pub fn with_model_first(
+        config: Config,
+        mut model: RobotModel,
+        built: &(dyn Fn(&str) + Sync),
+        coarse_first: bool,
+    ) -> Result<(Self, Option<Refinement>), MonitorError> {
         // The robot as it is, for a change of attached objects: a copy only where some join it.
         let base = if config.attached_objects.is_empty() {
             Base::Model
@@ -104,14 +155,56 @@ impl Monitor {
         config.selection.check(&model)?;
         let cache = TreeCache::at(config.cache_dir.as_deref());
         let selected = |name: &str| config.selection.selects(name);
+        let coarse = coarse_first
+            .then(|| config.build.coarse())
+            .flatten()
+            .filter(|_| {
+                (model.links.iter())
+                    .filter(|l| selected(&l.name))
+                    .any(|l| !cache.holds(&ist::cache::key(l, &config.build)))
+            });
+        let options = coarse.as_ref().unwrap_or(&config.build);
         let trees: Vec<LinkTree> =
-            ist::build_links(&model, &selected, &config.build, Some(&cache), built)?
+            ist::build_links(&model, &selected, options, Some(&cache), built)?
                 .into_iter()
                 .map(|(t, _)| t)
                 .collect();
+        let refinement = coarse.map(|_| Refinement {
+            model: model.clone(),
+            selection: config.selection.clone(),
+            options: config.build.clone(),
+            cache_dir: config.cache_dir.clone(),
+            attached: config.attached_objects.clone(),
+        });
         let mut monitor = Self::with_trees(config, model, &trees)?;
         monitor.base = base;
-        Ok(monitor)
+        Ok((monitor, refinement))
+    }
+
+    /// Replaces the trees of the monitored links by `trees` (those of a [`Refinement`]): a new
+    /// query engine over the same robot, links and options; inputs, sources, levels and the
+    /// speed scaler stay as they are, so monitoring goes on without a gap. Trees for other
+    /// links, or for a robot whose attached objects changed since, are refused.
+    pub fn swap_trees(
+        &mut self,
+        trees: &[LinkTree],
+        attached: &[crate::robot::AttachedObject],
+    ) -> Result<(), MonitorError> {
+        let names = |links: &[crate::query::QueryLink]| -> Vec<String> {
+            links.iter().map(|l| l.name.clone()).collect()
+        };
+        let mut engine = Engine::new(&self.model, trees, &self.config.selection)?;
+        if attached != self.config.attached_objects.as_slice()
+            || names(engine.links()) != names(self.engine.links())
+        {
+            return Err(MonitorError::Refined);
+        }
+        engine.prepare_self_filter(&self.config.query);
+        if self.config.query.backend != crate::query::Backend::Cpu {
+            engine.gpu();
+        }
+        self.engine = engine;
+        Ok(())
     }
 
     /// The robot without its attached objects: what the monitor of a change of them is built

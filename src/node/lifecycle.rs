@@ -36,30 +36,30 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
         robot_links,
         shutdown,
     } = start(&config, transport)?;
-    let mut monitor = match wait_for_monitor(&config, &stop, &mut node, &executor, &outputs, &clock)
-    {
-        Ok((Some(m), task)) => {
-            if let Some(t) = task {
-                smol::block_on(t.cancel());
+    let (mut monitor, refined) =
+        match wait_for_monitor(&config, &stop, &mut node, &executor, &outputs, &clock) {
+            Ok((Some(m), task)) => {
+                if let Some(t) = task {
+                    smol::block_on(t.cancel());
+                }
+                m
             }
-            m
-        }
-        Ok((None, task)) => {
-            last_word(&outputs, &config, "shutting down", &clock);
-            shutdown.close(task.into_iter().collect(), outputs, node);
-            return Ok(());
-        }
-        Err(e) => {
-            last_word(
-                &outputs,
-                &config,
-                &format!("stopped by an error: {e}"),
-                &clock,
-            );
-            shutdown.close(Vec::new(), outputs, node);
-            return Err(e);
-        }
-    };
+            Ok((None, task)) => {
+                last_word(&outputs, &config, "shutting down", &clock);
+                shutdown.close(task.into_iter().collect(), outputs, node);
+                return Ok(());
+            }
+            Err(e) => {
+                last_word(
+                    &outputs,
+                    &config,
+                    &format!("stopped by an error: {e}"),
+                    &clock,
+                );
+                shutdown.close(Vec::new(), outputs, node);
+                return Err(e);
+            }
+        };
     monitor.probe_gpu();
     *lock(&robot_links) = Some(monitor.robot_links());
     // The subscription tasks, cancelled before the node is dropped: a DDS reader dropped after
@@ -81,6 +81,7 @@ pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Resul
                 apply,
                 safety,
                 clock: clock.clone(),
+                refined: Some(refined),
             },
         )
     }));
@@ -249,7 +250,10 @@ impl Shutdown {
 /// Makes the monitor on its own thread (the robot from its file or text, or from
 /// `robot_description_topic` once it arrives; the trees built or loaded), publishing "not
 /// monitoring" (ERROR with the reason, the safety stop, no distance) every `heartbeat_period`
-/// meanwhile; `None` when `stop` is set first.
+/// meanwhile; `None` when `stop` is set first. Where trees had to be built and the budget may
+/// grow, the monitor comes on coarse trees (a fixed budget of `start_spheres`, validated, h
+/// certified), and the same thread then builds the config's trees, which arrive on the
+/// [`Refined`] receiver for the serving loop to swap in.
 fn wait_for_monitor(
     config: &Config,
     stop: &AtomicBool,
@@ -257,7 +261,7 @@ fn wait_for_monitor(
     executor: &smol::Executor<'static>,
     outputs: &Publishers,
     clock: &NodeClock,
-) -> Result<(Option<Monitor>, Option<smol::Task<()>>)> {
+) -> Result<(Option<(Monitor, super::refine::Refined)>, RobotTask)> {
     let reason = Arc::new(Mutex::new(String::new()));
     let say = {
         let reason = reason.clone();
@@ -291,6 +295,7 @@ fn wait_for_monitor(
         _ => None,
     };
     let (tx, rx) = std::sync::mpsc::channel();
+    let (refined_tx, refined) = std::sync::mpsc::channel();
     let build_config = config.clone();
     std::thread::Builder::new()
         .name("monitor build".into())
@@ -302,22 +307,48 @@ fn wait_for_monitor(
                     "building or loading the inner sphere trees ({n} links ready)"
                 ));
             };
-            let monitor = match source {
+            let model = match source {
                 RobotSource::Topic(topic) => match urdf_rx.recv() {
                     Ok(xml) => {
                         log::info!("robot description received on {topic}");
                         say("loading the robot".into());
                         Monitor::model_from_text(&build_config, &xml, &topic)
-                            .and_then(|model| Monitor::with_model(build_config, model, &progress))
                     }
                     Err(_) => return,
                 },
                 _ => {
                     say("loading the robot".into());
-                    Monitor::new(build_config, &progress)
+                    Monitor::model(&build_config)
                 }
             };
-            let _ = tx.send(monitor);
+            // Trees missing from the cache: coarse ones first, then the config's, swapped in
+            // by the serving loop when they are ready.
+            let first = model
+                .and_then(|model| Monitor::with_model_first(build_config, model, &progress, true));
+            let refinement = match first {
+                Ok((monitor, refinement)) => {
+                    if refinement.is_some() {
+                        log_coarse(&monitor);
+                    }
+                    let _ = tx.send(Ok(monitor));
+                    refinement
+                }
+                Err(e) => {
+                    let _ = tx.send(Err(e));
+                    None
+                }
+            };
+            if let Some(refinement) = refinement {
+                let started = std::time::Instant::now();
+                let trees = super::refine::build(&refinement);
+                if trees.is_ok() {
+                    log::info!(
+                        "the trees of the config's packing options are built ({:.1} s)",
+                        started.elapsed().as_secs_f64()
+                    );
+                }
+                let _ = refined_tx.send((trees, refinement.attached));
+            }
         })?;
     log::info!(
         "not monitoring yet: ERROR and safety_stop on {}/... until the robot and its trees are \
@@ -333,13 +364,28 @@ fn wait_for_monitor(
         outputs.publish_outputs(Outputs::not_monitoring(config, &r, clock.now_ns()));
         // Every heartbeat, as when serving: the offered deadline holds during the build too.
         match rx.recv_timeout(Duration::from_secs_f64(config.heartbeat_period_s)) {
-            Ok(monitor) => return Ok((Some(monitor?), task)),
+            Ok(monitor) => return Ok((Some((monitor?, refined)), task)),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
                 return Err(NodeError::BuildLost)
             }
         }
     }
+}
+
+/// The subscription to `robot_description_topic`, where the robot comes from there.
+type RobotTask = Option<smol::Task<()>>;
+
+/// Says that the monitor runs on coarse trees, with their largest h.
+fn log_coarse(monitor: &Monitor) {
+    let (link, h) = (monitor.link_gaps().into_iter())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or_default();
+    log::info!(
+        "monitoring on coarse trees (start_spheres each, validated; h up to {:.3} mm, on {link}) \
+         while the trees of the config's packing options are built",
+        h * 1e3
+    );
 }
 
 /// A panic's message.

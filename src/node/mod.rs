@@ -19,7 +19,8 @@
 //! lease), so a DDS subscriber that asks for them is told by its own middleware.
 //!
 //! Here: `lifecycle`, the node's start, "not monitoring" during the build, and its last word
-//! and stop; `serve`, the serving loop; `up`, the line that says it is up. `ros_args`: the
+//! and stop; `serve`, the serving loop; `refine`, the fine trees swapped in after a first start
+//! on coarse ones; `up`, the line that says it is up. `ros_args`: the
 //! command line after `--ros-args`, and the names of topics and types. `qos`: every topic's
 //! QoS. `inputs`: the sources' slots and the forwarded TF, joint states and camera info.
 //! `publishers`: the output table's publishers. `parameters`: the parameter services; a change
@@ -38,6 +39,7 @@ pub mod play;
 mod publishers;
 mod qos;
 pub mod record;
+mod refine;
 pub mod rmw_zenoh;
 mod ros_args;
 pub mod rosout;

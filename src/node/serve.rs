@@ -99,6 +99,7 @@ pub(super) fn serve(
         serving.wait();
         serving.drain_inputs(monitor);
         serving.apply_parameters(monitor, node)?;
+        serving.refine(monitor);
         if serving.not_monitoring(monitor) || serving.clock(monitor) {
             continue;
         }
@@ -401,6 +402,11 @@ impl Serving<'_> {
         Ok(())
     }
 
+    /// Swaps in the trees of the config's options once they are built (`refine`).
+    fn refine(&mut self, monitor: &mut Monitor) {
+        super::refine::swap_in(&mut self.runtime.refined, monitor);
+    }
+
     /// Not monitoring while the monitor is rebuilt (or after a build failed): the sources'
     /// messages are dropped, "not monitoring" goes out every heartbeat. Whether it is so.
     fn not_monitoring(&mut self, monitor: &Monitor) -> bool {
@@ -593,6 +599,8 @@ pub(super) struct Runtime {
     pub(super) safety: Arc<Safety>,
     /// The node's clock (`clock`).
     pub(super) clock: Arc<NodeClock>,
+    /// The trees to swap in where the monitor started on coarse ones; None once handled.
+    pub(super) refined: Option<super::refine::Refined>,
 }
 
 /// The names of `config`'s attached objects, for the log.
