@@ -42,7 +42,20 @@ fn arm_at_rest_with(extra: &[(&str, &str)]) -> (Monitor, Vec<[f32; 3]>, ([f32; 3
             robot.push(p);
         }
     }
-    let mut overrides: Vec<(String, String)> = vec![
+    let mut overrides = at_rest(&names);
+    overrides.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
+    let config = Config::from_overrides(&overrides).unwrap();
+    (
+        Monitor::with_trees(config, model, &trees).unwrap(),
+        robot,
+        top,
+    )
+}
+
+/// The demo arm seen by a sensor `cam` at the root (`world`), its joints `names` fixed at 0, on
+/// the CPU.
+fn at_rest(names: &[String]) -> Vec<(String, String)> {
+    vec![
         ("robot_description".into(), common::DEMO_URDF.into()),
         ("static_transforms".into(), "[cam]".into()),
         ("cam.parent_frame".into(), "world".into()),
@@ -53,14 +66,7 @@ fn arm_at_rest_with(extra: &[(&str, &str)]) -> (Monitor, Vec<[f32; 3]>, ([f32; 3
             format!("{:?}", vec![0.0; names.len()]),
         ),
         ("backend".into(), "cpu".into()),
-    ];
-    overrides.extend(extra.iter().map(|(k, v)| (k.to_string(), v.to_string())));
-    let config = Config::from_overrides(&overrides).unwrap();
-    (
-        Monitor::with_trees(config, model, &trees).unwrap(),
-        robot,
-        top,
-    )
+    ]
 }
 
 fn frame(monitor: &mut Monitor, points: &[[f32; 3]]) -> Frame {
@@ -408,22 +414,13 @@ fn a_first_start_monitors_on_coarse_trees_and_swaps_in_the_fine_ones() {
     let cache = tempfile::tempdir().unwrap();
     let model = RobotModel::load(Path::new(common::DEMO_URDF), &[], &Default::default()).unwrap();
     let names = model.kinematics.variables().to_vec();
-    let overrides: Vec<(String, String)> = vec![
-        ("robot_description".into(), common::DEMO_URDF.into()),
+    let mut overrides = at_rest(&names);
+    overrides.extend([
         ("links".into(), "[wrist_1_link]".into()),
         ("start_spheres".into(), "1024".into()),
         ("max_spheres".into(), "8192".into()),
         ("cache_dir".into(), cache.path().display().to_string()),
-        ("static_transforms".into(), "[cam]".into()),
-        ("cam.parent_frame".into(), "world".into()),
-        ("cam.child_frame".into(), "cam".into()),
-        ("fixed_joint_state.names".into(), format!("{names:?}")),
-        (
-            "fixed_joint_state.positions".into(),
-            format!("{:?}", vec![0.0; names.len()]),
-        ),
-        ("backend".into(), "cpu".into()),
-    ];
+    ]);
     let config = Config::from_overrides(&overrides).unwrap();
     let load = || Monitor::model(&config).unwrap();
     let (mut m, refinement) =
