@@ -145,15 +145,11 @@ fn grow(
     let cap = params.max_spheres.max(1) as usize;
     let mut budget = (params.start_spheres.max(1) as usize).min(cap);
     let target = params.target_gap_m as f64;
-    // One element: its gap pass runs on to the cap, first until its samples are within
-    // `FIRST_STOP` × target (which usually gives h ≤ target, checked by the estimate), then, if
-    // not, to a stop lowered by what h exceeded the samples by, and at last until they prove
-    // the target. Several elements: an element's samples also lie on its
-    // surface buried in the others, which needs no spheres, so each round's gap pass keeps to
-    // the element's share of the budget and proves the target on its own surface, and the
-    // budget grows while the estimate is above the target.
-    // A fixed budget (`start_spheres` at the cap) has no second round: its gap pass proves the
-    // target at once, as far as the budget goes.
+    // One element: the gap pass runs on to the cap, stopping first at `FIRST_STOP` × target
+    // (the module's documentation says why). Several elements: rounds of a growing budget, each
+    // gap pass proving the target on its element's own surface. A fixed budget (`start_spheres`
+    // at the cap) has no second round: its gap pass proves the target at once, as far as the
+    // budget goes.
     let single = link.elements.len() == 1;
     let mut stop = if single && budget < cap {
         FIRST_STOP * params.target_gap_m
@@ -242,8 +238,8 @@ const AIM: f64 = 0.9;
 /// N ~ area/h² of them, so h ~ N^(−α) with α near 1/2; α is fitted on the last two rounds
 /// (clamped to [1/4, 1]), and the budget that brings h to `AIM` × target is taken, at least
 /// 1.25× and at most 2× the last, rounded up to an eighth of it (a power of two: 1024 from
-/// 8192) and at most `cap`. Only
-/// the rounds' h decide it, so it is the same on any number of threads.
+/// 8192) and at most `cap`. Only the rounds' h decide it, so it is the same on any number of
+/// threads.
 fn next_budget(history: &[(usize, f64)], target: f64, cap: usize) -> usize {
     let &(n, h) = history.last().expect("a round");
     let alpha = match history {

@@ -253,7 +253,7 @@ impl Shutdown {
 /// meanwhile; `None` when `stop` is set first. Where trees had to be built and the budget may
 /// grow, the monitor comes on coarse trees (a fixed budget of `start_spheres`, validated, h
 /// certified), and the same thread then builds the config's trees, which arrive on the
-/// [`Refined`] receiver for the serving loop to swap in.
+/// `refine::Refined` receiver for the serving loop to swap in.
 fn wait_for_monitor(
     config: &Config,
     stop: &AtomicBool,
