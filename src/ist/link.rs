@@ -54,7 +54,14 @@ pub fn build_link(link: &LinkGeometry, options: &BuildOptions) -> Result<LinkTre
         })
         .collect();
     let mut stages = StageTimes::default();
-    let (budget, gap_m, gap_sampled_m) = grow(link, &mut packers, params, options, &mut stages);
+    let (budget, gap_m, gap_sampled_m) = grow(
+        link,
+        &mut packers,
+        mesh_volume_m3,
+        params,
+        options,
+        &mut stages,
+    );
     let packings: Vec<Packing> = packers
         .into_iter()
         .map(|p| match p {
@@ -132,16 +139,17 @@ enum Element<'a> {
 }
 
 /// Grows the link's packings until the packing's estimate of h (with the validation's slack) is
-/// within `params.target_gap_m` or the budget is spent (the module's documentation says how).
+/// within `params.target_gap_m` or the budget is spent (the module's documentation says how);
+/// the budget is split among the elements by their share of `mesh_volume_m3`, the link's.
 /// Returns the budget, the estimate and the largest sampled gap, m.
 fn grow(
     link: &LinkGeometry,
     packers: &mut [Element],
+    mesh_volume_m3: f64,
     params: &PackingParams,
     options: &BuildOptions,
     stages: &mut StageTimes,
 ) -> (usize, f64, f64) {
-    let mesh_volume_m3: f64 = link.elements.iter().map(|e| e.mesh.volume_m3).sum();
     let cap = params.max_spheres.max(1) as usize;
     let mut budget = (params.start_spheres.max(1) as usize).min(cap);
     let target = params.target_gap_m as f64;
