@@ -57,6 +57,15 @@ pub fn f32_at_least(x: f64) -> f32 {
     y
 }
 
+/// The largest f32 at most `x`: a radius that must not grow when narrowed to f32.
+pub fn f32_at_most(x: f64) -> f32 {
+    let mut y = x as f32;
+    while (y as f64) > x {
+        y = y.next_down();
+    }
+    y
+}
+
 /// Closest point to `p` on the triangle `abc` (Ericson's Voronoi-region method).
 pub fn closest_point_triangle(p: P3, a: P3, b: P3, c: P3) -> P3 {
     let ab = sub(b, a);

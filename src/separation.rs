@@ -184,6 +184,8 @@ pub struct LinkConstraint {
     pub witnessed: bool,
     /// The link of the nearest obstacle point.
     pub nearest: bool,
+    /// Held to the distance to unseen space (`protect`), nearer than the seen one.
+    pub unseen: bool,
 }
 
 impl SsmParams {
@@ -262,6 +264,8 @@ pub struct Separation {
     pub time_to_collision_s: f64,
     pub reaction_s: f64,
     pub velocity_source: VelocitySource,
+    /// That link's distance is to unseen space (`unobserved: protect`), not to a point seen.
+    pub unseen: bool,
 }
 
 /// Every link's constraint at the nominal motion, from a query result. `twists` are the links'
@@ -303,16 +307,6 @@ pub fn constraints(
                 }
                 (None, None) => (f64::from(result.max_distance_m), z + h, None),
             };
-            let bound = || {
-                let root = &link.nodes[0];
-                let c = poses[link.pose_index]
-                    * Point3::new(
-                        f64::from(root.center[0]),
-                        f64::from(root.center[1]),
-                        f64::from(root.center[2]),
-                    );
-                twist.at(&c.coords).norm() + twist.angular.norm() * (f64::from(root.radius) + h)
-            };
             let (approach, speed, witnessed) = match witness {
                 Some((obstacle, robot)) => {
                     let (o, r) = (Vector3::from(obstacle), Vector3::from(robot));
@@ -323,7 +317,7 @@ pub fn constraints(
                     }
                 }
                 None => {
-                    let b = bound();
+                    let b = fastest_point_speed(link, &poses[link.pose_index], twist);
                     (b, b, false)
                 }
             };
@@ -335,9 +329,46 @@ pub fn constraints(
                 speed_mps: speed / scale,
                 witnessed,
                 nearest: is_nearest,
+                unseen: false,
             }
         })
         .collect()
+}
+
+/// A bound of the speed of `link`'s fastest point (m/s): its root sphere's centre's speed plus
+/// the rotation's over the sphere's radius and h.
+fn fastest_point_speed(link: &QueryLink, pose: &Isometry3<f64>, twist: &LinkVelocity) -> f64 {
+    let root = &link.nodes[0];
+    let c = pose * Point3::from(root.center.map(f64::from));
+    let h = f64::from(link.gap_m);
+    twist.at(&c.coords).norm() + twist.angular.norm() * (f64::from(root.radius) + h)
+}
+
+/// Holds each link to its distance to unseen space (`unseen`, m, the engine's order) where
+/// that is nearer than its constraint's (`unobserved: protect`, issue 55). The unseen distance
+/// is a certified lower bound (h already subtracted), so Z_d is the sensor's uncertainty alone;
+/// a hidden body may lie in any direction, so v_r is the link's fastest point's speed, not a
+/// witness's.
+pub fn tighten_by_unseen(
+    params: &SsmParams,
+    constraints: &mut [LinkConstraint],
+    unseen: &[f64],
+    links: &[QueryLink],
+    poses: &[Isometry3<f64>],
+    twists: &[LinkVelocity],
+    scale: f64,
+) {
+    for ((c, &d), link) in constraints.iter_mut().zip(unseen).zip(links) {
+        if d < c.distance_m {
+            let b = fastest_point_speed(link, &poses[link.pose_index], &twists[link.pose_index]);
+            c.distance_m = d;
+            c.z_d_m = params.sensor_uncertainty_m;
+            c.approach_mps = b / scale;
+            c.speed_mps = b / scale;
+            c.witnessed = false;
+            c.unseen = true;
+        }
+    }
 }
 
 /// The factor every link allows, and the figures of the link that limits it. `scale` is the
@@ -385,6 +416,7 @@ pub fn separation(
         },
         reaction_s,
         velocity_source,
+        unseen: c.unseen,
     })
 }
 
@@ -497,6 +529,7 @@ mod tests {
             speed_mps: speed,
             witnessed: true,
             nearest: false,
+            unseen: false,
         }
     }
 

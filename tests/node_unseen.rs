@@ -190,7 +190,7 @@ fn assert_within_truth(
         near.insert(stamp);
         assert!(
             d <= t + TOLERANCE_M,
-            "unseen distance {d} m above the truth {t} m at stamp {stamp} (NaN: none seen)"
+            "unseen distance {d} m above the truth {t} m at stamp {stamp} (+inf: nothing hidden; NaN: the pass failed)"
         );
     }
     assert!(!near.is_empty(), "no frame within {NEAR} m answered");
@@ -209,7 +209,7 @@ fn assert_unobserved_status(diagnostics: &[DiagnosticArray], last: i64) {
         .find(|a| a.header.stamp.as_nanos() == last)
         .expect("the last frame's diagnostics");
     let unobserved = status(end, name).expect("the unobserved-space status at the end");
-    for key in ["distance_m", "observed_fraction", "compute_ms"] {
+    for key in ["distance_m", "nearest_cause", "compute_ms", "source.camera"] {
         assert!(
             unobserved.values.iter().any(|kv| kv.key == key),
             "{key} missing: {unobserved:?}"

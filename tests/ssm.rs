@@ -251,6 +251,7 @@ proptest! {
             speed_mps: speed,
             witnessed: true,
             nearest: true,
+            unseen: false,
         };
         let k = p.allowed_factor(&c, reaction);
         prop_assert!((0.0..=1.0).contains(&k));

@@ -122,7 +122,10 @@ fn assert_protect_stops(r: &ReplayFrame, p: &ReplayFrame, t: f64) {
 /// truth on every frame.
 #[test]
 fn a_dark_person_is_within_the_unseen_distance_and_protect_stops() {
-    let (_dir, bag) = generate(SceneKind::Person, |p| p.dark = true);
+    let (_dir, bag) = generate(SceneKind::Person, |p| {
+        p.dark = true;
+        p.camera_dropouts = 0.05;
+    });
     let cfg = common::DEMO_CONFIG;
     let apart = [("unobserved_self_shadow", "apart")];
     let report = replay_rows(&bag, cfg, &[apart[0], ("unobserved", "report")]);
@@ -153,33 +156,44 @@ fn a_dark_person_is_within_the_unseen_distance_and_protect_stops() {
     assert!(report.iter().any(|r| truth(r) < 0.1));
 }
 
-/// The same walk, lit, with the generator's 2 % isolated dropped pixels: with the robot's
-/// shadow apart, nothing unseen can hold a 70 mm body while the person is farther than 0.5 m
-/// (the dropouts vanish in the opening), as on the same bag without dropouts, and `protect`
-/// then gives the levels `report` gives.
+/// Lit walks with the dropped pixels real cameras give (issue 55): at 320 × 240 with 8 % at
+/// random, with 8 % as a camera drops them (edges, dark hair and shoes, clusters) beside the
+/// 2 % at random, and at 640 × 480 with 5 % of each. With the robot's shadow apart, `protect`
+/// gives `report`'s level on every frame (so no ERROR while the truth is beyond
+/// `stop_distance`): the dropouts hide nothing a body of the capability fits in.
 #[test]
-fn isolated_dropped_pixels_do_not_stop_the_cell() {
-    let (_dir, bag) = generate(SceneKind::Person, |_| {});
-    let (_dir0, clean) = generate(SceneKind::Person, |p| p.holes = 0.0);
+fn ordinary_dropouts_do_not_stop_the_cell() {
+    let walks: [(u32, u32, f64, f64); 3] = [
+        (320, 240, 0.08, 0.0),
+        (320, 240, 0.02, 0.08),
+        (640, 480, 0.05, 0.05),
+    ];
     let cfg = common::DEMO_CONFIG;
     let apart = ("unobserved_self_shadow", "apart");
-    let report = replay_rows(&bag, cfg, &[apart, ("unobserved", "report")]);
-    let protect = replay_rows(&bag, cfg, &[apart, ("unobserved", "protect")]);
-    let without = replay_rows(&clean, cfg, &[apart, ("unobserved", "report")]);
-    let mut far = 0;
-    for ((r, p), w) in report.iter().zip(&protect).zip(&without) {
-        if r.min_distance_m.unwrap() > 0.5 {
-            far += 1;
-            assert!(
-                r.unseen_all_seen,
-                "frame {}: unseen {:?}",
-                r.index, r.unseen_m
+    for (width, height, holes, camera) in walks {
+        let (_dir, bag) = generate(SceneKind::Person, |p| {
+            (p.width, p.height, p.holes, p.camera_dropouts) = (width, height, holes, camera);
+        });
+        let report = replay_rows(&bag, cfg, &[apart, ("unobserved", "report")]);
+        let protect = replay_rows(&bag, cfg, &[apart, ("unobserved", "protect")]);
+        assert_eq!(report.len(), 30);
+        for (r, p) in report.iter().zip(&protect) {
+            let walk = format!("{width}×{height}, {holes} random, {camera} as a camera");
+            assert_eq!(
+                p.level,
+                r.level,
+                "{walk}: frame {} (truth {}, unseen {:?}: {:?} at {:?})",
+                r.index,
+                truth(r),
+                p.unseen_m,
+                p.unseen_cause,
+                p.unseen_point
             );
-            assert!(w.unseen_all_seen, "frame {} (no dropouts)", r.index);
-            assert_eq!(p.level, r.level, "frame {}", r.index);
+            if truth(r) > 0.1 {
+                assert_ne!(p.level, Level::Error, "{walk}: frame {}", r.index);
+            }
         }
     }
-    assert!(far >= 10, "only {far} frames farther than 0.5 m");
 }
 
 /// A person's forearm reaches in behind the upright upper arm, in its shadow as the one camera
@@ -188,7 +202,7 @@ fn isolated_dropped_pixels_do_not_stop_the_cell() {
 /// never does.
 #[test]
 fn a_person_in_the_arms_shadow_is_within_the_unseen_distance() {
-    let (_dir, bag) = generate(SceneKind::Shadow, |_| {});
+    let (_dir, bag) = generate(SceneKind::Shadow, |p| p.camera_dropouts = 0.05);
     let cfg = common::DEMO_CONFIG;
     let report = replay_rows(&bag, cfg, &[("unobserved", "report")]);
     let protect = replay_rows(&bag, cfg, &[("unobserved", "protect")]);
@@ -200,21 +214,26 @@ fn a_person_in_the_arms_shadow_is_within_the_unseen_distance() {
     assert!(report.iter().any(|r| truth(r) < 0.1));
 }
 
-/// A second camera beside the arm sees into the first one's shadow: while the person is far
-/// (seen farther than 0.9 m), nothing unseen can hold a 70 mm body with both cameras, where the
-/// first camera alone leaves the arm's shadow unseen beside it (its distance under 5 cm).
+/// A second camera beside the arm sees into most of the first one's shadow: while the person is
+/// far (seen farther than 0.9 m), with the robot's shadow apart nothing else is hidden with or
+/// without it, and the search, which then examines the whole volume, finds the robot's shadow
+/// shrunk to a tenth or less of what the first camera alone leaves: what stays is the space
+/// behind the arm from both (the quadrant behind the pedestal), which two cameras never close
+/// (with the shadow counted, the unseen distance there is 0, cause the robot's shadow).
 #[test]
 fn a_second_camera_closes_the_arms_shadow() {
     let (_dir, bag) = generate(SceneKind::Person, |p| p.second_camera = true);
     let report = ("unobserved", "report");
-    let both = replay_rows(&bag, TWO_CAMERAS, &[report]);
+    let apart = ("unobserved_self_shadow", "apart");
+    let both = replay_rows(&bag, TWO_CAMERAS, &[report, apart]);
+    let counted = replay_rows(&bag, TWO_CAMERAS, &[report]);
     let one = replay_rows(
         &bag,
         TWO_CAMERAS,
-        &[report, ("side_camera.enabled", "false")],
+        &[report, apart, ("side_camera.enabled", "false")],
     );
     let mut far = 0;
-    for r in both.iter().filter(|r| r.fault.is_none()) {
+    for (r, c) in both.iter().zip(&counted).filter(|(r, _)| r.fault.is_none()) {
         let Some(alone) = one
             .iter()
             .find(|o| o.stamp_ns == r.stamp_ns && o.source == "camera")
@@ -223,17 +242,23 @@ fn a_second_camera_closes_the_arms_shadow() {
         };
         if r.min_distance_m.is_some_and(|d| d > 0.9) {
             far += 1;
+            for row in [r, alone] {
+                assert!(
+                    row.unseen_all_seen,
+                    "frame {} ({}): unseen {:?}",
+                    row.index, row.source, row.unseen_m
+                );
+            }
+            let (_, shadow) = r.unseen_hidden.expect("counts");
+            let (_, shadow_alone) = alone.unseen_hidden.expect("counts");
             assert!(
-                r.unseen_all_seen,
-                "frame {}: unseen {:?}",
-                r.index, r.unseen_m
+                10 * shadow <= shadow_alone && shadow_alone > 1000,
+                "frame {}: the robot's shadow {shadow} cells with both cameras, {shadow_alone} \
+                 with one",
+                r.index
             );
-            assert!(
-                unseen(alone) < 0.05,
-                "frame {}: one camera {}",
-                r.index,
-                unseen(alone)
-            );
+            assert_eq!(unseen(c), 0.0, "frame {}: counted", c.index);
+            assert_eq!(c.unseen_cause, Some("robot_shadow"), "frame {}", c.index);
         }
     }
     assert!(

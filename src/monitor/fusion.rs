@@ -26,18 +26,20 @@
 //! The speed-scaling factor is fused by `separation::SpeedScaler` (the minimum over sources),
 //! and is 0 while any source is in fault.
 //!
-//! **Unobserved space** (`unobserved`): the latest pass over every source's view rides along for
-//! the outputs. With `unobserved: protect` the level (and so the stop) follows the smaller of
-//! the seen and the unseen distance, a pass that failed is a fault of the cell (ERROR, no
-//! distance: what no camera sees is not known free), and the speed-scaling factor is 0 while
-//! the unseen distance holds the level at ERROR.
+//! **Unseen space** (`unseen`): the latest pass over every source's view rides along for the
+//! outputs. With `unobserved: protect` the level (and so the stop) follows the smaller of the
+//! seen and the unseen distance, the unseen one alone where no seen distance is known (every
+//! valid point self-filtered), a pass that failed or came later than the latency budget is a
+//! fault of the cell (ERROR, no distance: what no camera sees is not known free), and the
+//! speed-scaling factor is 0 while the unseen distance holds the level at ERROR (between the
+//! thresholds the separation stage holds each link to its unseen distance: `measure`).
 
 use crate::config::Config;
 use crate::query::{Nearest, Outcome, QueryResult};
 
 use super::level::{Level, LevelTracker};
 use super::source::{Latest, Part, Source};
-use super::unseen_state::Unseen;
+use super::unseen::Unseen;
 
 /// What the fused picture is made for: a frame of `source` stamped `stamp_ns`, or a
 /// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
@@ -170,9 +172,14 @@ pub fn fuse<'a>(
             .and_then(|r| r.nearest.as_ref()),
     });
     let distance = nearest.as_ref().map(|n| n.distance_m);
-    // `protect`: the level follows the smaller of the two.
-    let unseen_limits =
-        protect && matches!((distance, unseen_distance), (Some(d), Some(u)) if u < d);
+    // `protect`: the level follows the smaller of the two, the unseen one where no seen one is
+    // known.
+    let unseen_limits = protect
+        && match (distance, unseen_distance) {
+            (Some(d), Some(u)) => u < d,
+            (None, Some(_)) => true,
+            _ => false,
+        };
     let level_distance = if unseen_limits {
         unseen_distance
     } else {

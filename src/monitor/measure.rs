@@ -6,9 +6,12 @@
 //! root frame at the stamp (`tf::root_from_sensor`) → the points of the source's exclusion
 //! volumes dropped (`cloud::exclusion`, each volume placed in the sensor frame at the stamp) →
 //! the query (`query::Engine`; with `stray_filter` on, `stray` rejects isolated nearest
-//! points) → the separation stage (`crate::separation`: joint velocities at the stamp, link
-//! twists, the speed-scaling factor through `SpeedScaler`) → the source's report and the
-//! fused outputs. Any step that fails makes the frame a fault with its reason (`fault`).
+//! points) → the unseen space over every source's latest view (`unseen`, its view made from
+//! this frame's points before the exclusion volumes drop theirs) → the separation stage
+//! (`crate::separation`: joint velocities at the stamp, link twists, the speed-scaling factor
+//! through `SpeedScaler`) → the source's report and the fused outputs. Every stage up to the
+//! separation is in the frame's processing time, which the reaction time and the latency budget
+//! take. Any step that fails makes the frame a fault with its reason (`fault`).
 
 use std::time::Instant;
 
@@ -27,7 +30,7 @@ use super::fusion::Moment;
 use super::pipeline::{Frame, Monitor};
 use super::report::{published_distance, FrameFacts};
 use super::stray;
-use super::unobserved;
+use super::unseen::{view_of, PassInputs};
 
 /// What a processed cloud leaves for the separation stage.
 pub(super) struct Motion {
@@ -62,13 +65,39 @@ impl Monitor {
         process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion), Fault>,
     ) -> Frame {
         let processed = process(self);
+        // The unseen space over every source's latest view, the robot at this frame's poses:
+        // inside the frame, so that its time is in the reaction time and the latency budget.
+        let (mut unseen_s, mut unseen_stages_s) = (None, Vec::new());
+        let (mut unseen_nearest, mut unseen_counts) = (None, None);
+        match &processed {
+            Ok((_, motion)) if self.unseen.enabled() => {
+                let unseen = self.unseen.run(PassInputs {
+                    stamp_ns,
+                    poses: &motion.poses,
+                    kinematics: &self.model.kinematics,
+                    engine: &mut self.engine,
+                    tf: &self.tf,
+                });
+                unseen_s = Some(unseen.compute_s);
+                if let Ok(f) = &unseen.outcome {
+                    unseen_stages_s = f.stages_s.clone();
+                    unseen_nearest = f.nearest;
+                    unseen_counts = Some(f.counts);
+                }
+            }
+            Ok(_) => {}
+            Err(_) => self.unseen.forget(source),
+        }
         let processing_s = start.elapsed().as_secs_f64();
+        if unseen_s.is_some() {
+            self.unseen
+                .check_late(processing_s, self.config.latency_budget_s);
+        }
         let speed = self
             .config
             .ssm
             .enabled
             .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
-        let poses = (processed.as_ref().ok()).map(|(_, m)| m.poses.clone());
         let result = processed.map(|(r, _)| r);
         let name = self.config.sources[source].name.clone();
         let fusion_start = Instant::now();
@@ -80,16 +109,6 @@ impl Monitor {
         };
         let over_budget =
             self.sources[source].frame(&self.config, &self.model.name, stamp_ns, facts);
-        // The unobserved space over every source's latest view, the robot at this frame's poses.
-        let (mut unseen_s, mut unseen_stages_s) = (None, Vec::new());
-        if let Some(poses) = poses.filter(|_| self.config.unobserved.enabled()) {
-            let unseen = self.unobserved(stamp_ns, &poses);
-            unseen_s = Some(unseen.compute_s);
-            if let Ok(f) = &unseen.outcome {
-                unseen_stages_s = f.stages_s.clone();
-            }
-            self.unseen.last = Some(unseen);
-        }
         let moment = Moment {
             source,
             stamp_ns,
@@ -105,10 +124,11 @@ impl Monitor {
             result,
             processing_s,
             speed,
-            // The unobserved-space pass is timed on its own.
-            outputs_s: fusion_start.elapsed().as_secs_f64() - unseen_s.unwrap_or(0.0),
+            outputs_s: fusion_start.elapsed().as_secs_f64(),
             unseen_s,
             unseen_stages_s,
+            unseen_nearest,
+            unseen_counts,
             outputs,
         }
     }
@@ -137,14 +157,21 @@ impl Monitor {
                 Ok((q_dot, velocity_source)) => {
                     let twists = self.model.kinematics.link_velocities(&q_dot, &m.poses);
                     let scale = separation::nominal_scale(ssm, self.scaler.factor());
-                    let constraints = separation::constraints(
-                        ssm,
-                        r,
-                        self.engine.links(),
-                        &m.poses,
-                        &twists,
-                        scale,
-                    );
+                    let links = self.engine.links();
+                    let mut constraints =
+                        separation::constraints(ssm, r, links, &m.poses, &twists, scale);
+                    // `protect`: each link held to its distance to unseen space where nearer.
+                    if let Some(unseen) = self.unseen.protecting_links(links.len()) {
+                        separation::tighten_by_unseen(
+                            ssm,
+                            &mut constraints,
+                            &unseen,
+                            links,
+                            &m.poses,
+                            &twists,
+                            scale,
+                        );
+                    }
                     let reaction_s = ssm.reaction_time_s + m.age_s + processing_s;
                     separation::separation(ssm, &constraints, reaction_s, scale, velocity_source)
                         .ok_or_else(|| "no link".to_string())
@@ -301,21 +328,36 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
-        if self.config.unobserved.enabled() {
-            let noise = self.config.sources[source].range_noise_m;
-            let camera = self.sources[source].camera().ok();
+        if self.unseen.enabled() {
+            let start = Instant::now();
+            let (limits, noise) = self.unseen.source_limits(source);
             let view = match &points {
-                Points::Depth { view, .. } => match camera {
-                    Some(c) => {
-                        unobserved::view_of(Some((view, &c)), None, &root_from_sensor, noise)
-                    }
-                    None => Err("no camera model".into()),
+                Points::Depth { view, .. } => match self.sources[source].camera() {
+                    Ok(c) => view_of(
+                        Some((view, &c)),
+                        None,
+                        &root_from_sensor,
+                        limits,
+                        noise,
+                        None,
+                    ),
+                    Err(_) => Err("no camera model".into()),
                 },
                 Points::Cloud { points, width } => {
-                    unobserved::view_of(None, Some((points, *width)), &root_from_sensor, noise)
+                    let known = self.unseen.known_camera(source);
+                    let cloud = Some((&**points, *width));
+                    view_of(
+                        None,
+                        cloud,
+                        &root_from_sensor,
+                        limits,
+                        noise,
+                        known.as_ref(),
+                    )
                 }
             };
-            self.sources[source].set_view(Some(view));
+            let made_s = start.elapsed().as_secs_f64();
+            (self.unseen).observe(source, view, made_s, self.engine.links(), &poses);
         }
         let name = &self.config.sources[source].name;
         let needs_points = self.config.stray.enabled()

@@ -24,8 +24,8 @@
 //! Each configured source is a [`Source`] that owns its state: its latest result, its level,
 //! its camera model and how the node watches it. Between frames the live node asks the monitor
 //! for the faults that are no frame of their own (`watch`: a silent source, an untrusted clock,
-//! "not monitoring"). After each measured frame, `unobserved` runs the unobserved-space pass over
-//! every source's latest view (`unseen_state` holds its result, `unseen_outputs` renders it).
+//! "not monitoring"). After each measured frame's query, [`unseen::UnseenSpace`] runs the
+//! unseen-space pass over every source's latest view, inside the frame's processing time.
 //! `setup` starts a monitor; `replay` feeds a bag through this pipeline in
 //! log-time order, as the node (`crate::node`) feeds it from DDS.
 
@@ -42,9 +42,7 @@ mod setup;
 mod source;
 mod stamped;
 mod stray;
-pub mod unobserved;
-mod unseen_outputs;
-pub mod unseen_state;
+pub mod unseen;
 mod watch;
 
 pub use fault::{Fault, InputError};

@@ -11,7 +11,7 @@
 //! | `~/closest_points` | `visualization_msgs/MarkerArray` | a line from the robot to the nearest obstacle point and a text with the distance, coloured by level; DELETEALL on a fault |
 //! | `/diagnostics` | `diagnostic_msgs/DiagnosticArray` | one status per source (level, reason, figures), then the cell's fused one (`monitor::fusion`) |
 //! | `~/safety_stop` | `std_msgs/Bool` | true at level ERROR (below `stop_distance`, or any fault) |
-//! | `~/unseen_distance` | `sensor_msgs/Range` | `unobserved: report` or `protect`: the certified lower bound of the distance from the robot to a body of `detection_capability` that no source has seen (`monitor::unobserved`); NaN where no unseen region can hold one, or where the pass failed; stamped with the frame it was computed at |
+//! | `~/unseen_distance` | `sensor_msgs/Range` | `unobserved: report` or `protect`: the certified lower bound of the distance from the robot to a body of `detection_capability` that no source has seen (`monitor::unseen`); +∞ where none can lie in the monitored volume, NaN where the pass failed (REP 117); stamped with the frame it was computed at |
 //! | `~/unseen_link_distances` | `sensor_msgs/JointState` | the same per link |
 //! | `~/speed_scaling` | `control_msgs/SpeedScalingFactor` | the speed and separation monitor's factor (`crate::separation`): 0 on every fault; reliable and transient local, as `joint_trajectory_controller`'s `~/speed_scaling_input` subscribes; not published with `speed_scaling.enabled: false` |
 //!
@@ -35,7 +35,7 @@ use super::level::Level;
 use super::markers::{closest_markers, shape_markers};
 use super::source::Part;
 pub use super::stamped::stamped_distance;
-use super::unseen_outputs::unseen_messages;
+use super::unseen::unseen_messages;
 
 /// The messages of one frame. `min_distance` is `None` when nothing may be published.
 #[derive(Debug, Clone)]

@@ -22,7 +22,7 @@ use super::fusion::{fuse, Moment};
 use super::level::{Level, LevelTracker};
 use super::outputs::Outputs;
 use super::source::{Part, Source};
-use super::unseen_state::UnseenState;
+use super::unseen::UnseenSpace;
 
 /// One processed cloud.
 #[derive(Debug)]
@@ -36,9 +36,14 @@ pub struct Frame {
     pub speed: Option<SpeedScaling>,
     /// Fusion with the other sources' latest results and the outputs' messages, s.
     pub outputs_s: f64,
-    /// The unobserved-space pass after this frame, s (`None`: not run), and its stages' times.
+    /// The unseen-space pass of this frame, s (`None`: not run), and its stages' times. It is
+    /// part of `processing_s`.
     pub unseen_s: Option<f64>,
     pub unseen_stages_s: Vec<(&'static str, f64)>,
+    /// The hidden place nearest the robot that the pass found, and why no source saw it.
+    pub unseen_nearest: Option<crate::unseen::Spot>,
+    /// What the pass's search examined and found.
+    pub unseen_counts: Option<crate::unseen::Counts>,
     pub outputs: Outputs,
 }
 
@@ -57,8 +62,8 @@ pub struct Monitor {
     pub(super) depth_points: Vec<[f32; 3]>,
     /// What a change of attached objects is built from ([`Monitor::robot_without_objects`]).
     pub(super) base: Base,
-    /// The unobserved space's reach and latest pass (`unobserved`).
-    pub(super) unseen: UnseenState,
+    /// The unseen space: its settings, per-source views and latest pass.
+    pub(super) unseen: UnseenSpace,
 }
 
 /// The robot without the config's attached objects.
@@ -84,6 +89,11 @@ impl Monitor {
         }
     }
 
+    /// The latest unseen-space pass (`None` with `unobserved: ignore`, or before the first).
+    pub fn unseen(&self) -> Option<&super::unseen::Unseen> {
+        self.unseen.last()
+    }
+
     /// How many links the engine monitors (after `links`/`exclude_links`).
     pub fn links(&self) -> usize {
         self.engine.links().len()
@@ -106,6 +116,7 @@ impl Monitor {
             source.reconfigure(&config, old[k].enabled != config.sources[k].enabled);
         }
         self.fused.set_thresholds(&config);
+        self.unseen.reconfigure(&config);
         let was = self.enabled_sources();
         self.scaler.set_enabled(&was, &enabled(&config));
         self.config = config;
@@ -296,6 +307,7 @@ impl Monitor {
         self.tf.forget_dynamic();
         self.joints.forget();
         self.sources.iter_mut().for_each(|s| s.restart(watch_ns));
+        self.unseen.forget_all();
         self.scaler = Self::scaler(&self.config);
     }
 
@@ -320,11 +332,7 @@ impl Monitor {
 
     /// The fused picture at `moment`, rendered.
     pub(super) fn outputs(&mut self, moment: &Moment) -> Outputs {
-        let unseen = self
-            .unseen
-            .last
-            .as_ref()
-            .filter(|_| self.config.unobserved.enabled());
+        let unseen = self.unseen.last();
         let fused = fuse(&self.config, &self.sources, unseen, &mut self.fused, moment);
         let root = self.model.kinematics.root_link();
         Outputs::render(&self.config, root, &self.model.name, fused)

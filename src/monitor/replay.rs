@@ -80,10 +80,17 @@ pub struct ReplayFrame {
     /// The recorded approach speed and separation margin, when the bag has them.
     pub truth_approach_mps: Option<f64>,
     pub truth_margin_m: Option<f64>,
-    /// What `~/unseen_distance` carries (`None`: not published, or NaN: no unseen region can
-    /// hold a body of the detection capability; `unseen_all_seen` tells which).
+    /// What `~/unseen_distance` carries where finite (`None`: not published, the pass failed,
+    /// or +∞: no hidden body can lie in the volume, which `unseen_all_seen` tells).
     pub unseen_m: Option<f64>,
     pub unseen_all_seen: bool,
+    /// Why no source saw the hidden place nearest the robot (`unseen::Cause::name`), and where
+    /// it is (root frame, m).
+    pub unseen_cause: Option<&'static str>,
+    pub unseen_point: Option<[f32; 3]>,
+    /// Hidden places the search found: counted, and in the robot's shadow apart (`apart`: all
+    /// of the volume's where nothing counted is hidden, as the search then examines it whole).
+    pub unseen_hidden: Option<(usize, usize)>,
     /// The unobserved-space pass, ms, and each of its stages.
     pub unseen_ms: Option<f64>,
     pub unseen_stages_ms: Vec<(&'static str, f64)>,
@@ -441,9 +448,11 @@ impl ReplayFrame {
             truth_margin_m: truths.margin.get(&log_time_ns).copied(),
             unseen_m: (o.unseen_distance.as_ref())
                 .map(|r| f64::from(r.range))
-                .filter(|d| !d.is_nan()),
-            unseen_all_seen: (o.unseen_distance.as_ref()).is_some_and(|r| r.range.is_nan())
-                && frame.unseen_s.is_some(),
+                .filter(|d| d.is_finite()),
+            unseen_all_seen: (o.unseen_distance.as_ref()).is_some_and(|r| r.range == f32::INFINITY),
+            unseen_cause: frame.unseen_nearest.map(|n| n.cause.name()),
+            unseen_point: frame.unseen_nearest.map(|n| n.centre),
+            unseen_hidden: frame.unseen_counts.map(|c| (c.hidden, c.shadow)),
             unseen_ms: frame.unseen_s.map(|s| s * 1e3),
             unseen_stages_ms: (frame.unseen_stages_s.iter())
                 .map(|(n, s)| (*n, s * 1e3))

@@ -15,7 +15,7 @@ use crate::tf::{JointError, JointStateBuffer, TfBuffer, TfError};
 use super::level::LevelTracker;
 use super::pipeline::{Base, Monitor};
 use super::source::Source;
-use super::unseen_state::UnseenState;
+use super::unseen::UnseenSpace;
 
 /// A monitor that cannot start: each names the parameter, file, link or frame at fault.
 #[derive(Debug, thiserror::Error)]
@@ -270,13 +270,13 @@ impl Monitor {
             sources: Self::sources(&config),
             fused: LevelTracker::new(&config),
             scaler: Self::scaler(&config),
+            unseen: UnseenSpace::new(&config),
             config,
             model,
             engine,
             tf,
             joints,
             depth_points: Vec::new(),
-            unseen: UnseenState::default(),
             base: Base::Unknown,
         })
     }

@@ -26,7 +26,6 @@ use crate::cloud::depth::PinholeCamera;
 use crate::config::{Config, SourceConfig};
 use crate::msg::{DiagnosticStatus, Voices, Writer};
 use crate::query::QueryResult;
-use crate::unseen::RangeView;
 
 use super::level::LevelTracker;
 use super::report::{FrameFacts, SourceReport};
@@ -41,10 +40,6 @@ pub struct Source {
     /// The camera model of its last CameraInfo, or why that one was refused (depth image
     /// sources; `None` until one arrives).
     camera: Option<Result<PinholeCamera, String>>,
-    /// What its latest frame saw free, for the unobserved space (`unobserved`): its view, or
-    /// why it observes nothing free (an unorganized cloud). `None` with `unobserved: ignore`,
-    /// and whenever its latest frame is gone or was a fault.
-    view: Option<Result<RangeView, String>>,
     watch: Watch,
     /// Who wrote its messages.
     voices: Voices,
@@ -114,7 +109,6 @@ impl Source {
             latest: None,
             tracker: LevelTracker::new(config),
             camera: None,
-            view: None,
             watch: Watch::default(),
             voices: Voices::default(),
             camera_voices: Voices::default(),
@@ -162,21 +156,6 @@ impl Source {
         }
     }
 
-    /// Takes what its frame being measured saw free (kept only if the frame is measured).
-    pub fn set_view(&mut self, view: Option<Result<RangeView, String>>) {
-        self.view = view;
-    }
-
-    /// The same, to flag its robot pixels.
-    pub fn view_mut(&mut self) -> Option<&mut Result<RangeView, String>> {
-        self.view.as_mut()
-    }
-
-    /// What its latest measured frame saw free.
-    pub fn view(&self) -> Option<&Result<RangeView, String>> {
-        self.view.as_ref()
-    }
-
     /// Takes a frame: its report (with the source's own level) and its result as the latest.
     /// Whether the frame was over the latency budget.
     pub fn frame(
@@ -188,9 +167,6 @@ impl Source {
     ) -> bool {
         let report = SourceReport::new(config, robot, facts, &mut self.tracker);
         let over_budget = report.over_budget;
-        if facts.result.is_err() {
-            self.view = None;
-        }
         self.latest = Some(Latest {
             stamp_ns,
             result: match facts.result {
@@ -244,7 +220,6 @@ impl Source {
         self.tracker.set_thresholds(config);
         if toggled {
             self.latest = None;
-            self.view = None;
             self.tracker = LevelTracker::new(config);
         }
     }
@@ -252,7 +227,6 @@ impl Source {
     /// Forgets its latest result (it is in fault until its next frame); its level is kept.
     pub fn forget_result(&mut self) {
         self.latest = None;
-        self.view = None;
     }
 
     /// Takes a CameraInfo's camera model, or why it was refused; `writer` sent it, stamped
@@ -302,7 +276,6 @@ impl Source {
     /// The clock went back at `now_ns`: its result is forgotten and its silence counts anew.
     pub fn restart(&mut self, now_ns: i64) {
         self.latest = None;
-        self.view = None;
         self.watch.since_ns = now_ns;
         self.watch.last_report_ns = None;
         self.voices.forget();

@@ -4,6 +4,8 @@
 //! far from the robot, posed (step 1), then run on the GPU where it is asked for and usable, else
 //! on the CPU (steps 2 and 3); both end in the same refinement and result (steps 4 and 5).
 
+use std::sync::Arc;
+
 use nalgebra::Isometry3;
 
 use super::bounds::Bounds;
@@ -23,7 +25,8 @@ use crate::robot::{LinkSelection, RobotModel};
 
 /// The query engine: the selected links and the scratch memory reused from query to query.
 pub struct Engine {
-    links: Vec<QueryLink>,
+    /// Shared, so that a caller may read the links while it queries (the unseen space's search).
+    links: Arc<[QueryLink]>,
     pose_count: usize,
     bounds: Bounds,
     gpu: GpuSlot,
@@ -90,7 +93,7 @@ impl Engine {
         }
         let bounds = Bounds::new(&links);
         Ok(Self {
-            links,
+            links: links.into(),
             pose_count,
             bounds,
             gpu: GpuSlot::Untried,
@@ -106,6 +109,11 @@ impl Engine {
 
     pub fn links(&self) -> &[QueryLink] {
         &self.links
+    }
+
+    /// The links, shared (one pointer's clone).
+    pub fn shared_links(&self) -> Arc<[QueryLink]> {
+        Arc::clone(&self.links)
     }
 
     /// The minimum distance between the robot posed by `link_poses` (`root_from_link`, indexed

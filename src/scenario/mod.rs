@@ -48,6 +48,7 @@
 
 mod bag;
 mod cameras;
+mod dropouts;
 mod error;
 mod params;
 mod renderer;

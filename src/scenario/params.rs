@@ -18,8 +18,12 @@ pub struct ScenarioParams {
     pub hfov_deg: f64,
     /// Range noise σ along the ray, m (clipped at 2.5 σ).
     pub noise_m: f64,
-    /// Fraction of pixels dropped (NaN).
+    /// Fraction of pixels dropped (NaN), each at random on its own.
     pub holes: f64,
+    /// Fraction of pixels dropped as a depth camera drops them (`dropouts`): at depth edges,
+    /// on the person's dark hair and shoes, and in clusters, on a stream of their own. 0 (the
+    /// default): none, and the bag is byte for byte as before.
+    pub camera_dropouts: f64,
     /// Farthest return, m.
     pub max_range_m: f64,
     pub seed: u64,
@@ -52,10 +56,11 @@ pub struct ScenarioParams {
 }
 
 impl ScenarioParams {
-    /// Whether the scene hides its obstacle from the first camera (dark, or in the arm's
-    /// shadow): the truth is then taken to the obstacle's whole shape as well as to the points.
+    /// Whether the scene may hide its obstacle from the first camera (dark, in the arm's
+    /// shadow, or behind a camera's dropouts): the truth is then taken to the obstacle's whole
+    /// shape as well as to the points.
     pub fn hides_obstacle(&self) -> bool {
-        self.dark || self.scene == SceneKind::Shadow
+        self.dark || self.scene == SceneKind::Shadow || self.camera_dropouts > 0.0
     }
 }
 
@@ -69,6 +74,7 @@ impl Default for ScenarioParams {
             hfov_deg: 62.0,
             noise_m: 0.001,
             holes: 0.02,
+            camera_dropouts: 0.0,
             max_range_m: 4.0,
             seed: 1,
             compression: Compression::Zstd,
@@ -105,6 +111,8 @@ pub const SIDE_CAMERA_POSE: ([f64; 3], [f64; 3]) = (
 /// The second camera's noise stream is the seed mixed with this (not a shift of the first
 /// one's SplitMix64 sequence).
 pub(super) const SIDE_SEED_MIX: u64 = 0xD1B5_4A32_D192_ED03;
+/// The camera-like dropouts' stream is the camera's seed mixed with this.
+pub(super) const DROPOUT_SEED_MIX: u64 = 0x8CB9_2BA7_2F3D_8DD7;
 pub(super) const CLOUD_RATE_HZ: f64 = 10.0;
 /// Step in `s` of the central differences.
 pub(super) const DS: f64 = 1e-6;

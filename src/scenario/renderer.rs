@@ -11,11 +11,12 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
+use super::dropouts::{CameraDropouts, Pixel};
 use super::error::ScenarioError;
 use parry3d::shape::TriMesh;
 
-use super::params::{ScenarioParams, CAMERA_LINK, DS, SIDE_CAMERA_POSE};
-use super::scene::{floor, joints_at, obstacles, ray_hit};
+use super::params::{ScenarioParams, CAMERA_LINK, DROPOUT_SEED_MIX, DS, SIDE_CAMERA_POSE};
+use super::scene::{floor, joints_at, obstacles, person_top_m, ray_hit};
 use super::truth::{exact_truth, robot_meshes, shape_truth, Witness};
 use crate::cloud::depth::{encode_depth, points_from_depth, PinholeCamera};
 use crate::msg::{CameraInfo, Header};
@@ -37,7 +38,7 @@ pub enum Hit {
 }
 
 /// SplitMix64 with Box–Muller: a fixed, reproducible stream.
-struct Noise(u64);
+pub(super) struct Noise(pub(super) u64);
 
 impl Noise {
     fn next_u64(&mut self) -> u64 {
@@ -48,7 +49,7 @@ impl Noise {
         z ^ (z >> 31)
     }
     /// Uniform in (0, 1].
-    fn uniform(&mut self) -> f64 {
+    pub(super) fn uniform(&mut self) -> f64 {
         ((self.next_u64() >> 11) + 1) as f64 / (1u64 << 53) as f64
     }
     fn gaussian(&mut self) -> f64 {
@@ -143,6 +144,8 @@ pub struct Renderer<'a> {
     cx: f64,
     cy: f64,
     noise: Noise,
+    /// The camera-like dropouts, on a stream of their own (`dropouts`).
+    dropouts: CameraDropouts,
 }
 
 impl<'a> Renderer<'a> {
@@ -188,6 +191,7 @@ impl<'a> Renderer<'a> {
             cx: 0.5 * (w - 1.0),
             cy: 0.5 * (params.height as f64 - 1.0),
             noise: Noise(params.seed),
+            dropouts: CameraDropouts::new(params.camera_dropouts, params.seed ^ DROPOUT_SEED_MIX),
         })
     }
 
@@ -283,6 +287,19 @@ impl<'a> Renderer<'a> {
                     *p = [f32::NAN; 3];
                 }
             }
+        }
+        if self.params.camera_dropouts > 0.0 {
+            let pixels: Vec<Pixel> = (hits.iter().enumerate())
+                .map(|(i, &hit)| Pixel {
+                    hit,
+                    height_m: hit.map_or(0.0, |(t, _)| {
+                        (world_from_optical * Point3::from(self.ray(i) * t)).z
+                    }),
+                })
+                .collect();
+            let person = person_top_m(self.params.scene);
+            let (w, h) = (self.params.width as usize, self.params.height as usize);
+            self.dropouts.apply(&pixels, w, h, person, &mut points);
         }
         let depth_image = self.depth_image(&mut points)?;
         let mut obstacle = Vec::new();

@@ -141,6 +141,15 @@ pub(super) fn joints_at(scene: SceneKind, s: f64) -> Vec<(String, f64)> {
 /// The environment of a scene: shapes with their world poses at `s` ∈ [0, 1], with the side
 /// wall last where `side_wall` (a bag with a second camera). The obstacle is index 1 (the
 /// renderer's `Hit::Scene(1)`), the table index 2.
+/// The top of the person's shape (the scenes with one), m: its hair begins below it.
+pub(super) fn person_top_m(scene: SceneKind) -> Option<f64> {
+    matches!(
+        scene,
+        SceneKind::Person | SceneKind::Approach | SceneKind::Table
+    )
+    .then_some(0.85 + 0.67 + 0.18)
+}
+
 pub(super) fn obstacles(
     scene_kind: SceneKind,
     s: f64,

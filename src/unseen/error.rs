@@ -22,12 +22,12 @@ pub enum UnseenError {
         cells: f64,
         max: usize,
     },
-    /// A ball of the detection capability's diameter may hold no cell centre at all: the
+    /// A ball of the detection capability's diameter may hold no lattice ball at all: the
     /// lattice cannot certify bodies that small.
     #[error(
         "parameter detection_capability: {detection_capability_m} m is finer than a lattice of \
-         resolution {resolution_m} m resolves (it needs at least {needed_m:.4} m: a cell \
-         diagonal plus twice the pixel slack); refine the resolution or raise the capability"
+         resolution {resolution_m} m resolves (it must exceed the cell diagonal, {needed_m:.4} \
+         m); refine unobserved_resolution or raise the capability"
     )]
     CapabilityBelowResolution {
         detection_capability_m: f64,

@@ -10,6 +10,8 @@
 //! [`MAX_RESIDUAL_PX`] of its own pixel (a cloud moved into another frame, or one from a
 //! lidar's rings, fails that and observes nothing free). Two passes over the points.
 
+use rayon::prelude::*;
+
 use crate::cloud::depth::PinholeCamera;
 
 use super::error::UnseenError;
@@ -93,6 +95,42 @@ pub fn fit_pinhole(
     })
 }
 
+/// Whether `camera` puts every valid point of the organized cloud `points` (row-major, the
+/// camera's pixel grid) within [`MAX_RESIDUAL_PX`] of its own pixel: the check that lets a
+/// source keep the intrinsics fitted from an earlier frame (one parallel pass, no fit).
+pub fn fits(camera: &PinholeCamera, points: &[[f32; 3]]) -> bool {
+    let w = camera.width as usize;
+    if w == 0 || points.len() as u64 != u64::from(camera.width) * u64::from(camera.height) {
+        return false;
+    }
+    // f32 is exact to 1e-4 px here; the half-pixel test has room for it.
+    let (fx, fy, cx, cy) = (
+        camera.fx as f32,
+        camera.fy as f32,
+        camera.cx as f32,
+        camera.cy as f32,
+    );
+    let limit = MAX_RESIDUAL_PX as f32;
+    let (ok, valid) = points
+        .par_chunks(w)
+        .enumerate()
+        .map(|(v, row)| {
+            let (mut ok, mut valid) = (true, 0usize);
+            for (u, p) in row.iter().enumerate() {
+                if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite() && p[2] > 0.0) {
+                    continue;
+                }
+                valid += 1;
+                let du = (fx * p[0] / p[2] + cx - u as f32).abs();
+                let dv = (fy * p[1] / p[2] + cy - v as f32).abs();
+                ok &= du <= limit && dv <= limit;
+            }
+            (ok, valid)
+        })
+        .reduce(|| (true, 0), |a, b| (a.0 && b.0, a.1 + b.1));
+    ok && valid >= MIN_FIT_POINTS
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,6 +167,10 @@ mod tests {
         let f = fit_pinhole(&plane_cloud(&c), 64, 48).unwrap();
         assert!((f.fx - c.fx).abs() < 1e-3 && (f.fy - c.fy).abs() < 1e-3);
         assert!((f.cx - c.cx).abs() < 1e-3 && (f.cy - c.cy).abs() < 1e-3);
+        // Kept for the next frame: it fits; another camera's does not.
+        assert!(fits(&f, &plane_cloud(&c)));
+        let wider = PinholeCamera { fx: 58.0, ..f };
+        assert!(!fits(&wider, &plane_cloud(&c)));
     }
 
     #[test]

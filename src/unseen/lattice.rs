@@ -145,7 +145,7 @@ impl Lattice {
 
 /// `origin + i·steps[0] + j·steps[1] + k·steps[2]`.
 #[inline]
-pub(super) fn centre_at(origin: [f32; 3], steps: &[[f32; 3]; 3], ijk: [usize; 3]) -> [f32; 3] {
+pub fn centre_at(origin: [f32; 3], steps: &[[f32; 3]; 3], ijk: [usize; 3]) -> [f32; 3] {
     let [i, j, k] = ijk.map(|x| x as f32);
     std::array::from_fn(|a| origin[a] + i * steps[0][a] + j * steps[1][a] + k * steps[2][a])
 }

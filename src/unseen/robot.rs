@@ -1,33 +1,259 @@
-//! The robot in the lattice: which cells its padded body takes (the caller drops them from the
-//! unseen set: the robot is no hidden body, and its inside is never seen), and which pixels of a
-//! view returned a point on it (the observation's `self_shadow` comes from them).
+//! The robot in the unseen-space pass: its inner spheres placed in the root frame, each with the
+//! padding its image takes ([`PaddedSphere`]), and the bounding sphere of each monitored link
+//! ([`LinkBound`]).
 //!
-//! Input: the robot's inner spheres placed in the root frame, each with its own padding (the
-//! monitor gives the self-filter padding plus the link's certified surface gap h, so that every
-//! point of the link's mesh, which lies within h of its spheres, is within the padding), and
-//! the lattice. A cell is the robot's when its centre lies within `radius + padding + d/2` of a
-//! sphere's centre (`d` the cell diagonal): every cell that meets the padded spheres. A pixel
-//! is a robot pixel when its return (root frame) falls in a robot cell: a return on the mesh
-//! surface does whenever the range noise is within the padding (as for the self-filter).
+//! - **Its body is no hidden body.** A ball of the detection capability cannot overlap the robot,
+//!   so a lattice centre is dropped when its ball (radius `r`, `footprint`) meets an inner
+//!   sphere: `|x − c| < radius + r` ([`RobotBody::takes`], a bit per cell over the robot's
+//!   box, less 10 µm so that the f32 placement never drops a centre whose ball only touches a
+//!   sphere). Inner spheres lie inside the link's meshes, so every centre dropped is one where
+//!   no hidden ball can be; nothing farther is dropped (the padding and h widen only what the
+//!   views render as the robot).
+//! - **Its image** (`prepared`): each sphere grown by the self-filter padding and its link's h,
+//!   so that a return on the link's surface, which lies within h of the spheres, falls inside.
+//! - **The search's bound** (`search`): a centre `x` is at least `|x − c_L| − r_L − h_L` from link
+//!   `L`'s meshes, `(c_L, r_L)` the bounding sphere of its inner spheres: a lower bound of the
+//!   query's certified lower bound there.
 //!
-//! Cost: per sphere the cells of its bounding box, in parallel over the spheres (an atomic flag
-//! per cell); per view one pass over its pixels.
-
-use std::sync::atomic::{AtomicBool, Ordering};
+//! Cost: per sphere the cells of its reach's bounding cube, once a frame; a bit read a centre.
 
 use nalgebra::{Isometry3, Point3};
-use rayon::prelude::*;
 
-use super::error::UnseenError;
+use crate::query::QueryLink;
+
 use super::lattice::Lattice;
-use super::view::RangeView;
 
-/// One inner sphere in the root frame with the padding its cells take.
+/// One inner sphere in the root frame with the padding its image takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PaddedSphere {
     pub centre: [f32; 3],
     pub radius: f32,
     pub padding: f32,
+}
+
+/// A monitored link's inner spheres' bounding sphere in the root frame, the spheres of a cut of
+/// its tree that cover them ([`COVERS`] or so), and its surface gap h.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkBound {
+    pub centre: [f32; 3],
+    pub radius: f32,
+    pub gap_m: f32,
+    /// Root-frame spheres (centre, radius) whose union holds every inner sphere of the link.
+    pub covers: Vec<([f32; 3], f32)>,
+}
+
+/// Spheres of a link's tree taken as its cover: a cut about this large, the largest nodes
+/// opened first.
+pub const COVERS: usize = 16;
+
+impl LinkBound {
+    /// A lower bound of the certified distance from `p` (root frame) to the link (m, may be
+    /// negative): from its covers.
+    #[inline]
+    pub fn lower_bound(&self, p: [f32; 3]) -> f32 {
+        self.lower_bound_below(p, f32::INFINITY)
+    }
+
+    /// The same, from the bounding sphere alone where that bound is already at least `limit`.
+    #[inline]
+    pub fn lower_bound_below(&self, p: [f32; 3], limit: f32) -> f32 {
+        let coarse = distance(p, self.centre) - self.radius - self.gap_m;
+        if coarse >= limit || limit == f32::INFINITY || self.covers.is_empty() {
+            return coarse;
+        }
+        (self.covers.iter())
+            .map(|(c, r)| distance(p, *c) - r)
+            .fold(f32::INFINITY, f32::min)
+            - self.gap_m
+    }
+}
+
+#[inline]
+fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let d2: f32 = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum();
+    d2.sqrt()
+}
+
+/// The inner spheres of `links` of at least `smallest_m` radius, placed by `poses`
+/// (`root_from_link`, the kinematics' order), each padded by `padding_m` and its link's h.
+/// Leaving small spheres out only leaves a centre undropped or a pixel not the robot's: the
+/// conservative side.
+pub fn padded_spheres(
+    links: &[QueryLink],
+    poses: &[Isometry3<f64>],
+    padding_m: f32,
+    smallest_m: f32,
+) -> Vec<PaddedSphere> {
+    (links.iter())
+        .flat_map(|l| {
+            let pose = poses[l.pose_index];
+            let spheres = l.spheres.iter().filter(move |s| s.radius >= smallest_m);
+            spheres.map(move |s| PaddedSphere {
+                centre: place(&pose, s.center),
+                radius: s.radius,
+                padding: padding_m + l.gap_m,
+            })
+        })
+        .collect()
+}
+
+/// Each link's bounding sphere at `poses` (the engine's order): its tree's root node, which
+/// encloses every inner sphere of the link.
+pub fn link_bounds(links: &[QueryLink], poses: &[Isometry3<f64>]) -> Vec<LinkBound> {
+    (links.iter())
+        .map(|l| {
+            let pose = &poses[l.pose_index];
+            // f32 rounding of the placement, on the safe side.
+            let safe = |r: f32| r * (1.0 + 1e-6) + 1e-6;
+            match l.nodes.first() {
+                Some(root) => LinkBound {
+                    centre: place(pose, root.center),
+                    radius: safe(root.radius),
+                    gap_m: l.gap_m,
+                    covers: (cover(l).into_iter())
+                        .map(|(c, r)| (place(pose, c), safe(r)))
+                        .collect(),
+                },
+                // No sphere: nothing of the link to be near.
+                None => LinkBound {
+                    centre: [0.0; 3],
+                    radius: f32::NEG_INFINITY,
+                    gap_m: 0.0,
+                    covers: Vec::new(),
+                },
+            }
+        })
+        .collect()
+}
+
+/// A cut of `link`'s tree of about [`COVERS`] spheres (link frame): from the root, the largest
+/// node whose children are nodes is replaced by them, and one whose children are inner spheres
+/// by those, while the cut is smaller.
+fn cover(link: &QueryLink) -> Vec<([f32; 3], f32)> {
+    // (centre, radius, the node it is, if its children can replace it).
+    let mut cut: Vec<([f32; 3], f32, Option<usize>)> = match link.nodes.first() {
+        Some(root) => vec![(root.center, root.radius, Some(0))],
+        None => return Vec::new(),
+    };
+    while cut.len() < COVERS {
+        let Some(k) = (0..cut.len())
+            .filter(|&k| cut[k].2.is_some())
+            .max_by(|&a, &b| cut[a].1.total_cmp(&cut[b].1))
+        else {
+            break;
+        };
+        let Some(n) = cut.swap_remove(k).2 else { break };
+        let node = &link.nodes[n];
+        let (first, count) = (node.first_child as usize, node.child_count as usize);
+        if node.children_are_spheres != 0 {
+            cut.extend(
+                (link.spheres[first..first + count].iter()).map(|s| (s.center, s.radius, None)),
+            );
+        } else {
+            cut.extend((first..first + count).map(|c| {
+                let child = &link.nodes[c];
+                (child.center, child.radius, Some(c))
+            }));
+        }
+    }
+    cut.into_iter().map(|(c, r, _)| (c, r)).collect()
+}
+
+/// The robot at a frame's poses, as the search reads it: each link's bounding sphere, and the
+/// lattice centres whose ball meets an inner sphere.
+pub struct RobotBody {
+    bounds: Vec<LinkBound>,
+    /// The cells of the robot's box on the lattice (cell index ranges), one bit a cell.
+    lo: [usize; 3],
+    dims: [usize; 3],
+    bits: Vec<u64>,
+}
+
+impl RobotBody {
+    /// The robot of `links` at `poses` on `lattice`, for balls of radius `ball_m`; spheres under
+    /// `smallest_m` are left out of the centres dropped (the conservative side: a centre not
+    /// dropped is judged by the views).
+    pub fn new(
+        lattice: &Lattice,
+        links: &[QueryLink],
+        poses: &[Isometry3<f64>],
+        ball_m: f32,
+        smallest_m: f32,
+    ) -> Self {
+        let spheres = padded_spheres(links, poses, 0.0, smallest_m);
+        let to = ToCells::new(lattice);
+        let dims = lattice.dims();
+        // The cells the spheres' reach covers, in cell coordinates (centre i at i + ½).
+        let reach_of = |s: &PaddedSphere| (s.radius + ball_m - 1e-5).max(0.0) * to.inv_h;
+        let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+        // Per sphere: its cells' index ranges, its centre in cell coordinates and its reach.
+        type Reach = ([usize; 3], [usize; 3], [f32; 3], f32);
+        let ranges: Vec<Reach> = (spheres.iter())
+            .filter_map(|s| {
+                let reach = reach_of(s);
+                let c = to.at(s.centre);
+                let a = c.map(|x| (x - reach - 0.5).ceil().max(0.0) as usize);
+                let b: [usize; 3] = std::array::from_fn(|k| {
+                    let top = (c[k] + reach - 0.5).floor();
+                    if top < 0.0 {
+                        0
+                    } else {
+                        (top as usize + 1).min(dims[k])
+                    }
+                });
+                (0..3).all(|k| a[k] < b[k]).then_some((a, b, c, reach))
+            })
+            .collect();
+        for (a, b, _, _) in &ranges {
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        if ranges.is_empty() {
+            (lo, hi) = ([0; 3], [0; 3]);
+        }
+        let size: [usize; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
+        let mut bits = vec![0u64; (size[0] * size[1] * size[2]).div_ceil(64)];
+        for (a, b, c, reach) in ranges {
+            let reach2 = reach * reach;
+            for k in a[2]..b[2] {
+                let dz = k as f32 + 0.5 - c[2];
+                for j in a[1]..b[1] {
+                    let dy = j as f32 + 0.5 - c[1];
+                    for i in a[0]..b[0] {
+                        let dx = i as f32 + 0.5 - c[0];
+                        if dx * dx + dy * dy + dz * dz < reach2 {
+                            let n = (i - lo[0]) + size[0] * ((j - lo[1]) + size[1] * (k - lo[2]));
+                            bits[n / 64] |= 1 << (n % 64);
+                        }
+                    }
+                }
+            }
+        }
+        Self {
+            bounds: link_bounds(links, poses),
+            lo,
+            dims: size,
+            bits,
+        }
+    }
+
+    /// Each link's bounding sphere, the engine's order.
+    pub fn bounds(&self) -> &[LinkBound] {
+        &self.bounds
+    }
+
+    /// Whether the ball at cell `ijk`'s centre meets an inner sphere.
+    #[inline]
+    pub fn takes(&self, ijk: [usize; 3]) -> bool {
+        let inside = (0..3).all(|k| ijk[k] >= self.lo[k] && ijk[k] - self.lo[k] < self.dims[k]);
+        inside && {
+            let [i, j, k] = std::array::from_fn(|a| ijk[a] - self.lo[a]);
+            let n = i + self.dims[0] * (j + self.dims[1] * k);
+            self.bits[n / 64] >> (n % 64) & 1 == 1
+        }
+    }
 }
 
 /// The lattice's frame in f32: a root-frame point to fractional cell coordinates.
@@ -61,179 +287,8 @@ impl ToCells {
     }
 }
 
-/// The cells of `lattice` that the padded spheres take (see the module doc).
-pub fn robot_cells(lattice: &Lattice, spheres: &[PaddedSphere]) -> Vec<bool> {
-    let to = ToCells::new(lattice);
-    let dims = lattice.dims();
-    let half_diagonal = 0.5 * lattice.cell_diagonal_m() as f32;
-    let cells: Vec<AtomicBool> = (0..lattice.len()).map(|_| AtomicBool::new(false)).collect();
-    spheres.par_iter().for_each(|s| {
-        let reach = (s.radius + s.padding + half_diagonal) * to.inv_h;
-        let c = to.at(s.centre);
-        let lo = c.map(|x| (x - reach).floor().max(0.0) as usize);
-        let hi: [usize; 3] = std::array::from_fn(|a| {
-            let top = (c[a] + reach).ceil();
-            if top < 0.0 {
-                0
-            } else {
-                (top as usize).min(dims[a])
-            }
-        });
-        let reach2 = reach * reach;
-        for k in lo[2]..hi[2] {
-            let dz = k as f32 + 0.5 - c[2];
-            for j in lo[1]..hi[1] {
-                let dy = j as f32 + 0.5 - c[1];
-                for i in lo[0]..hi[0] {
-                    let dx = i as f32 + 0.5 - c[0];
-                    if dx * dx + dy * dy + dz * dz <= reach2 {
-                        cells[lattice.index([i, j, k])].store(true, Ordering::Relaxed);
-                    }
-                }
-            }
-        }
-    });
-    cells.into_iter().map(AtomicBool::into_inner).collect()
-}
-
-/// Flags the pixels of `view` whose return falls in a cell of `robot` (one flag per cell of
-/// `lattice`); a return outside the lattice is not the robot's. The count flagged.
-pub fn flag_robot_pixels(view: &mut RangeView, lattice: &Lattice, robot: &[bool]) -> usize {
-    let to = ToCells::new(lattice);
-    let root_from_camera: Isometry3<f64> = *view.root_from_camera();
-    let m = root_from_camera.rotation.to_rotation_matrix();
-    let t = root_from_camera.translation.vector;
-    let rot: [[f32; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32));
-    let tr = [t.x as f32, t.y as f32, t.z as f32];
-    let camera = *view.camera();
-    let (w, dims) = (camera.width as usize, lattice.dims());
-    let (kx, ky) = (1.0 / camera.fx as f32, 1.0 / camera.fy as f32);
-    let (cx, cy) = (camera.cx as f32, camera.cy as f32);
-    let flags: Vec<bool> = view
-        .ranges()
-        .par_iter()
-        .enumerate()
-        .map(|(i, &z)| {
-            if !z.is_finite() {
-                return false;
-            }
-            let p = [
-                ((i % w) as f32 - cx) * kx * z,
-                ((i / w) as f32 - cy) * ky * z,
-                z,
-            ];
-            let root: [f32; 3] =
-                std::array::from_fn(|r| (0..3).map(|c| rot[r][c] * p[c]).sum::<f32>() + tr[r]);
-            let q = to.at(root);
-            if !q.iter().zip(dims).all(|(&x, n)| x >= 0.0 && x < n as f32) {
-                return false;
-            }
-            robot[lattice.index(q.map(|x| x as usize))]
-        })
-        .collect();
-    let count = flags.iter().filter(|&&f| f).count();
-    view.robot_pixels_mut().copy_from_slice(&flags);
-    count
-}
-
-/// A lattice over the padded spheres' box (root frame, axis-aligned) at `resolution_m`: the
-/// robot's cells there tell the pixels that returned on the robot wherever it reaches, inside
-/// the monitored volume or not ([`in_cells`]). `None` without spheres.
-pub fn robot_lattice(
-    spheres: &[PaddedSphere],
-    resolution_m: f64,
-) -> Option<Result<Lattice, UnseenError>> {
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    for s in spheres {
-        let r = s.radius + s.padding;
-        for a in 0..3 {
-            lo[a] = lo[a].min(s.centre[a] - r);
-            hi[a] = hi[a].max(s.centre[a] + r);
-        }
-    }
-    if spheres.is_empty() {
-        return None;
-    }
-    // One cell more on every side, so that the cells the spheres take lie inside.
-    let grow = 1.5 * resolution_m;
-    let centre = Isometry3::translation(
-        0.5 * f64::from(lo[0] + hi[0]),
-        0.5 * f64::from(lo[1] + hi[1]),
-        0.5 * f64::from(lo[2] + hi[2]),
-    );
-    let half = std::array::from_fn(|a| 0.5 * f64::from(hi[a] - lo[a]) + grow);
-    Some(Lattice::new(centre, half, resolution_m))
-}
-
-/// The cells a robot takes on its own lattice, to look root-frame points up in.
-pub struct RobotCells<'a> {
-    lattice: &'a Lattice,
-    cells: &'a [bool],
-    to: ToCells,
-}
-
-impl<'a> RobotCells<'a> {
-    /// `cells`: one flag per cell of `lattice` ([`robot_cells`]).
-    pub fn new(lattice: &'a Lattice, cells: &'a [bool]) -> Self {
-        Self {
-            lattice,
-            cells,
-            to: ToCells::new(lattice),
-        }
-    }
-
-    /// Whether the root-frame point `p` falls in a robot cell (a point outside the lattice
-    /// does not).
-    pub fn contains(&self, p: [f32; 3]) -> bool {
-        let q = self.to.at(p);
-        let dims = self.lattice.dims();
-        q.iter().zip(dims).all(|(&x, n)| x >= 0.0 && x < n as f32)
-            && self.cells[self.lattice.index(q.map(|x| x as usize))]
-    }
-}
-
-/// The root-frame centre of a point given in a link's frame, placed by `root_from_link`.
+/// The root-frame point of a point given in a link's frame, placed by `root_from_link`.
 pub fn place(root_from_link: &Isometry3<f64>, centre: [f32; 3]) -> [f32; 3] {
     let p = root_from_link * Point3::from(centre.map(f64::from));
     [p.x as f32, p.y as f32, p.z as f32]
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::cloud::depth::PinholeCamera;
-
-    #[test]
-    fn a_sphere_takes_the_cells_it_meets_and_its_pixels() {
-        let l = Lattice::new(Isometry3::translation(0.0, 0.0, 1.0), [0.2; 3], 0.02).unwrap();
-        let s = PaddedSphere {
-            centre: [0.0, 0.0, 1.0],
-            radius: 0.05,
-            padding: 0.01,
-        };
-        let cells = robot_cells(&l, &[s]);
-        let reach = 0.06 + 0.5 * l.cell_diagonal_m() as f32;
-        for (i, &c) in cells.iter().enumerate() {
-            let p = l.centre(i);
-            let d = (p[0].powi(2) + p[1].powi(2) + (p[2] - 1.0).powi(2)).sqrt();
-            if (d - reach).abs() > 1e-4 {
-                assert_eq!(c, d <= reach, "cell {:?} at {d}", l.ijk(i));
-            }
-        }
-        // A camera at the origin looking along z: the centre pixel returns the sphere's front.
-        let camera = PinholeCamera {
-            width: 5,
-            height: 5,
-            fx: 10.0,
-            fy: 10.0,
-            cx: 2.0,
-            cy: 2.0,
-        };
-        let mut depths = vec![3.0f32; 25];
-        depths[12] = 0.95;
-        depths[0] = f32::NAN;
-        let mut view = RangeView::new(camera, Isometry3::identity(), &depths, None, 0.02).unwrap();
-        assert_eq!(flag_robot_pixels(&mut view, &l, &cells), 1);
-        assert!(view.robot_pixels()[12]);
-    }
 }

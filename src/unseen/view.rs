@@ -1,13 +1,14 @@
-//! What one source saw, as the free-space pass reads it: a [`RangeView`] is the source's pinhole
+//! What one source saw, as the unseen-space pass reads it: a [`RangeView`] is the source's pinhole
 //! pixel grid, its pose `root_from_camera` (the optical frame: z forward, x right, y down; f64),
-//! per pixel the measured depth along z (f32 m; NaN for no return) and whether the self-filter
-//! took that pixel as the robot, and the source's range noise and limits.
+//! per pixel the measured depth along z (f32 m; NaN for no return), and the source's range
+//! noise and limits.
 //!
 //! A pixel has no return (NaN) when its depth is 0, NaN or infinite, or when its point lies
 //! outside the source's range limits (`RangeLimits`, as the monitor drops such points): such a
 //! pixel sees nothing along its whole ray. A return at depth `r` says the ray is free up to
-//! `r − range_noise_m`, whether it hit the scene or the robot (the robot flag only tells the
-//! observation pass *why* the ray stopped: `self_shadow`).
+//! `r − range_noise_m`, whether it hit the scene or the robot (`prepared` renders the robot to
+//! tell why a ray stopped). A ball nearer than the minimum range is not judged by the view: the
+//! limits travel with every view, an organized cloud's too.
 //!
 //! Three ways in: [`RangeView::new`] from depths the caller has (the tests' renderer);
 //! [`RangeView::from_depth`] from a depth image, through `cloud::depth::DepthView` (the same
@@ -24,7 +25,7 @@ use crate::cloud::depth::{DepthView, PinholeCamera};
 use crate::cloud::RangeLimits;
 
 use super::error::UnseenError;
-use super::fit::fit_pinhole;
+use super::fit::{fit_pinhole, fits};
 
 /// Default range noise (m): a return at `r` is taken to show free space up to `r − 0.02`.
 /// A Kinect-class structured-light camera's depth noise is about 1.5 cm (1σ) at 3 m and grows
@@ -33,13 +34,12 @@ use super::fit::fit_pinhole;
 /// surface that returned is measured by the distance to the points anyway.
 pub const DEFAULT_RANGE_NOISE_M: f64 = 0.02;
 
-/// What one source saw: its pixel grid, pose, depths and robot pixels.
+/// What one source saw: its pixel grid, pose, depths, range noise and limits.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RangeView {
     camera: PinholeCamera,
     root_from_camera: Isometry3<f64>,
     ranges: Vec<f32>,
-    robot: Vec<bool>,
     min_range2: f32,
     max_range_m: f32,
     range_noise_m: f32,
@@ -47,7 +47,7 @@ pub struct RangeView {
 
 impl RangeView {
     /// The view of `camera` at `root_from_camera` that measured `depths` (row-major, m along z;
-    /// 0, NaN, ±∞ or outside `range`: no return), no pixel flagged as the robot.
+    /// 0, NaN, ±∞ or outside `range`: no return).
     pub fn new(
         camera: PinholeCamera,
         root_from_camera: Isometry3<f64>,
@@ -99,8 +99,10 @@ impl RangeView {
 
     /// The view of an organized cloud: `points` (row-major `width × height`, in the cloud's
     /// optical frame, which `root_from_camera` places), the intrinsics fitted from them
-    /// ([`super::fit::fit_pinhole`]). An unorganized cloud, or one no pinhole camera fits, is
-    /// an error: that source observes nothing free.
+    /// ([`super::fit::fit_pinhole`]), or `known` where it still fits every point
+    /// ([`super::fit::fits`]: a source's camera does not change from frame to frame). An
+    /// unorganized cloud, or one no pinhole camera fits, is an error: that source observes
+    /// nothing free.
     pub fn from_organized_cloud(
         points: &[[f32; 3]],
         width: u32,
@@ -108,6 +110,7 @@ impl RangeView {
         root_from_camera: Isometry3<f64>,
         range: Option<RangeLimits>,
         range_noise_m: f64,
+        known: Option<&PinholeCamera>,
     ) -> Result<Self, UnseenError> {
         if width <= 1 || height <= 1 {
             return Err(UnseenError::Unorganized { width, height });
@@ -120,7 +123,10 @@ impl RangeView {
                 height,
             });
         }
-        let camera = fit_pinhole(points, width, height)?;
+        let camera = match known {
+            Some(c) if c.width == width && c.height == height && fits(c, points) => *c,
+            _ => fit_pinhole(points, width, height)?,
+        };
         let ranges = points.par_iter().map(|&p| keep(p, range)).collect();
         Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
     }
@@ -141,7 +147,6 @@ impl RangeView {
         }
         let (min2, max2) = range.map_or((0.0, f32::INFINITY), |r| r.squared());
         Ok(Self {
-            robot: vec![false; ranges.len()],
             camera,
             root_from_camera,
             ranges,
@@ -162,23 +167,6 @@ impl RangeView {
     /// Per pixel, the measured depth along z (m), NaN for no return.
     pub fn ranges(&self) -> &[f32] {
         &self.ranges
-    }
-
-    /// Per pixel, whether the self-filter took its point as the robot.
-    pub fn robot_pixels(&self) -> &[bool] {
-        &self.robot
-    }
-
-    /// The robot flags, for the caller's self-filter to set in place.
-    pub fn robot_pixels_mut(&mut self) -> &mut [bool] {
-        &mut self.robot
-    }
-
-    /// Sets the robot flags (one a pixel, row-major).
-    pub fn set_robot_pixels(&mut self, robot: &[bool]) -> Result<(), UnseenError> {
-        check_count("robot pixel flags", robot.len(), &self.camera)?;
-        self.robot.copy_from_slice(robot);
-        Ok(())
     }
 
     pub fn range_noise_m(&self) -> f32 {
@@ -253,7 +241,6 @@ mod tests {
             for i in [1, 2, 4, 5] {
                 assert!(r[i].is_nan(), "{encoding:?} pixel {i}: {}", r[i]);
             }
-            assert_eq!(view.robot_pixels(), &[false; 8]);
             assert!((view.min_range2() - 0.09).abs() < 1e-6 && view.max_range_m() == 5.0);
         }
     }
@@ -265,12 +252,8 @@ mod tests {
         assert!(e.to_string().contains("7 values for a 4×2"), "{e}");
         let e = RangeView::new(camera(), id, &[1.0; 8], None, -0.1).unwrap_err();
         assert!(e.to_string().contains("range_noise"), "{e}");
-        let mut view = RangeView::new(camera(), id, &[1.0; 8], None, 0.0).unwrap();
-        assert!(view.set_robot_pixels(&[true; 3]).is_err());
-        view.set_robot_pixels(&[true; 8]).unwrap();
-        assert!(view.robot_pixels().iter().all(|&r| r));
         let points = vec![[0.0, 0.0, 1.0]; 8];
-        let e = RangeView::from_organized_cloud(&points, 8, 1, id, None, 0.02).unwrap_err();
+        let e = RangeView::from_organized_cloud(&points, 8, 1, id, None, 0.02, None).unwrap_err();
         assert!(matches!(e, UnseenError::Unorganized { .. }));
     }
 
@@ -287,9 +270,16 @@ mod tests {
             })
             .collect();
         let limits = RangeLimits::new(0.0, Some(3.5));
-        let view =
-            RangeView::from_organized_cloud(&points, 20, 10, Isometry3::identity(), limits, 0.02)
-                .unwrap();
+        let view = RangeView::from_organized_cloud(
+            &points,
+            20,
+            10,
+            Isometry3::identity(),
+            limits,
+            0.02,
+            None,
+        )
+        .unwrap();
         assert!((view.camera().fx - 30.0).abs() < 1e-3);
         assert!(view.ranges()[5].is_nan() && (view.ranges()[6] - 2.06).abs() < 1e-6);
         // The last rows lie beyond 3.5 m.

@@ -3,8 +3,8 @@
 //! `config/panda_perception_tutorial.yaml`): the fusion across sources with the output messages
 //! (one source, and two), the stray-point filter and ten exclusion volumes (placed where the
 //! cloud has points, and where it has none: the filter's own cost), each as a ratio to the
-//! decode + poses + query of the same frames. The variants are alternated frame by frame in one run, so the
-//! machine's drift hits them alike.
+//! decode + poses + query of the same frames; and the unseen space (`unseen_rows`). The variants
+//! are alternated frame by frame in one run, so the machine's drift hits them alike.
 
 use std::path::PathBuf;
 
@@ -32,6 +32,9 @@ pub struct BenchMonitorArgs {
     /// Timed frames per variant.
     #[arg(long, default_value_t = 200, value_parser = crate::args::parse_count)]
     runs: usize,
+    /// Only the unseen-space rows.
+    #[arg(long)]
+    unseen_only: bool,
 }
 
 /// The bench's default config.
@@ -72,6 +75,9 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         bail!("{}: no message on {topic}", bag.display());
     };
     let payload = &cloud.data;
+    if args.unseen_only {
+        return unseen_rows(&args, payload);
+    }
     let sources = format!("[{name}, {name}_2]");
     let second_topic = format!("{name}_2.topic");
     let mut two = monitor(
@@ -196,54 +202,121 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         pct(ratio(&query_meshes, &query)),
         excluded_meshes / args.runs as u64
     );
-    unseen_row(&args, payload)
+    unseen_rows(&args, payload)
 }
 
-/// The unobserved space over a 2 × 2 × 2 m volume at 2 cm (10⁶ cells) about the robot, each
-/// frame against its own query: the pass, its ratio and its stages.
-fn unseen_row(args: &BenchMonitorArgs, payload: &[u8]) -> Result<()> {
-    let mut unseen = monitor(
-        args,
-        &[
-            ("unobserved", "report"),
-            ("monitored_volume.size", "[2.0, 2.0, 2.0]"),
-            ("monitored_volume.translation", "[0.0, 0.0, 0.5]"),
-        ],
-    )?;
+/// The unseen space on the same cloud, alternated frame by frame with the same monitor's
+/// config at `unobserved: ignore` (the peer): at the default volume with the config's shadow
+/// rule, with the shadow apart, and over a 2 × 2 × 2 m volume at 2 cm (10⁶ cells). Each row: the
+/// pass, all of it (the frame's view made and prepared, the volume, the robot, the search), as a
+/// ratio to the same run's frame with `ignore`; its stages; what the search examined.
+fn unseen_rows(args: &BenchMonitorArgs, payload: &[u8]) -> Result<()> {
+    let mut peer = monitor(args, &[] as &[(&str, &str)])?;
+    let cube = [
+        ("unobserved", "report"),
+        ("monitored_volume.size", "[2.0, 2.0, 2.0]"),
+        ("monitored_volume.translation", "[0.0, 0.0, 0.5]"),
+    ];
+    let mut variants = [
+        (
+            "default volume",
+            monitor(args, &[("unobserved", "report")])?,
+        ),
+        (
+            "default volume, shadow apart",
+            monitor(
+                args,
+                &[
+                    ("unobserved", "report"),
+                    ("unobserved_self_shadow", "apart"),
+                ],
+            )?,
+        ),
+        ("2 × 2 × 2 m at 2 cm", monitor(args, &cube)?),
+    ];
     for _ in 0..3 {
-        cloud_frame(&mut unseen, 0, payload);
-    }
-    let (mut query, mut pass) = (Vec::new(), Vec::new());
-    let mut stages: Vec<(&'static str, Vec<f64>)> = Vec::new();
-    for _ in 0..args.runs {
-        let f = cloud_frame(&mut unseen, 0, payload);
-        query.push(f.processing_s * 1e3);
-        pass.push(
-            f.unseen_s
-                .context("the unobserved-space pass did not run")?
-                * 1e3,
-        );
-        for (k, (name, s)) in f.unseen_stages_s.iter().enumerate() {
-            if stages.len() <= k {
-                stages.push((name, Vec::new()));
-            }
-            stages[k].1.push(s * 1e3);
+        cloud_frame(&mut peer, 0, payload);
+        for (_, m) in &mut variants {
+            cloud_frame(m, 0, payload);
         }
     }
-    let ratios = Spread::of(pass.iter().zip(&query).map(|(p, q)| p / q).collect());
+    let mut ignore = Vec::new();
+    let mut rows: Vec<Row> = variants.iter().map(|_| Row::default()).collect();
+    for _ in 0..args.runs {
+        ignore.push(cloud_frame(&mut peer, 0, payload).processing_s * 1e3);
+        for ((_, m), row) in variants.iter_mut().zip(&mut rows) {
+            let f = cloud_frame(m, 0, payload);
+            row.frame.push(f.processing_s * 1e3);
+            row.pass
+                .push(f.unseen_s.context("the unseen-space pass did not run")? * 1e3);
+            for (k, (name, s)) in f.unseen_stages_s.iter().enumerate() {
+                if row.stages.len() <= k {
+                    row.stages.push((name, Vec::new()));
+                }
+                row.stages[k].1.push(s * 1e3);
+            }
+            let unseen = m.unseen().context("no unseen-space pass")?;
+            match &unseen.outcome {
+                Ok(f) => {
+                    row.cells = f.cells;
+                    row.counts = Some(f.counts);
+                    row.distance = f.distance_m;
+                    row.cause = f.nearest.map(|n| n.cause.name());
+                }
+                Err(e) => bail!("the unseen-space pass failed: {e}"),
+            }
+        }
+    }
     let ms = |s: Spread| format!("{:.3} ms [{:.3}, {:.3}]", s.median, s.p10, s.p90);
     println!(
-        "unobserved space (2 × 2 × 2 m at 2 cm, 10⁶ cells): {}  = {:.2} × [{:.2}, {:.2}] its frame's query ({})",
-        ms(Spread::of(pass)),
-        ratios.median,
-        ratios.p10,
-        ratios.p90,
-        ms(Spread::of(query))
+        "the frame (decode + poses + query) with unobserved: ignore:  {}",
+        ms(Spread::of(ignore.clone()))
     );
-    for (name, times) in stages {
-        println!("  {name:<10} {}", ms(Spread::of(times)));
+    for ((name, _), row) in variants.iter().zip(rows) {
+        let ratios = Spread::of(row.pass.iter().zip(&ignore).map(|(p, q)| p / q).collect());
+        println!(
+            "unseen space, {name} ({} cells): {}  = {:.2} × [{:.2}, {:.2}] the frame with ignore; \
+             the frame with it {}",
+            row.cells,
+            ms(Spread::of(row.pass)),
+            ratios.median,
+            ratios.p10,
+            ratios.p90,
+            ms(Spread::of(row.frame))
+        );
+        for (stage, times) in row.stages {
+            println!("  {stage:<10} {}", ms(Spread::of(times)));
+        }
+        if let Some(c) = row.counts {
+            println!(
+                "  found {} (nearest: {}); blocks examined {} of {} ({} seen free whole), cells \
+                 judged {}, hidden {} (+{} in the robot's shadow), distance queries {}",
+                row.distance
+                    .map_or("nothing hidden".into(), |d| format!("{d:.4} m")),
+                row.cause.unwrap_or("-"),
+                c.blocks - c.blocks_pruned,
+                c.blocks,
+                c.blocks_free,
+                c.centres_judged,
+                c.hidden,
+                c.shadow,
+                c.batches
+            );
+        }
     }
     Ok(())
+}
+
+/// One unseen-space row's measurements.
+#[derive(Default)]
+struct Row {
+    frame: Vec<f64>,
+    pass: Vec<f64>,
+    stages: Vec<(&'static str, Vec<f64>)>,
+    cells: usize,
+    counts: Option<ist_monitor::unseen::Counts>,
+    distance: Option<f64>,
+    cause: Option<&'static str>,
 }
 
 /// An ASCII STL of a cube of edge `edge` m centred on the origin.

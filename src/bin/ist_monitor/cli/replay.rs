@@ -70,9 +70,13 @@ pub struct GenerateArgs {
     /// Range noise σ, m (clipped at 2.5 σ).
     #[arg(long, default_value_t = ScenarioParams::default().noise_m)]
     noise: f64,
-    /// Fraction of pixels dropped (NaN holes).
+    /// Fraction of pixels dropped (NaN holes), each at random on its own.
     #[arg(long, default_value_t = ScenarioParams::default().holes)]
     holes: f64,
+    /// Fraction of pixels dropped as a depth camera drops them: at depth edges, on the
+    /// person's dark hair and shoes, and in clusters (beside --holes; 0: none).
+    #[arg(long, default_value_t = 0.0)]
+    camera_dropouts: f64,
     /// Seed of the noise and the holes (the same seed gives the same bag, byte for byte).
     #[arg(long, default_value_t = ScenarioParams::default().seed)]
     seed: u64,
@@ -119,7 +123,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
     // The header with the first frame, so that a bag that replays nothing prints only its error.
     let header = || {
         println!(
-            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:>8}",
+            "{:>5} {:>18} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8} {:>10} {:<10} {:>8}",
             "frame",
             "stamp [s]",
             "level",
@@ -135,6 +139,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             "truth mrg",
             "ms",
             "unseen [m]",
+            "why",
             "unseen ms"
         )
     };
@@ -151,7 +156,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
         }
         let m = |v: Option<f64>| v.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
         println!(
-            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8.3} {:>10} {:>8}{}",
+            "{:>5} {:>18.6} {:<7} {:>10} {:>10} {:>10} {:<20} {:>10} {:>6} {:>10} {:>10} {:>10} {:>10} {:>8.3} {:>10} {:<10} {:>8}{}",
             f.index,
             f.stamp_ns as f64 * 1e-9,
             format!("{:?}", f.level).to_uppercase(),
@@ -171,10 +176,11 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
             m(f.truth_margin_m),
             f.processing_ms,
             if f.unseen_all_seen {
-                "nan".into()
+                "inf".into()
             } else {
                 m(f.unseen_m)
             },
+            f.unseen_cause.map_or("-", short_cause),
             f.unseen_ms
                 .map_or_else(|| "-".into(), |t| format!("{t:.1}")),
             f.fault
@@ -238,6 +244,9 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
     if !(args.noise >= 0.0 && args.noise.is_finite() && (0.0..=1.0).contains(&args.holes)) {
         bail!("--noise must be ≥ 0 and --holes in [0, 1]");
     }
+    if !(0.0..1.0).contains(&args.camera_dropouts) {
+        bail!("--camera-dropouts must be in [0, 1)");
+    }
     let depth = match args.depth.as_deref() {
         None => None,
         Some(e) => Some(DepthEncoding::from_name(e).with_context(|| {
@@ -253,6 +262,7 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
         height: args.height,
         noise_m: args.noise,
         holes: args.holes,
+        camera_dropouts: args.camera_dropouts,
         seed: args.seed,
         compression: args.compression,
         point_step: args.point_step,
@@ -280,4 +290,15 @@ pub fn generate(args: GenerateArgs) -> Result<()> {
     }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// A cause's name in the replay table's narrow column.
+fn short_cause(name: &str) -> &str {
+    match name {
+        "robot_shadow" => "robot",
+        "another_body_shadow" => "occluded",
+        "no_return" => "no return",
+        "outside_every_view" => "outside",
+        other => other,
+    }
 }

@@ -1,0 +1,266 @@
+//! The pass's steps, run after each measured frame with the robot at that frame's poses:
+//!
+//! 1. **The volume** (`place_volume`): the lattice over `monitored_volume`, its frame placed at
+//!    the frame's stamp; by default the robot's reach plus a margin above the root's z = 0
+//!    plane, taken as the floor; the ball each centre stands for ([`BallSize`]).
+//! 2. **The robot** (`place_robot`): the centres whose ball meets an inner sphere, and each
+//!    link's bounding sphere, at the poses.
+//! 3. **The search** (`unseen::Search`) over every live view, the exclusion volumes that apply
+//!    to every source placed at the stamp, with the engine's certified lower bound over the
+//!    hidden centres (certified mode at least, no self-filter), per link as configured.
+//! 4. **The facts**: the distances less the ball's margin, the nearest hidden place and why.
+//!
+//! No enabled source observes anything free (only unorganized clouds, no frame yet): the whole
+//! volume is hidden, and the unseen distance is 0 at once, without the search's cost.
+
+use std::time::Instant;
+
+use nalgebra::{Isometry3, Point3};
+
+use crate::cloud::exclusion::Placed;
+use crate::query::{Engine, Outcome, QueryLink, QueryResult};
+use crate::robot::Kinematics;
+use crate::tf::{self, TfBuffer};
+use crate::unseen::{BallSize, Batch, Lattice, PreparedView, RobotBody, Search};
+
+use super::error::UnseenFault;
+use super::facts::{Unseen, UnseenFacts};
+use super::UnseenSpace;
+
+/// What a pass reads besides its own state, all at the frame's stamp.
+pub struct PassInputs<'a> {
+    pub stamp_ns: i64,
+    /// `root_from_link` at the stamp, the kinematics' order.
+    pub poses: &'a [Isometry3<f64>],
+    pub kinematics: &'a Kinematics,
+    /// The query engine: its links, and the certified distance over the hidden centres.
+    pub engine: &'a mut Engine,
+    pub tf: &'a TfBuffer,
+}
+
+impl UnseenSpace {
+    /// The pass after a measured frame (see the module doc); kept as the latest. Its time
+    /// includes the frame's view ([`UnseenSpace::observe`]), its first stage.
+    pub fn run(&mut self, mut input: PassInputs) -> &Unseen {
+        let start = Instant::now();
+        let view_s = std::mem::take(&mut self.view_s);
+        let mut outcome = self.facts(&mut input);
+        if let Ok(f) = &mut outcome {
+            f.stages_s.insert(0, ("view", view_s));
+        }
+        self.last = Some(Unseen {
+            stamp_ns: input.stamp_ns,
+            outcome,
+            compute_s: view_s + start.elapsed().as_secs_f64(),
+        });
+        self.last.as_ref().expect("just set")
+    }
+
+    fn facts(&mut self, input: &mut PassInputs) -> Result<UnseenFacts, UnseenFault> {
+        let clock = Instant::now();
+        let mut stages = Vec::with_capacity(4);
+        let mut last = 0.0;
+        let mut lap = |name: &'static str| {
+            let now = clock.elapsed().as_secs_f64();
+            stages.push((name, now - last));
+            last = now;
+        };
+        // 1. The volume.
+        let lattice = self.place_volume(input)?;
+        let ball = BallSize::new(&lattice, self.settings.detection_capability_m)
+            .map_err(UnseenFault::Lattice)?;
+        let per_source: Vec<(String, Result<(), String>)> = (self.sources.iter())
+            .zip(&self.views)
+            .filter(|(s, _)| s.enabled)
+            .map(|(s, v)| {
+                let state = match v {
+                    Some(Ok(_)) => Ok(()),
+                    Some(Err(e)) => Err(e.clone()),
+                    None => Err("no measured frame".into()),
+                };
+                (s.name.clone(), state)
+            })
+            .collect();
+        let views: Vec<&PreparedView> = (self.sources.iter())
+            .zip(&self.views)
+            .filter(|(s, _)| s.enabled)
+            .filter_map(|(_, v)| v.as_ref().and_then(|v| v.as_ref().ok()))
+            .collect();
+        if views.is_empty() {
+            return Ok(UnseenFacts {
+                distance_m: Some(0.0),
+                per_source,
+                blind: true,
+                cells: lattice.len(),
+                resolution_m: lattice.resolution_m(),
+                ..UnseenFacts::default()
+            });
+        }
+        lap("volume");
+        // 2. The robot, and the exclusion volumes.
+        let volumes = self.place_volumes(input)?;
+        let (engine, poses, query) = (&mut *input.engine, input.poses, &self.query);
+        let links = engine.shared_links();
+        if links.iter().all(|l| l.spheres.is_empty()) {
+            return Err(UnseenFault::NoSpheres);
+        }
+        let robot = RobotBody::new(
+            &lattice,
+            &links,
+            poses,
+            ball.radius_m,
+            self.smallest_sphere_m(),
+        );
+        lap("robot");
+        // 3. The search.
+        let names: Vec<String> = links.iter().map(|l| l.name.clone()).collect();
+        let excluded = |c: [f32; 3]| volumes.iter().any(|v| v.contains(c));
+        let search = Search {
+            lattice: &lattice,
+            views: &views,
+            robot: &robot,
+            excluded: &excluded,
+            size: ball,
+            apart: self.settings.self_shadow == crate::config::SelfShadow::Apart,
+            per_link_range_m: self
+                .query
+                .per_link
+                .then_some(f64::from(self.query.per_link_range_m)),
+            markers: self.settings.markers,
+        };
+        let max = f64::from(query.max_distance_m);
+        let mut options = query.clone();
+        let found = search.run(|centres, need| {
+            // Per link, only what may still lower a link's best is measured exactly.
+            options.per_link_range_m = query.per_link_range_m.min(need.max(0.0) as f32);
+            engine
+                .query(centres, &Isometry3::identity(), poses, &options)
+                .map(|r| batch(&r, max))
+                .map_err(|e| UnseenFault::Query(e.to_string()))
+        })?;
+        lap("search");
+        // 4. The facts.
+        let reach = |l: f64| if l.is_finite() { l } else { max };
+        Ok(UnseenFacts {
+            distance_m: found.lower_m.map(|l| ball.distance(reach(l))),
+            self_shadow_m: found.shadow_lower_m.map(|l| ball.distance(reach(l))),
+            per_link: names
+                .into_iter()
+                .zip(&found.per_link)
+                .map(|(n, &l)| (n, ball.distance(l)))
+                .collect(),
+            nearest: found.nearest,
+            per_source,
+            blind: false,
+            cells: lattice.len(),
+            resolution_m: lattice.resolution_m(),
+            counts: found.counts,
+            near: found.near,
+            stages_s: stages,
+        })
+    }
+
+    /// Step 1: the lattice over the monitored volume at the frame's stamp.
+    fn place_volume(&mut self, input: &PassInputs) -> Result<Lattice, UnseenFault> {
+        let (root_from_box, half) = match &self.settings.volume.clone() {
+            Some(v) => {
+                let root = input.kinematics.root_link().to_owned();
+                let frame = v.frame.clone().unwrap_or(root);
+                let root_from_frame =
+                    place_frame(input, &frame, self.tf_tolerance_s).map_err(|reason| {
+                        UnseenFault::VolumeFrame {
+                            frame: frame.clone(),
+                            reason,
+                        }
+                    })?;
+                (
+                    root_from_frame * v.frame_from_box,
+                    v.size_m.map(|s| 0.5 * s),
+                )
+            }
+            None => {
+                let reach = self.reach(input.kinematics, input.engine.links())?;
+                let e = reach + self.settings.margin_m;
+                (Isometry3::translation(0.0, 0.0, 0.5 * e), [e, e, 0.5 * e])
+            }
+        };
+        Lattice::new(root_from_box, half, self.settings.resolution_m).map_err(UnseenFault::Lattice)
+    }
+
+    /// The exclusion volumes that apply to every source, placed in the root frame.
+    fn place_volumes(&self, input: &PassInputs) -> Result<Vec<Placed>, UnseenFault> {
+        (self.volumes.iter())
+            .map(|v| {
+                let root_from_frame =
+                    place_frame(input, &v.frame, self.tf_tolerance_s).map_err(|reason| {
+                        UnseenFault::ExclusionFrame {
+                            volume: v.name.clone(),
+                            reason,
+                        }
+                    })?;
+                Ok(Placed::new(
+                    &v.shape,
+                    &(root_from_frame * v.frame_from_volume),
+                ))
+            })
+            .collect()
+    }
+
+    /// The robot's reach from its root, computed once (`Kinematics::reach_m`).
+    fn reach(&mut self, kinematics: &Kinematics, links: &[QueryLink]) -> Result<f64, UnseenFault> {
+        let reach = *self.reach_m.get_or_insert_with(|| {
+            let radii = link_radii(kinematics, links);
+            kinematics.reach_m(&radii)
+        });
+        reach.ok_or(UnseenFault::ReachUnknown)
+    }
+}
+
+/// `frame` in the root frame at the stamp (a robot link at the poses, else through TF).
+fn place_frame(
+    input: &PassInputs,
+    frame: &str,
+    tolerance_s: f64,
+) -> Result<Isometry3<f64>, String> {
+    let kinematics = input.kinematics;
+    let link_pose = |name: &str| kinematics.link_index(name).map(|i| input.poses[i]);
+    tf::root_from_sensor(
+        input.tf,
+        frame,
+        kinematics.root_link(),
+        Some(input.stamp_ns),
+        tolerance_s,
+        &link_pose,
+    )
+    .map_err(|e| e.to_string())
+}
+
+/// A query over hidden centres as the search reads it.
+fn batch(r: &QueryResult, max: f64) -> Batch {
+    let (lower_m, nearest) = match (&r.outcome, &r.nearest) {
+        (Outcome::Nearest, Some(n)) => {
+            (Some(n.lower_m.unwrap_or(0.0)), Some(n.point_index as usize))
+        }
+        _ => (None, None),
+    };
+    Batch {
+        lower_m,
+        nearest,
+        per_link: (r.links.iter())
+            .map(|l| l.lower_m.or(l.farther_than_m).unwrap_or(max))
+            .collect(),
+    }
+}
+
+/// Each link's bounding radius about its own origin (m): the largest `|c| + r + h` of its
+/// spheres; 0 for a link the engine does not monitor.
+fn link_radii(kinematics: &Kinematics, links: &[QueryLink]) -> Vec<f64> {
+    let mut radii = vec![0.0; kinematics.link_names().len()];
+    for l in links {
+        let r = (l.spheres.iter())
+            .map(|s| Point3::from(s.center.map(f64::from)).coords.norm() + f64::from(s.radius))
+            .fold(0.0, f64::max);
+        radii[l.pose_index] = r + f64::from(l.gap_m);
+    }
+    radii
+}

@@ -1,0 +1,640 @@
+//! Step 2, the footprint test: whether one view rules out a ball of the detection capability
+//! at a lattice centre, and if not, why not.
+//!
+//! **The rule.** A solid body that holds the ball `B = B(x, r)` stops every pixel ray that
+//! meets `B` at or before the point where the ray enters `B`: the camera returns that surface,
+//! or nothing (a dark body), or something in front of it. So `B` is ruled out as soon as **one**
+//! ray through it returned beyond its entry point: the ray passed through free space where the
+//! body would have been. Every ray whose whole pixel lies inside `B`'s silhouette is tested, so
+//! a 70 mm body 1.2 m from a 320 × 240 camera is judged by some 50 pixels, not by the 4 around
+//! its centre, and a few dropped pixels do not keep it.
+//!
+//! **In numbers** (camera frame, `p` the ball's centre at distance `l = |p|`, a pixel's unit
+//! ray `d` with `proj = d·p`, `perp² = l² − proj²`):
+//! - the pixel is in the **footprint** when the angle between `d` and `p` is at most
+//!   `asin(r/l) − κ/f` (`κ = √½`, the half diagonal of a pixel, `f` the smaller focal length:
+//!   the pixel's whole area lies in the ball's cone, so a pixel half on the ball and half on a
+//!   far background, which may return the background, is left out). Then `proj ≥ l·cos α`;
+//! - the ray enters `B` at `t_in = proj − √(r² − perp²)`, and `t_in ≥ l − r` on every ray
+//!   through `B` (its least value, on the ray through the centre);
+//! - the pixel's **free distance** `g` is its depth less the range noise, along the ray
+//!   (`(z − noise)·|d̃|`, `d̃ = ((u − cx)/fx, (v − cy)/fy, 1)`), less [`ROUNDING_M`]; no return is
+//!   `−1`;
+//! - the ball is ruled out by the pixel when `g > t_in`: `g ≥ proj`, or `(proj − g)² < r² −
+//!   perp²`, no square root.
+//!
+//! **Why it stays hidden.** A ray that does not rule the ball out met, before the ball, the
+//! robot (its padded spheres, rendered into the view: `prepared`), or returned a surface in front
+//! (another body's shadow), or returned nothing. A ball is in the **robot's shadow** in a view
+//! when more than half its footprint's rays met the robot first, so that pixels the arm's own
+//! shiny surfaces or its outline drop do not take the shadow apart; otherwise its cause is the
+//! larger of the other two. A ball whose centre's pixel lies outside the image, behind the
+//! camera, nearer than the minimum range or beyond the maximum range, or too far for a whole
+//! pixel to lie inside it, is **outside** the view.
+//!
+//! **The order of the tests**, each a shortcut that never changes the verdict of the full scan:
+//! the pixel nearest the centre's projection (one read rules out most free space); then, with
+//! the view's pyramids, the window's largest free distance against `l − r` (a ball behind a
+//! surface is hidden whatever the pixels, with [`ROUNDING_M`] to spare for the f32 sums) and
+//! the robot's; then the scan of the window, every pixel tested exactly, which stops at the
+//! first ray that rules the ball out.
+//!
+//! The window is the footprint's bounding box: a direction within `α` of `p̂` lies on the image
+//! plane within `α / cos²(φ + α)` of `p̂`'s point (`φ` the angle of `p` from the optical axis: the
+//! gnomonic projection stretches by at most `1/cos²`), widened by a pixel for the rounding.
+//!
+//! Cost: one read for free space; `O(footprint)` reads for a ball at a surface or a shadow's
+//! rim. `shaders/unseen.wgsl` runs the same scan per lattice centre on the GPU.
+
+use super::pyramid::Pyramids;
+
+/// What the f32 sums may lose (m): a free distance is taken this much shorter, and the
+/// shortcuts keep this much to spare, so that they agree with the full scan.
+pub const ROUNDING_M: f32 = 1e-4;
+
+/// The pixel's half diagonal, in pixels: a pixel is in a footprint when its whole area is.
+const HALF_PIXEL: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+/// A footprint of at least this many pixel angles (`sin α ≥ PAIR·κ`, `α ≥ 2.12 κ = 1.5/f`)
+/// holds, with each whole, the 2 × 2 pixels whose centres surround a projection within it.
+pub const PAIR: f32 = 2.12;
+
+/// Why a view did not rule a ball out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Cause {
+    /// Its centre projects outside the image, lies behind the camera, nearer than its minimum
+    /// range or beyond its maximum, or too far for a whole pixel to fit in the ball.
+    OutsideView,
+    /// More than half its footprint's rays met the robot first.
+    RobotShadow,
+    /// Its footprint's rays returned a surface in front of it: another body's shadow.
+    Occluded,
+    /// Its footprint's rays returned nothing (dark, glare, dropped pixels).
+    NoReturn,
+}
+
+impl Cause {
+    pub const ALL: [Cause; 4] = [
+        Cause::OutsideView,
+        Cause::RobotShadow,
+        Cause::Occluded,
+        Cause::NoReturn,
+    ];
+
+    /// The name in diagnostics and docs.
+    pub fn name(self) -> &'static str {
+        match self {
+            Cause::OutsideView => "outside_every_view",
+            Cause::RobotShadow => "robot_shadow",
+            Cause::Occluded => "another_body_shadow",
+            Cause::NoReturn => "no_return",
+        }
+    }
+}
+
+/// How much of "why" a caller needs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Need {
+    /// Free or not (a hidden ball's cause may stay [`Why::Unknown`], `OutsideView` excepted).
+    Verdict,
+    /// Also whether it is the robot's shadow ([`Why::NotShadow`] where it is not).
+    Shadow,
+    /// The cause itself.
+    Cause,
+}
+
+/// What a hidden ball's view says of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Why {
+    Known(Cause),
+    /// Hidden, not the robot's shadow: occluded or no return, not told apart.
+    NotShadow,
+    /// Hidden, not classified (`Need::Verdict`).
+    Unknown,
+}
+
+/// A view's verdict on one ball.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Seen {
+    Free,
+    Hidden(Why),
+}
+
+/// A view's camera in f32, as the test reads it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Optics {
+    pub width: usize,
+    pub height: usize,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    /// Range limits (m, Euclidean): a ball nearer than `min_range_m` or beyond `max_range_m` is
+    /// outside the view.
+    pub min_range_m: f32,
+    pub max_range_m: f32,
+    /// The angle (rad) a pixel's half diagonal spans at most: `κ = √½ / min(fx, fy)`.
+    pub pixel_angle: f32,
+    /// `cos κ`, `sin κ`.
+    cos_k: f32,
+    sin_k: f32,
+}
+
+/// A cone's half angle `α` as the tests use it: its sine and cosine; `tan α` bounds `α` from
+/// above (a window from it is never too small).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cone {
+    pub sin: f32,
+    pub cos: f32,
+}
+
+impl Cone {
+    /// The cone of a sphere of radius `rho` seen from distance `l > rho`.
+    #[inline]
+    pub fn of_sphere(rho: f32, l: f32) -> Self {
+        let s = (rho / l).min(1.0);
+        Self {
+            sin: s,
+            cos: (1.0 - s * s).max(0.0).sqrt(),
+        }
+    }
+
+    #[inline]
+    pub fn tan(&self) -> f32 {
+        self.sin / self.cos
+    }
+}
+
+impl Optics {
+    pub fn new(
+        camera: &crate::cloud::depth::PinholeCamera,
+        min_range_m: f32,
+        max_range_m: f32,
+    ) -> Self {
+        let f = camera.fx.min(camera.fy) as f32;
+        Self {
+            width: camera.width as usize,
+            height: camera.height as usize,
+            fx: camera.fx as f32,
+            fy: camera.fy as f32,
+            cx: camera.cx as f32,
+            cy: camera.cy as f32,
+            min_range_m,
+            max_range_m,
+            pixel_angle: HALF_PIXEL / f,
+            cos_k: (HALF_PIXEL / f).cos(),
+            sin_k: (HALF_PIXEL / f).sin(),
+        }
+    }
+
+    /// The image point of camera-frame `p` (z > 0).
+    #[inline]
+    pub fn project(&self, p: [f32; 3]) -> (f32, f32) {
+        (
+            self.fx * p[0] / p[2] + self.cx,
+            self.fy * p[1] / p[2] + self.cy,
+        )
+    }
+
+    /// The footprint's half angle `asin(r/l) − κ` for a ball of radius `r` at distance `l`,
+    /// `None` when no whole pixel fits in it (by the angle-difference formulas, no trigonometry).
+    #[inline]
+    pub fn footprint(&self, r: f32, l: f32) -> Option<Cone> {
+        let ball = Cone::of_sphere(r, l);
+        let sin = ball.sin * self.cos_k - ball.cos * self.sin_k;
+        (sin > 0.0).then_some(Cone {
+            sin,
+            cos: ball.cos * self.cos_k + ball.sin * self.sin_k,
+        })
+    }
+}
+
+/// One view's pixels as the test reads them (row-major, `width × height`).
+#[derive(Clone, Copy)]
+pub struct Pixels<'a> {
+    /// Each pixel's unit ray (camera frame).
+    pub rays: &'a [[f32; 3]],
+    /// Each pixel's free distance along its ray (m; −1: no return).
+    pub free: &'a [f32],
+    /// The distance along each ray to the padded robot (m; ∞: the ray misses it).
+    pub robot: &'a [f32],
+}
+
+/// An inclusive pixel rectangle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rect {
+    pub u0: usize,
+    pub v0: usize,
+    pub u1: usize,
+    pub v1: usize,
+}
+
+impl Rect {
+    /// Every pixel of the image.
+    pub fn whole(o: &Optics) -> Option<Rect> {
+        Rect::covering(o, 0.0, o.width as f32, 0.0, o.height as f32)
+    }
+
+    /// The pixels whose centres lie in `[u_lo, u_hi] × [v_lo, v_hi]`, clipped to the image;
+    /// `None` when none does.
+    pub fn covering(o: &Optics, u_lo: f32, u_hi: f32, v_lo: f32, v_hi: f32) -> Option<Rect> {
+        let (w, h) = ((o.width - 1) as f32, (o.height - 1) as f32);
+        let (u0, u1) = (u_lo.ceil().max(0.0), u_hi.floor().min(w));
+        let (v0, v1) = (v_lo.ceil().max(0.0), v_hi.floor().min(h));
+        (u0 <= u1 && v0 <= v1).then_some(Rect {
+            u0: u0 as usize,
+            v0: v0 as usize,
+            u1: u1 as usize,
+            v1: v1 as usize,
+        })
+    }
+}
+
+/// The window about `(u, v)` of a cone `alpha` about a direction at `cos φ` from the optical
+/// axis (see the module doc); the whole image when the cone reaches the image plane's horizon.
+#[inline]
+pub fn window(o: &Optics, u: f32, v: f32, cos_phi: f32, alpha: Cone) -> Option<Rect> {
+    let cos_phi = cos_phi.clamp(-1.0, 1.0);
+    let sin_phi = (1.0 - cos_phi * cos_phi).sqrt();
+    let c = cos_phi * alpha.cos - sin_phi * alpha.sin;
+    if c <= 0.05 {
+        return Rect::whole(o);
+    }
+    let half = alpha.tan() / (c * c);
+    let (hu, hv) = (o.fx * half + 1.0, o.fy * half + 1.0);
+    Rect::covering(o, u - hu, u + hu, v - hv, v + hv)
+}
+
+/// The columns of row `v` (within `rect`) whose rays may lie in the cone `(d̃·p)² ≥ k·|d̃|²`
+/// about camera-frame `p` (`k = (|p| cos α)²` for half angle `α`; `|p|² − ρ²` for the
+/// silhouette of a sphere of radius `ρ`): the roots of that quadratic in `x = (u − cx)/fx` on
+/// the row, widened by a pixel for the f32 sums; `None` where the row misses it. Every pixel
+/// returned is still tested exactly.
+#[inline]
+pub fn cone_row(o: &Optics, p: [f32; 3], k: f32, v: usize, rect: Rect) -> Option<(usize, usize)> {
+    let (lo, hi) = cone_span(o, p, k, v as f32)?;
+    let lo = (lo - 1.0).floor().max(rect.u0 as f32);
+    let hi = (hi + 1.0).ceil().min(rect.u1 as f32);
+    (lo <= hi).then_some((lo as usize, hi as usize))
+}
+
+/// The image columns `u` where the row `v` meets the cone of [`cone_row`] (unrounded; −∞..∞
+/// where the cone opens past the horizon along the row), `None` where it misses.
+#[inline]
+pub fn cone_span(o: &Optics, p: [f32; 3], k: f32, v: f32) -> Option<(f32, f32)> {
+    let y = (v - o.cy) / o.fy;
+    let b = y * p[1] + p[2];
+    let qa = p[0] * p[0] - k;
+    if qa.is_nan() || qa >= 0.0 {
+        return Some((f32::NEG_INFINITY, f32::INFINITY));
+    }
+    let qb = 2.0 * p[0] * b;
+    let qc = b * b - k * (y * y + 1.0);
+    let disc = qb * qb - 4.0 * qa * qc;
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    // qa < 0: the first root is the smaller.
+    let x1 = (-qb + s) / (2.0 * qa);
+    let x2 = (-qb - s) / (2.0 * qa);
+    Some((o.fx * x1 + o.cx, o.fx * x2 + o.cx))
+}
+
+/// A ball of radius `r` at camera-frame `p`, as one view tests it.
+pub struct Ball {
+    pub p: [f32; 3],
+    pub r: f32,
+    l2: f32,
+    l: f32,
+    min_proj: f32,
+    s2_max: f32,
+}
+
+/// One pixel's word on a ball.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Ray {
+    Outside,
+    Free,
+    Robot,
+    Returned,
+    Dark,
+}
+
+impl Ball {
+    #[inline]
+    fn ray(&self, px: &Pixels, q: usize) -> Ray {
+        let d = px.rays[q];
+        let proj = d[0] * self.p[0] + d[1] * self.p[1] + d[2] * self.p[2];
+        if proj < self.min_proj {
+            return Ray::Outside;
+        }
+        let s2 = self.s2_max - (self.l2 - proj * proj).max(0.0);
+        if s2 <= 0.0 {
+            return Ray::Outside;
+        }
+        let g = px.free[q];
+        if g >= proj {
+            return Ray::Free;
+        }
+        let diff = proj - g;
+        if diff * diff < s2 {
+            return Ray::Free;
+        }
+        if px.robot[q] <= proj - s2.sqrt() {
+            Ray::Robot
+        } else if g >= 0.0 {
+            Ray::Returned
+        } else {
+            Ray::Dark
+        }
+    }
+}
+
+/// Whether the view (`o`, `px`, with its `pyramids` where given) rules out the ball of radius
+/// `r` at camera-frame `p`, and why not, to the depth `need` asks (see the module doc).
+pub fn judge(
+    o: &Optics,
+    px: &Pixels,
+    pyramids: Option<&Pyramids>,
+    p: [f32; 3],
+    r: f32,
+    need: Need,
+) -> Seen {
+    const OUTSIDE: Seen = Seen::Hidden(Why::Known(Cause::OutsideView));
+    let l2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    let l = l2.sqrt();
+    if p[2].is_nan() || p[2] <= r || l - r < o.min_range_m || l - r > o.max_range_m {
+        return OUTSIDE;
+    }
+    let Some(alpha) = o.footprint(r, l) else {
+        return OUTSIDE;
+    };
+    let (u, v) = o.project(p);
+    let (uc, vc) = ((u + 0.5).floor(), (v + 0.5).floor());
+    if !(uc >= 0.0 && vc >= 0.0 && uc < o.width as f32 && vc < o.height as f32) {
+        return OUTSIDE;
+    }
+    let ball = Ball {
+        p,
+        r,
+        l2,
+        l,
+        min_proj: l * alpha.cos,
+        s2_max: r * r,
+    };
+    // 1. The pixel nearest the centre's projection.
+    let centre = vc as usize * o.width + uc as usize;
+    if ball.ray(px, centre) == Ray::Free {
+        return Seen::Free;
+    }
+    // 1b. The 2 × 2 pixels about the projection, each within √2 pixels of it: where the
+    // footprint holds them all, their largest free distance beyond the centre rules the ball
+    // out (a dropped pixel among them does not keep it).
+    if let Some(pyr) = pyramids {
+        let (ua, va) = (u.floor(), v.floor());
+        let holds = alpha.sin >= PAIR * o.pixel_angle;
+        let inside = ua >= 0.0 && va >= 0.0 && ua < o.width as f32 && va < o.height as f32;
+        if holds && inside && pyr.pairs.at(ua as usize, va as usize) >= ball.l + ROUNDING_M {
+            return Seen::Free;
+        }
+    }
+    let Some(rect) = window(o, u, v, p[2] / l, alpha) else {
+        return OUTSIDE;
+    };
+    // 2. The pyramids: no ray of the window passes the ball's nearest entry.
+    if let Some(pyr) = pyramids {
+        let entry = ball.l - ball.r - ROUNDING_M;
+        if pyr.free.max(rect) <= entry {
+            if need == Need::Verdict {
+                return Seen::Hidden(Why::Unknown);
+            }
+            if pyr.robot.max(rect) <= entry {
+                return Seen::Hidden(Why::Known(Cause::RobotShadow));
+            }
+            if need == Need::Shadow && pyr.robot.min(rect) > ball.l + ball.r {
+                return Seen::Hidden(Why::NotShadow);
+            }
+        }
+    }
+    // 3. The scan.
+    scan(o, px, &ball, rect, need)
+}
+
+/// Every pixel of `rect` tested against `ball` (see [`judge`]).
+fn scan(o: &Optics, px: &Pixels, ball: &Ball, rect: Rect, need: Need) -> Seen {
+    let mut counts = [0u32; 3];
+    let k = ball.min_proj * ball.min_proj;
+    // Rows from the centre's outward: the rays through the middle enter the ball first, and
+    // rule it out first where anything does.
+    let (first, last) = (rect.v0 as isize, rect.v1 as isize);
+    let middle = ((ball.p[1] / ball.p[2] * o.fy + o.cy).round() as isize).clamp(first, last);
+    let rows = (0..=2 * (last - first)).map(|k| {
+        let step = (k + 1) / 2;
+        if k % 2 == 1 {
+            middle - step
+        } else {
+            middle + step
+        }
+    });
+    for v in rows
+        .filter(|v| (first..=last).contains(v))
+        .map(|v| v as usize)
+    {
+        let Some((u0, u1)) = cone_row(o, ball.p, k, v, rect) else {
+            continue;
+        };
+        let row = v * o.width;
+        for u in u0..=u1 {
+            match ball.ray(px, row + u) {
+                Ray::Free => return Seen::Free,
+                Ray::Outside => {}
+                Ray::Robot => counts[0] += 1,
+                Ray::Returned => counts[1] += 1,
+                Ray::Dark => counts[2] += 1,
+            }
+        }
+    }
+    let [robot, returned, dark] = counts;
+    if robot + returned + dark == 0 {
+        // The footprint holds no pixel centre in f32 (a sliver at the image's border).
+        return Seen::Hidden(Why::Known(Cause::OutsideView));
+    }
+    let why = if need == Need::Verdict {
+        Why::Unknown
+    } else if 2 * robot > robot + returned + dark {
+        Why::Known(Cause::RobotShadow)
+    } else if need == Need::Shadow {
+        Why::NotShadow
+    } else if dark >= returned {
+        Why::Known(Cause::NoReturn)
+    } else {
+        Why::Known(Cause::Occluded)
+    };
+    Seen::Hidden(why)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::depth::PinholeCamera;
+
+    fn optics() -> Optics {
+        let camera = PinholeCamera {
+            width: 64,
+            height: 48,
+            fx: 50.0,
+            fy: 50.0,
+            cx: 31.5,
+            cy: 23.5,
+        };
+        Optics::new(&camera, 0.0, f32::INFINITY)
+    }
+
+    /// Unit rays, free distances for depth `z(u, v)` (NaN: no return) and a robot image.
+    fn pixels(
+        o: &Optics,
+        z: impl Fn(usize, usize) -> f32,
+        robot: impl Fn(usize, usize) -> f32,
+    ) -> (Vec<[f32; 3]>, Vec<f32>, Vec<f32>) {
+        let mut rays = Vec::new();
+        let mut free = Vec::new();
+        let mut rob = Vec::new();
+        for v in 0..o.height {
+            for u in 0..o.width {
+                let d = [(u as f32 - o.cx) / o.fx, (v as f32 - o.cy) / o.fy, 1.0f32];
+                let n = (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
+                rays.push([d[0] / n, d[1] / n, 1.0 / n]);
+                let depth = z(u, v);
+                free.push(if depth.is_nan() {
+                    -1.0
+                } else {
+                    depth * n - ROUNDING_M
+                });
+                rob.push(robot(u, v));
+            }
+        }
+        (rays, free, rob)
+    }
+
+    #[test]
+    fn a_wall_behind_rules_out_a_ball_and_one_in_front_hides_it() {
+        let o = optics();
+        let (rays, free, robot) = pixels(&o, |_, _| 2.0, |_, _| f32::INFINITY);
+        let px = Pixels {
+            rays: &rays,
+            free: &free,
+            robot: &robot,
+        };
+        // A 3 cm ball at 1 m: the wall at 2 m passes through it.
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 1.0], 0.03, Need::Cause),
+            Seen::Free
+        );
+        // A ball just behind the wall: hidden by another body.
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 2.15], 0.1, Need::Cause),
+            Seen::Hidden(Why::Known(Cause::Occluded))
+        );
+        // A 3 cm ball there is under a pixel wide at f = 50 px: too far for this view.
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 2.05], 0.03, Need::Cause),
+            Seen::Hidden(Why::Known(Cause::OutsideView))
+        );
+        // A ball touching the wall from the front: its central rays pass its entry point.
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 1.9], 0.1, Need::Cause),
+            Seen::Free
+        );
+        // Behind the camera, or projecting outside the image.
+        for p in [[0.0, 0.0, -1.0], [5.0, 0.0, 1.0]] {
+            assert_eq!(
+                judge(&o, &px, None, p, 0.03, Need::Cause),
+                Seen::Hidden(Why::Known(Cause::OutsideView))
+            );
+        }
+    }
+
+    #[test]
+    fn dropped_pixels_do_not_keep_a_ball_a_dark_disc_does() {
+        let o = optics();
+        // Every other pixel dropped, in a checkerboard: each footprint keeps returns.
+        let (rays, free, robot) = pixels(
+            &o,
+            |u, v| if (u + v) % 2 == 0 { f32::NAN } else { 2.0 },
+            |_, _| f32::INFINITY,
+        );
+        let px = Pixels {
+            rays: &rays,
+            free: &free,
+            robot: &robot,
+        };
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 1.0], 0.05, Need::Cause),
+            Seen::Free
+        );
+        // A disc of 12 pixels' radius about the centre returns nothing.
+        let (rays, free, robot) = pixels(
+            &o,
+            |u, v| {
+                let (du, dv) = (u as f32 - 31.5, v as f32 - 23.5);
+                if du * du + dv * dv < 144.0 {
+                    f32::NAN
+                } else {
+                    2.0
+                }
+            },
+            |_, _| f32::INFINITY,
+        );
+        let px = Pixels {
+            rays: &rays,
+            free: &free,
+            robot: &robot,
+        };
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 1.0], 0.05, Need::Cause),
+            Seen::Hidden(Why::Known(Cause::NoReturn))
+        );
+        assert_eq!(
+            judge(&o, &px, None, [0.0, 0.0, 1.0], 0.05, Need::Verdict),
+            Seen::Hidden(Why::Unknown)
+        );
+    }
+
+    #[test]
+    fn the_robot_in_front_makes_its_shadow() {
+        let o = optics();
+        // The robot's padded body 0.8 m along every central ray; its surface returned at 0.8 m.
+        let near = |u: usize, v: usize| (u as i32 - 32).abs() < 15 && (v as i32 - 24).abs() < 15;
+        let (rays, free, robot) = pixels(
+            &o,
+            |u, v| if near(u, v) { 0.8 } else { 2.0 },
+            |u, v| if near(u, v) { 0.8 } else { f32::INFINITY },
+        );
+        let px = Pixels {
+            rays: &rays,
+            free: &free,
+            robot: &robot,
+        };
+        let behind = [0.0, 0.0, 1.2];
+        assert_eq!(
+            judge(&o, &px, None, behind, 0.05, Need::Cause),
+            Seen::Hidden(Why::Known(Cause::RobotShadow))
+        );
+        assert_eq!(
+            judge(&o, &px, None, behind, 0.05, Need::Shadow),
+            Seen::Hidden(Why::Known(Cause::RobotShadow))
+        );
+        // The same returns with no robot rendered there: another body's shadow.
+        let (_, _, none) = pixels(&o, |_, _| 2.0, |_, _| f32::INFINITY);
+        let px = Pixels {
+            rays: &rays,
+            free: &free,
+            robot: &none,
+        };
+        assert_eq!(
+            judge(&o, &px, None, behind, 0.05, Need::Shadow),
+            Seen::Hidden(Why::NotShadow)
+        );
+    }
+}

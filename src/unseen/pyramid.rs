@@ -1,0 +1,209 @@
+//! Min/max pyramids of a view's per-pixel images (free distance, distance to the robot), for
+//! the footprint test's shortcuts: the largest and smallest value over a pixel rectangle from a
+//! few texels.
+//!
+//! Level 0 is the image itself (the pyramid owns it: the view writes its pixels there); level
+//! `k` holds, per texel, the minimum and maximum over the `2^k × 2^k` pixels it covers (clipped
+//! at the image's edge). A rectangle is read at the level whose texels are a quarter of its
+//! longer side (at most 5 × 5 texels): they cover a superset of it, a little larger, so the
+//! maximum read is at least the true one and the minimum at most, which is the side each
+//! shortcut needs (`footprint`).
+//!
+//! Cost: a third of the image's pixels to build, rows in parallel; up to 25 reads a query.
+
+use rayon::prelude::*;
+
+use super::footprint::Rect;
+
+/// The pyramids of a view's images (`prepared`): the free distance, the largest free distance of
+/// each 2 × 2 pixels (by their top-left pixel), and the distance to the robot.
+#[derive(Debug, Clone, Default)]
+pub struct Pyramids {
+    pub free: Pyramid,
+    pub pairs: Pyramid,
+    pub robot: Pyramid,
+}
+
+/// One level above the image: `width × height` texels.
+#[derive(Debug, Clone, Default)]
+struct Level {
+    width: usize,
+    height: usize,
+    min: Vec<f32>,
+    max: Vec<f32>,
+}
+
+/// The min/max pyramid of one image, which it holds.
+#[derive(Debug, Clone, Default)]
+pub struct Pyramid {
+    width: usize,
+    height: usize,
+    base: Vec<f32>,
+    levels: Vec<Level>,
+}
+
+impl Pyramid {
+    /// The image (`width × height`, row-major) to be written, its allocation reused.
+    pub fn base_mut(&mut self, width: usize, height: usize) -> &mut Vec<f32> {
+        self.width = width;
+        self.height = height;
+        self.base.resize(width * height, 0.0);
+        &mut self.base
+    }
+
+    /// The image.
+    pub fn base(&self) -> &[f32] {
+        &self.base
+    }
+
+    /// The image's value at pixel `(u, v)`.
+    #[inline]
+    pub fn at(&self, u: usize, v: usize) -> f32 {
+        self.base[v * self.width + u]
+    }
+
+    /// Builds the levels above the image as it now is.
+    pub fn build(&mut self) {
+        let count = levels_for(self.width.max(self.height)) - 1;
+        self.levels.resize_with(count, Level::default);
+        for k in 0..count {
+            let (done, rest) = self.levels.split_at_mut(k);
+            let to = &mut rest[0];
+            match done.last() {
+                None => reduce(&self.base, &self.base, self.width, self.height, to),
+                Some(from) => reduce(&from.min, &from.max, from.width, from.height, to),
+            }
+        }
+    }
+
+    /// The largest value over `rect`, or more.
+    pub fn max(&self, rect: Rect) -> f32 {
+        self.extreme(rect, f32::NEG_INFINITY, |l| &l.max, f32::max)
+    }
+
+    /// The smallest value over `rect`, or less.
+    pub fn min(&self, rect: Rect) -> f32 {
+        self.extreme(rect, f32::INFINITY, |l| &l.min, f32::min)
+    }
+
+    fn extreme(
+        &self,
+        rect: Rect,
+        start: f32,
+        values: impl Fn(&Level) -> &Vec<f32>,
+        pick: impl Fn(f32, f32) -> f32,
+    ) -> f32 {
+        let side = (rect.u1 - rect.u0 + 1).max(rect.v1 - rect.v0 + 1);
+        let k = (levels_for(side) - 1)
+            .saturating_sub(2)
+            .min(self.levels.len());
+        let (data, width, height) = match k {
+            0 => (&self.base, self.width, self.height),
+            _ => {
+                let level = &self.levels[k - 1];
+                (values(level), level.width, level.height)
+            }
+        };
+        let mut out = start;
+        for j in (rect.v0 >> k)..=(rect.v1 >> k).min(height - 1) {
+            for i in (rect.u0 >> k)..=(rect.u1 >> k).min(width - 1) {
+                out = pick(out, data[j * width + i]);
+            }
+        }
+        out
+    }
+}
+
+/// The levels a side of `n` pixels needs: `k` from 0 while `2^k < n`, and one with `2^k ≥ n`.
+fn levels_for(n: usize) -> usize {
+    (usize::BITS - n.max(1).saturating_sub(1).leading_zeros()) as usize + 1
+}
+
+/// `to`, the level above the one of extremes `min`, `max` (`fw × fh`): each texel the extremes
+/// of its (up to) four children.
+fn reduce(min: &[f32], max: &[f32], fw: usize, fh: usize, to: &mut Level) {
+    to.width = fw.div_ceil(2);
+    to.height = fh.div_ceil(2);
+    let n = to.width * to.height;
+    to.min.resize(n, 0.0);
+    to.max.resize(n, 0.0);
+    let w = to.width;
+    to.min
+        .par_chunks_mut(w)
+        .zip(to.max.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(j, (lo_row, hi_row))| {
+            let (r0, r1) = (2 * j * fw, (2 * j + 1).min(fh - 1) * fw);
+            pairs(&min[r0..r0 + fw], &min[r1..r1 + fw], lo_row, f32::min);
+            pairs(&max[r0..r0 + fw], &max[r1..r1 + fw], hi_row, f32::max);
+        });
+}
+
+/// `out[i]`: `pick` over columns `2i` and `2i + 1` (the last alone where the width is odd) of
+/// rows `a` and `b`.
+#[inline]
+fn pairs(a: &[f32], b: &[f32], out: &mut [f32], pick: fn(f32, f32) -> f32) {
+    let even = a.len() / 2;
+    for ((o, x), y) in out.iter_mut().zip(a.chunks_exact(2)).zip(b.chunks_exact(2)) {
+        *o = pick(pick(x[0], x[1]), pick(y[0], y[1]));
+    }
+    if a.len() % 2 == 1 {
+        let last = a.len() - 1;
+        out[even] = pick(a[last], b[last]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
+
+        /// The four texels bound the brute-force extremes of any rectangle, and a single pixel
+        /// reads itself.
+        #[test]
+        fn extremes_bound_the_brute_force_ones(
+            w in 1usize..40,
+            h in 1usize..40,
+            seed in any::<u64>(),
+            corners in prop::array::uniform4(0.0f64..1.0),
+        ) {
+            let mut s = seed | 1;
+            let image: Vec<f32> = (0..w * h)
+                .map(|_| {
+                    s ^= s << 13; s ^= s >> 7; s ^= s << 17;
+                    (s % 1000) as f32 / 100.0 - 2.0
+                })
+                .collect();
+            let mut p = Pyramid::default();
+            p.base_mut(w, h).copy_from_slice(&image);
+            p.build();
+            let pick = |x: f64, n: usize| ((x * n as f64) as usize).min(n - 1);
+            let (a, b) = (pick(corners[0], w), pick(corners[1], w));
+            let (c, d) = (pick(corners[2], h), pick(corners[3], h));
+            let rect = Rect { u0: a.min(b), u1: a.max(b), v0: c.min(d), v1: c.max(d) };
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for v in rect.v0..=rect.v1 {
+                for u in rect.u0..=rect.u1 {
+                    lo = lo.min(image[v * w + u]);
+                    hi = hi.max(image[v * w + u]);
+                }
+            }
+            prop_assert!(p.max(rect) >= hi && p.min(rect) <= lo);
+            let one = Rect { u0: a, u1: a, v0: c, v1: c };
+            prop_assert_eq!(p.max(one), image[c * w + a]);
+            prop_assert_eq!(p.min(one), image[c * w + a]);
+        }
+    }
+
+    #[test]
+    fn levels_cover_the_side() {
+        assert_eq!(levels_for(1), 1);
+        assert_eq!(levels_for(2), 2);
+        assert_eq!(levels_for(3), 3);
+        assert_eq!(levels_for(4), 3);
+        assert_eq!(levels_for(640), 11);
+    }
+}
