@@ -27,10 +27,10 @@
 //!   PointCloud2 with one encoder, depth images, exclusion volumes: these take `robot`'s meshes)
 //!   and `msg` → `tf` (TF buffer, joint states), both into `monitor`; `query` unprojects depth
 //!   images with `cloud::depth`;
-//! - after `query` and `cloud`: `unseen` (the space no source has seen free, as a voxel lattice
-//!   of the monitored volume, opened by the detection capability, and the certified distance to
-//!   it through the caller's query; it takes `cloud::depth` and `cloud::exclusion`), run by
-//!   `monitor::unobserved` over every source's latest view;
+//! - after `query` and `cloud`: `unseen` (the places of the monitored volume where a body of the
+//!   detection capability can hide from every source, judged by each ball's whole footprint,
+//!   and the certified distance to them through the caller's query; it takes `cloud::depth`),
+//!   run by `monitor::unseen` over every source's latest view;
 //! - beside them: `geometry` (mesh helpers, under `robot`), `choice` (the enums a parameter or a
 //!   flag picks by name), `stats` (percentiles of timings), and behind the default feature
 //!   `fixtures` the test fixtures: `scenario` (the bag generator, on the meshes, clouds and

@@ -216,6 +216,7 @@ fn depth_config_with(overrides: &[(&str, &str)]) -> Config {
         NO_LATENCY_BUDGET,
     ]
     .iter()
+    .chain(&common::SEEN_ONLY_FLOORLESS)
     .chain(overrides)
     .map(|(k, v)| (k.to_string(), v.to_string()))
     .collect();
@@ -317,7 +318,12 @@ fn depth_image_bags_measure_as_their_clouds_and_hold_their_truth() {
         // The same frames as clouds.
         let clouds = dir.path().join(format!("clouds_{}", encoding.name()));
         clouds_from_depth_bag(&bag, &clouds);
-        let budget = [NO_LATENCY_BUDGET].map(|(k, v)| (k.to_owned(), v.to_owned()));
+        let budget = [
+            NO_LATENCY_BUDGET,
+            common::SEEN_ONLY_FLOORLESS[0],
+            common::SEEN_ONLY_FLOORLESS[1],
+        ]
+        .map(|(k, v)| (k.to_owned(), v.to_owned()));
         let config = Config::load(Path::new(DEMO_CONFIG), &budget).unwrap();
         let (as_clouds, _) = replay_all(config, &clouds);
         assert_eq!(as_clouds.len(), depth.len());

@@ -46,6 +46,7 @@ fn monitor(extra: &[(&str, String)]) -> Monitor {
         // running beside it (or by a debug build) would otherwise WARN.
         ("latency_budget", "60".into()),
     ];
+    o.extend(common::SEEN_ONLY_FLOORLESS.map(|(k, v)| (k, v.to_owned())));
     o.extend(extra.iter().cloned());
     let o: Vec<(String, String)> = o.into_iter().map(|(k, v)| (k.into(), v)).collect();
     let config = Config::load(Path::new(common::DEMO_CONFIG), &o).unwrap();
@@ -91,7 +92,8 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
     let size = TABLE_SIZE.map(|e| e + 0.02);
     let at = TABLE_CENTER;
     let mut excluding = monitor(&[
-        ("exclusion_volumes", "[table]".into()),
+        // The demo config's floor stays listed (moved under the cell: it drops nothing).
+        ("exclusion_volumes", "[floor, table]".into()),
         ("table.frame", "world".into()),
         ("table.size", format!("{size:?}")),
         ("table.translation", format!("{at:?}")),
@@ -128,7 +130,10 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
         assert_eq!(stages(&ra.counts), stages(&rb.counts), "frame {k}");
         assert_eq!(
             ra.excluded,
-            vec![("table".to_string(), table_points as u64)]
+            vec![
+                ("floor".to_string(), 0),
+                ("table".to_string(), table_points as u64)
+            ]
         );
         assert_eq!(
             common::status_value(&a, "points_excluded.table"),
@@ -143,8 +148,10 @@ fn an_exclusion_box_around_the_table_removes_exactly_its_points() {
             person_stops += 1;
         }
         // The volume is drawn in RViz, in its frame.
+        // The table's, after the floor's.
         let shape = (a.outputs.closest_points.markers.iter())
-            .find(|m| m.ns == "exclusion_volumes")
+            .filter(|m| m.ns == "exclusion_volumes")
+            .nth(1)
             .expect("the volume's marker");
         assert_eq!(shape.header.frame_id, "world");
         assert_eq!((shape.scale.x, shape.pose.position.z), (size[0], at[2]));
@@ -173,7 +180,8 @@ fn an_exclusion_mesh_of_the_table_removes_exactly_its_points() {
     let half = TABLE_SIZE.map(|e| 0.5 * e as f32);
     common::write_stl(&stl, &common::box_triangles(half.map(|h| -h), half));
     let mut excluding = monitor(&[
-        ("exclusion_volumes", "[table]".into()),
+        // The demo config's floor stays listed (moved under the cell: it drops nothing).
+        ("exclusion_volumes", "[floor, table]".into()),
         ("table.frame", "world".into()),
         ("table.shape", "mesh".into()),
         ("table.mesh", stl.display().to_string()),
@@ -195,14 +203,19 @@ fn an_exclusion_mesh_of_the_table_removes_exactly_its_points() {
         let (ra, rb) = (a.result.as_ref().unwrap(), b.result.as_ref().unwrap());
         assert_eq!(
             ra.excluded,
-            vec![("table".to_string(), table_points as u64)],
+            vec![
+                ("floor".to_string(), 0),
+                ("table".to_string(), table_points as u64)
+            ],
             "frame {k}"
         );
         assert_eq!(ra.nearest, rb.nearest, "frame {k}");
         assert_eq!(a.outputs.level, b.outputs.level, "frame {k}");
         // Drawn in RViz from its file.
+        // The table's, after the floor's.
         let shape = (a.outputs.closest_points.markers.iter())
-            .find(|m| m.ns == "exclusion_volumes")
+            .filter(|m| m.ns == "exclusion_volumes")
+            .nth(1)
             .expect("the volume's marker");
         assert!(
             shape.mesh_resource.ends_with("table.stl"),

@@ -27,7 +27,7 @@ const HEIGHT: &str = "240";
 const FRAMES: &str = "10";
 
 /// The monitored volume the demo camera covers and the floor's exclusion volume, as
-/// `tests/unseen_replay.rs` (`VOLUME`, `FLOOR`) and `config/demo_arm_unobserved.yaml` set them.
+/// `tests/unseen_replay.rs` (`VOLUME`, `FLOOR`) and `config/demo_arm.yaml` set them.
 const VOLUME_SIZE: &str = "[1.0, 0.9, 0.6]";
 const VOLUME_TRANSLATION: &str = "[-0.1, 0.0, 0.3]";
 const FLOOR_SIZE: &str = "[8.0, 8.0, 0.2]";

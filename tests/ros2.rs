@@ -55,14 +55,18 @@ fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
         &["params".as_ref(), "/ist_monitor".as_ref()],
     );
 
-    // Every parameter of the declaration table, expanded for the one source.
+    // Every parameter of the declaration table, expanded for the demo config's one source, its
+    // monitored volume and its floor.
     let listed: Vec<&str> = out["list"]
         .as_array()
         .unwrap()
         .iter()
         .map(|n| n.as_str().unwrap())
         .collect();
-    let expected = ist_monitor::config::Config::default().parameters();
+    let demo = Path::new(common::DEMO_CONFIG);
+    let expected = (ist_monitor::config::Config::load(demo, &overrides(&common::at_rest_args())))
+        .unwrap()
+        .parameters();
     assert_eq!(listed.len(), expected.len());
     for p in &expected {
         assert!(listed.contains(&p.name.as_str()), "{} not listed", p.name);

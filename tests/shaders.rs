@@ -5,9 +5,9 @@
 //! declares a generated constant itself.
 
 use ist_monitor::query::layout::{
-    shader_source, unproject_source, wgsl_constants, Minima, Mirror, Reduce, MINIMA_U32_WGSL,
-    MINIMA_U64_WGSL, MIRRORS, REDUCE_SHARED_WGSL, REDUCE_SUBGROUPS_WGSL, TRAVERSE_WGSL,
-    UNPROJECT_MIRRORS, UNPROJECT_WGSL,
+    cell_source, shader_source, unproject_source, wgsl_constants, Minima, Mirror, Reduce,
+    CELL_MIRRORS, CELL_WGSL, MINIMA_U32_WGSL, MINIMA_U64_WGSL, MIRRORS, REDUCE_SHARED_WGSL,
+    REDUCE_SUBGROUPS_WGSL, TRAVERSE_WGSL, UNPROJECT_MIRRORS, UNPROJECT_WGSL,
 };
 use naga::valid::{Capabilities, ShaderStages, SubgroupOperationSet};
 
@@ -89,6 +89,10 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
     let m = module(&unproject_source(), "unproject", Capabilities::empty());
     let entries: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
     assert_eq!(entries, ["unproject"]);
+    // The unseen space's cells likewise.
+    let m = module(&cell_source(), "cell", Capabilities::empty());
+    let entries: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(entries, ["judge_cells"]);
     let used = [
         TRAVERSE_WGSL,
         MINIMA_U64_WGSL,
@@ -96,6 +100,7 @@ fn the_composed_shader_validates_both_ways_and_uses_every_file() {
         REDUCE_SUBGROUPS_WGSL,
         REDUCE_SHARED_WGSL,
         UNPROJECT_WGSL,
+        CELL_WGSL,
     ];
     let mut n = 0;
     for entry in std::fs::read_dir(dir).unwrap() {
@@ -126,6 +131,10 @@ fn mirrored_structs_have_the_host_members_at_the_host_offsets() {
     modules.push((
         module(&unproject_source(), "unproject", Capabilities::empty()),
         UNPROJECT_MIRRORS,
+    ));
+    modules.push((
+        module(&cell_source(), "cell", Capabilities::empty()),
+        CELL_MIRRORS,
     ));
     for (module, mirrors) in &modules {
         for mirror in *mirrors {
@@ -168,6 +177,7 @@ fn no_shader_file_declares_a_generated_constant() {
             ("reduce_subgroups.wgsl", REDUCE_SUBGROUPS_WGSL),
             ("reduce_shared.wgsl", REDUCE_SHARED_WGSL),
             ("unproject.wgsl", UNPROJECT_WGSL),
+            ("cell.wgsl", CELL_WGSL),
         ] {
             assert!(
                 !text.contains(&format!("const {name}:")),

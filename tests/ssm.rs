@@ -274,8 +274,8 @@ proptest! {
 }
 
 fn replay_rows(bag: &std::path::Path, overrides: &[(&str, &str)]) -> Vec<ReplayFrame> {
-    let o: Vec<(String, String)> = overrides
-        .iter()
+    // The generator's floorless scene: what the camera sees alone.
+    let o: Vec<(String, String)> = (common::SEEN_ONLY_FLOORLESS.iter().chain(overrides))
         .map(|(a, b)| (a.to_string(), b.to_string()))
         .collect();
     let config = Config::load(std::path::Path::new(common::DEMO_CONFIG), &o).unwrap();

@@ -19,8 +19,8 @@ use ist_monitor::ist::{InnerSphere, IstNode};
 use ist_monitor::query::QueryLink;
 use ist_monitor::unseen::{
     judge_cell, padded_spheres, BallSize, Batch, CellSeen, Lattice, Need, PlacedView, PreparedView,
-    RangeView, RobotBody, Search, DEFAULT_DETECTION_CAPABILITY_M, DEFAULT_RANGE_NOISE_M,
-    DEFAULT_RESOLUTION_M,
+    RangeView, RobotBody, RobotImage, Search, DEFAULT_DETECTION_CAPABILITY_M,
+    DEFAULT_RANGE_NOISE_M, DEFAULT_RESOLUTION_M,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -246,13 +246,23 @@ fn views(
     cameras: &[(PinholeCamera, Isometry3<f64>, Vec<f32>)],
     padding: f32,
 ) -> Vec<PreparedView> {
+    prepared(robot, cameras, padding, RobotImage::Whole)
+}
+
+/// The views of `robot` from `cameras`, its image rendered as `image` says.
+fn prepared(
+    robot: &Robot,
+    cameras: &[(PinholeCamera, Isometry3<f64>, Vec<f32>)],
+    padding: f32,
+    image: RobotImage,
+) -> Vec<PreparedView> {
     let poses = [Isometry3::identity()];
     let spheres = padded_spheres(&robot.link, &poses, padding, 0.0);
     (cameras.iter())
         .map(|(c, pose, depths)| {
             let view = RangeView::new(*c, *pose, depths, None, DEFAULT_RANGE_NOISE_M).unwrap();
             let mut p = PreparedView::default();
-            p.prepare(&view, &spheres);
+            p.prepare(&view, &spheres, image);
             p
         })
         .collect()
@@ -266,6 +276,34 @@ fn search(
     ball: &BallSize,
     apart: bool,
 ) -> ist_monitor::unseen::Found {
+    searching(lattice, robot, views, ball, apart, &mut |s| {
+        s.run::<()>(|c, _| Ok(robot.batch(c))).unwrap()
+    })
+}
+
+/// `found` with its causes named over `views`.
+fn named(
+    lattice: &Lattice,
+    robot: &Robot,
+    views: &[PreparedView],
+    ball: &BallSize,
+    mut found: ist_monitor::unseen::Found,
+) -> ist_monitor::unseen::Found {
+    searching(lattice, robot, views, ball, false, &mut |s| {
+        s.name_causes(&mut found);
+        found.clone()
+    })
+}
+
+/// `then` of the search over `views`.
+fn searching(
+    lattice: &Lattice,
+    robot: &Robot,
+    views: &[PreparedView],
+    ball: &BallSize,
+    apart: bool,
+    then: &mut dyn FnMut(&Search) -> ist_monitor::unseen::Found,
+) -> ist_monitor::unseen::Found {
     let body = RobotBody::new(
         lattice,
         &robot.link,
@@ -277,6 +315,7 @@ fn search(
     let s = Search {
         lattice,
         views: &refs,
+        verdicts: &[],
         robot: &body,
         excluded: &|_| false,
         size: *ball,
@@ -284,7 +323,7 @@ fn search(
         per_link_range_m: Some(f64::INFINITY),
         markers: 16,
     };
-    s.run::<()>(|c, _| Ok(robot.batch(c))).unwrap()
+    then(&s)
 }
 
 /// Every centre tested on its own: the least distance over the hidden ones (counted, and with
@@ -397,6 +436,15 @@ proptest! {
         // The search against every centre tested on its own.
         let brute = brute_force(&lattice, &robot, &views, &size, false).map(|l| size.distance(l));
         prop_assert_eq!(Some(unseen), brute);
+        // The causes named with each view's robot image rendered only in the rows they read
+        // are those of the whole image, and the nearest place's is one.
+        let whole = named(&lattice, &robot, &views, &size, found.clone());
+        let mut deferred = prepared(&robot, &rendered, padding as f32, RobotImage::Deferred);
+        let spots = Search::spots(&found);
+        deferred.iter_mut().for_each(|v| v.render_robot_for(&spots, size.radius_m));
+        let lazy = named(&lattice, &robot, &deferred, &size, found.clone());
+        prop_assert_eq!(&whole.nearest, &lazy.nearest);
+        prop_assert_eq!(&whole.near, &lazy.near);
         let per_link = size.distance(found.per_link[0]);
         prop_assert!(per_link <= truth && per_link >= unseen - 1e-12, "per link {per_link}");
         if !robot_hides_ball {

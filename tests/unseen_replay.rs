@@ -14,6 +14,7 @@ use ist_monitor::config::Config;
 use ist_monitor::monitor::replay::{self, Clock, ReplayFrame};
 use ist_monitor::monitor::{Level, Monitor};
 use ist_monitor::scenario::{ScenarioParams, SceneKind};
+use ist_monitor::unseen::{judge, BallSize, Need, PlacedView, Seen};
 
 /// The monitored volume the demo camera covers: x −0.6…0.4, y −0.45…0.45, z 0…0.6 m.
 const VOLUME: [(&str, &str); 2] = [
@@ -29,6 +30,9 @@ const FLOOR: [(&str, &str); 5] = [
     ("floor.size", "[8.0, 8.0, 0.2]"),
     ("floor.translation", "[0.0, 0.0, -0.06]"),
 ];
+
+/// The robot's shadow counted as any hidden space (the demo configs report it apart).
+const COUNT: (&str, &str) = ("unobserved_self_shadow", "count");
 
 const TWO_CAMERAS: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -55,12 +59,13 @@ fn generate(
     (dir, out)
 }
 
-/// The rows of `bag` replayed with `config` and the floor, the volume and `overrides`.
-fn replay_rows(
+/// The monitor after replaying `bag` with `config` and the floor, the volume and `overrides`,
+/// and its rows.
+fn replay_monitor(
     bag: &std::path::Path,
     config: &str,
     overrides: &[(&str, &str)],
-) -> Vec<ReplayFrame> {
+) -> (Monitor, Vec<ReplayFrame>) {
     // Levels are compared between runs: the latency budget's WARN (a loaded machine) is left out.
     let budget = [("latency_budget", "10.0")];
     let o: Vec<(String, String)> = (FLOOR.iter().chain(&VOLUME).chain(&budget).chain(overrides))
@@ -74,7 +79,16 @@ fn replay_rows(
         rows.push(f.clone())
     })
     .unwrap();
-    rows
+    (monitor, rows)
+}
+
+/// The rows of `bag` replayed with `config` and the floor, the volume and `overrides`.
+fn replay_rows(
+    bag: &std::path::Path,
+    config: &str,
+    overrides: &[(&str, &str)],
+) -> Vec<ReplayFrame> {
+    replay_monitor(bag, config, overrides).1
 }
 
 fn truth(r: &ReplayFrame) -> f64 {
@@ -130,7 +144,7 @@ fn a_dark_person_is_within_the_unseen_distance_and_protect_stops() {
     let apart = [("unobserved_self_shadow", "apart")];
     let report = replay_rows(&bag, cfg, &[apart[0], ("unobserved", "report")]);
     let protect = replay_rows(&bag, cfg, &[apart[0], ("unobserved", "protect")]);
-    let counted = replay_rows(&bag, cfg, &[("unobserved", "protect")]);
+    let counted = replay_rows(&bag, cfg, &[COUNT, ("unobserved", "protect")]);
     assert_eq!(report.len(), 30);
     let mut near = 0;
     for ((r, p), c) in report.iter().zip(&protect).zip(&counted) {
@@ -204,8 +218,8 @@ fn ordinary_dropouts_do_not_stop_the_cell() {
 fn a_person_in_the_arms_shadow_is_within_the_unseen_distance() {
     let (_dir, bag) = generate(SceneKind::Shadow, |p| p.camera_dropouts = 0.05);
     let cfg = common::DEMO_CONFIG;
-    let report = replay_rows(&bag, cfg, &[("unobserved", "report")]);
-    let protect = replay_rows(&bag, cfg, &[("unobserved", "protect")]);
+    let report = replay_rows(&bag, cfg, &[COUNT, ("unobserved", "report")]);
+    let protect = replay_rows(&bag, cfg, &[COUNT, ("unobserved", "protect")]);
     for (r, p) in report.iter().zip(&protect) {
         let t = truth(r);
         assert_within_truth(r, t);
@@ -226,7 +240,7 @@ fn a_second_camera_closes_the_arms_shadow() {
     let report = ("unobserved", "report");
     let apart = ("unobserved_self_shadow", "apart");
     let both = replay_rows(&bag, TWO_CAMERAS, &[report, apart]);
-    let counted = replay_rows(&bag, TWO_CAMERAS, &[report]);
+    let counted = replay_rows(&bag, TWO_CAMERAS, &[report, COUNT]);
     let one = replay_rows(
         &bag,
         TWO_CAMERAS,
@@ -249,8 +263,8 @@ fn a_second_camera_closes_the_arms_shadow() {
                     row.index, row.source, row.unseen_m
                 );
             }
-            let (_, shadow) = r.unseen_hidden.expect("counts");
-            let (_, shadow_alone) = alone.unseen_hidden.expect("counts");
+            let shadow = r.unseen_counts.expect("counts").shadow;
+            let shadow_alone = alone.unseen_counts.expect("counts").shadow;
             assert!(
                 10 * shadow <= shadow_alone && shadow_alone > 1000,
                 "frame {}: the robot's shadow {shadow} cells with both cameras, {shadow_alone} \
@@ -264,5 +278,101 @@ fn a_second_camera_closes_the_arms_shadow() {
     assert!(
         far >= 8,
         "only {far} frames with the person farther than 0.9 m"
+    );
+}
+
+/// The cells judged on the GPU in the depth query's submission (`shaders/cell.wgsl`, the image
+/// uploaded once for both) answer as the CPU's scan: a dark person walks up, the camera's frames
+/// 16UC1 depth images, replayed with `backend: gpu` and `cpu` (the second camera's config, that
+/// camera off). The GPU judged the view's cells on
+/// every frame; the unseen distance and its cause are the CPU's on most frames, and never more
+/// than one cell's diagonal apart (a centre at the edge of a ray's test may fall either way in
+/// f32 sums done in another order). In CI the GPU is Mesa's lavapipe.
+#[test]
+fn the_gpu_judges_the_unseen_cells_as_the_cpu() {
+    let (_dir, bag) = generate(SceneKind::Person, |p| {
+        p.dark = true;
+        p.camera_dropouts = 0.05;
+        p.frames = 12;
+        p.depth = Some(ist_monitor::cloud::depth::DepthEncoding::Millimetres16);
+    });
+    // The image goes to the GPU whole where no exclusion volume needs its points on the host:
+    // the floor's is the side camera's alone here (disabled), so the camera's floor points are
+    // measured (and stop the cell: its levels are not compared).
+    let depth = [
+        COUNT,
+        ("unobserved", "report"),
+        ("camera.type", "depth_image"),
+        ("camera.topic", ist_monitor::scenario::DEPTH_TOPIC),
+        ("side_camera.enabled", "false"),
+        ("floor.sources", "[side_camera]"),
+    ];
+    let with = |backend| {
+        let mut o = depth.to_vec();
+        o.push(("backend", backend));
+        replay_monitor(&bag, TWO_CAMERAS, &o)
+    };
+    let (cpu, (monitor, gpu)) = (with("cpu").1, with("gpu"));
+    assert_eq!(cpu.len(), 12);
+    assert_eq!(gpu.len(), 12);
+    if gpu[0].backend != Some(ist_monitor::query::Backend::Gpu) {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI: the depth images ran on {:?}",
+            gpu[0].backend
+        );
+        common::skip("no GPU adapter and CI is not set");
+        return;
+    }
+    let diagonal = 0.02 * 3f64.sqrt();
+    let mut same = 0;
+    for (c, g) in cpu.iter().zip(&gpu) {
+        let on_gpu = |r: &ReplayFrame| r.unseen_counts.expect("counts").views_on_gpu;
+        assert_eq!((on_gpu(c), on_gpu(g)), (0, 1), "frame {}", g.index);
+        let (dc, dg) = (unseen(c), unseen(g));
+        assert!(
+            (dc - dg).abs() <= diagonal,
+            "frame {}: CPU {dc}, GPU {dg}",
+            g.index
+        );
+        if dc == dg && c.unseen_cause == g.unseen_cause {
+            same += 1;
+        }
+    }
+    assert!(same >= 10, "only {same} of 12 frames the same");
+    // The last frame's every cell: the GPU's word is the CPU's rule's, each ball judged alone
+    // (the base ball, and where it stays hidden each sub-ball), but for a few at an edge.
+    let space = monitor.unseen_space();
+    let (lattice, words) = space.gpu_cells(0).expect("the last frame's verdicts");
+    let view = space.view(0).expect("the camera's view");
+    let placed = PlacedView::new(view, lattice);
+    let size = BallSize::new(lattice, 0.07).unwrap();
+    let cpu_word = |index: usize| {
+        let ijk = lattice.ijk(index);
+        let free =
+            |p, r| judge(view.optics(), &view.pixels(), None, p, r, Need::Verdict) == Seen::Free;
+        if free(placed.centre(ijk), size.radius_m) {
+            return 1;
+        }
+        (0..8)
+            .filter(|&k| free(placed.sub_centre(ijk, k), size.sub_radius_m))
+            .fold(0, |w, k| w | 2 << k)
+    };
+    let (mut differ, mut base_free, mut base_hidden) = (0, 0, 0);
+    for (index, &word) in words.iter().enumerate() {
+        if word == cpu_word(index) {
+            if word == 1 {
+                base_free += 1;
+            } else {
+                base_hidden += 1;
+            }
+        } else {
+            differ += 1;
+        }
+    }
+    assert!(
+        differ * 1000 <= words.len() && base_free > 1000 && base_hidden > 1000,
+        "{differ} of {} cells differ ({base_free} free, {base_hidden} hidden alike)",
+        words.len()
     );
 }

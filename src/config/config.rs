@@ -84,7 +84,7 @@ pub struct Config {
     pub attached_objects: Vec<AttachedObject>,
     /// Speed and separation monitoring.
     pub ssm: SsmParams,
-    /// What no source has seen free (`monitor::unobserved`).
+    /// What no source has seen (`monitor::unseen`).
     pub unobserved: Unobserved,
     /// Whether the live node publishes its log on `/rosout` (`--disable-rosout-logs`; not a
     /// parameter).

@@ -1,8 +1,8 @@
 //! The unobserved-space parameters (issue 45): the policy (`unobserved`), what the robot's own
 //! shadow counts as (`unobserved_self_shadow`), the grid's resolution, the detection capability
 //! (m), the monitored volume (a box in a frame, or the robot's reach plus a margin) and how many
-//! unseen cells are drawn. Read into [`Unobserved`]; the monitor (`monitor::unobserved`) runs
-//! the `unseen` stage with them. Each source's `range_noise` is read with the source.
+//! hidden places are drawn. Read into [`Unobserved`]; the monitor (`monitor::unseen`) runs the
+//! `unseen` stage with them. Each source's `range_noise` is read with the source.
 
 use nalgebra::Isometry3;
 
@@ -27,7 +27,7 @@ pub struct Unobserved {
     pub self_shadow: SelfShadow,
     pub resolution_m: f64,
     pub detection_capability_m: f64,
-    /// `None`: the robot's reach plus `margin_m` (`monitor::unobserved`).
+    /// `None`: the robot's reach plus `margin_m` (`monitor::unseen`).
     pub volume: Option<MonitoredVolume>,
     pub margin_m: f64,
     /// Most unseen cells drawn.
@@ -57,13 +57,13 @@ pub(super) fn unobserved(v: &Values) -> Result<Unobserved, ConfigError> {
     let resolution_m = positive("unobserved_resolution")?;
     let detection_capability_m = positive("detection_capability")?;
     let needed = resolution_m * 3f64.sqrt();
-    if detection_capability_m < needed {
+    if detection_capability_m <= needed {
         return Err(Values::bad(
             "detection_capability",
             format!(
-                "{detection_capability_m} m is finer than the grid resolves: at least the cell \
+                "{detection_capability_m} m is finer than the grid resolves: more than the cell \
                  diagonal, {needed:.4} m at unobserved_resolution {resolution_m} m (a body of it \
-                 might hold no cell centre)"
+                 need hold no ball about its cell's centre)"
             ),
         ));
     }

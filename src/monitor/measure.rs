@@ -30,7 +30,7 @@ use super::fusion::Moment;
 use super::pipeline::{Frame, Monitor};
 use super::report::{published_distance, FrameFacts};
 use super::stray;
-use super::unseen::{view_of, PassInputs};
+use super::unseen::{view_of, At, PassInputs};
 
 /// What a processed cloud leaves for the separation stage.
 pub(super) struct Motion {
@@ -72,11 +72,13 @@ impl Monitor {
         match &processed {
             Ok((_, motion)) if self.unseen.enabled() => {
                 let unseen = self.unseen.run(PassInputs {
-                    stamp_ns,
-                    poses: &motion.poses,
-                    kinematics: &self.model.kinematics,
+                    at: At {
+                        stamp_ns,
+                        poses: &motion.poses,
+                        kinematics: &self.model.kinematics,
+                        tf: &self.tf,
+                    },
                     engine: &mut self.engine,
-                    tf: &self.tf,
                 });
                 unseen_s = Some(unseen.compute_s);
                 if let Ok(f) = &unseen.outcome {
@@ -364,14 +366,29 @@ impl Monitor {
             || (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));
         let (points, width) = match points {
             Points::Depth { view, points } if !needs_points => {
+                // On the GPU the same submission judges the unseen space's cells in this view.
+                let gpu_cells =
+                    self.unseen.enabled() && self.config.query.wants_gpu_for_depth(view.len());
+                if gpu_cells {
+                    let at = At {
+                        stamp_ns,
+                        poses: &poses,
+                        kinematics: &self.model.kinematics,
+                        tf: &self.tf,
+                    };
+                    self.unseen.request_cells(source, &at, &mut self.engine);
+                }
                 let result = self.engine.query_depth(
                     view,
                     points,
                     &root_from_sensor,
                     &poses,
                     &self.config.query,
-                )?;
-                return self.finish_measure(result, Vec::new(), poses, stamp_ns, now_ns);
+                );
+                if gpu_cells {
+                    self.unseen.take_cells(source, &mut self.engine);
+                }
+                return self.finish_measure(result?, Vec::new(), poses, stamp_ns, now_ns);
             }
             Points::Depth { view, points } => {
                 view.unproject_into(points);

@@ -244,7 +244,8 @@ impl Outputs {
         markers.extend(shape_markers(config, header.stamp));
         let mut statuses = source_statuses(config, robot, &fused);
         statuses.push(cell_status(config, robot, &fused));
-        let unseen = (fused.unseen).map(|u| unseen_messages(config, robot, &header, u, &fused));
+        let unseen = (fused.unseen)
+            .map(|u| unseen_messages(config, robot, &header, u, fused.level, fused.unseen_limits));
         let (unseen_distance, unseen_link_distances) = match unseen {
             Some(m) => {
                 markers.push(m.marker);

@@ -94,6 +94,17 @@ impl Monitor {
         self.unseen.last()
     }
 
+    /// The unseen space: its settings, its sources' latest views, its latest pass.
+    pub fn unseen_space(&self) -> &UnseenSpace {
+        &self.unseen
+    }
+
+    /// Source `source`'s latest unseen-space view with the robot's image rendered whole (the
+    /// pass renders only the rows it reads unless the shadow is apart), to draw it.
+    pub fn unseen_view_whole(&mut self, source: usize) -> Option<&crate::unseen::PreparedView> {
+        self.unseen.view_whole(source)
+    }
+
     /// How many links the engine monitors (after `links`/`exclude_links`).
     pub fn links(&self) -> usize {
         self.engine.links().len()

@@ -88,9 +88,10 @@ pub struct ReplayFrame {
     /// it is (root frame, m).
     pub unseen_cause: Option<&'static str>,
     pub unseen_point: Option<[f32; 3]>,
-    /// Hidden places the search found: counted, and in the robot's shadow apart (`apart`: all
-    /// of the volume's where nothing counted is hidden, as the search then examines it whole).
-    pub unseen_hidden: Option<(usize, usize)>,
+    /// What the search counted: among them the hidden places it found, counted and in the
+    /// robot's shadow apart (`apart`: all of the volume's where nothing counted is hidden, as
+    /// the search then examines it whole), and the views whose cells the GPU judged.
+    pub unseen_counts: Option<crate::unseen::Counts>,
     /// The unobserved-space pass, ms, and each of its stages.
     pub unseen_ms: Option<f64>,
     pub unseen_stages_ms: Vec<(&'static str, f64)>,
@@ -201,6 +202,19 @@ pub fn replay(
     clock: Clock,
     on_frame: &mut dyn FnMut(&ReplayFrame),
 ) -> Result<Summary, ReplayError> {
+    replay_frames(monitor, bag, out, clock, usize::MAX, on_frame)
+}
+
+/// [`replay`] up to `frames` clouds: the monitor then holds the state of the last one (its
+/// sources' latest results and views, the latest unseen-space pass), for what is drawn of it.
+pub fn replay_frames(
+    monitor: &mut Monitor,
+    bag: &Path,
+    out: Option<(&Path, Compression)>,
+    clock: Clock,
+    frames: usize,
+    on_frame: &mut dyn FnMut(&ReplayFrame),
+) -> Result<Summary, ReplayError> {
     monitor.reset()?;
     let messages = read(monitor, bag)?;
     let truths = Truths::of(&messages);
@@ -215,6 +229,9 @@ pub fn replay(
     let mut times = Vec::new();
     let mut unseen_times = Vec::new();
     for m in &messages {
+        if summary.frames >= frames {
+            break;
+        }
         summary.input_errors += feed(monitor, &m.topic, &m.data);
         let Some(source) = monitor.source_of(&m.topic) else {
             continue;
@@ -452,7 +469,7 @@ impl ReplayFrame {
             unseen_all_seen: (o.unseen_distance.as_ref()).is_some_and(|r| r.range == f32::INFINITY),
             unseen_cause: frame.unseen_nearest.map(|n| n.cause.name()),
             unseen_point: frame.unseen_nearest.map(|n| n.centre),
-            unseen_hidden: frame.unseen_counts.map(|c| (c.hidden, c.shadow)),
+            unseen_counts: frame.unseen_counts,
             unseen_ms: frame.unseen_s.map(|s| s * 1e3),
             unseen_stages_ms: (frame.unseen_stages_s.iter())
                 .map(|(n, s)| (*n, s * 1e3))

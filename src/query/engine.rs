@@ -296,6 +296,22 @@ impl Engine {
         }
     }
 
+    /// Asks the next depth query that runs on the GPU to judge the unseen space's cells in the
+    /// same submission (`gpu::GpuEngine::request_cells`); `None` takes the request back.
+    pub fn request_cells(&mut self, request: Option<layout::CellParams>) {
+        if let GpuSlot::Ready(g) = &mut self.gpu {
+            g.request_cells(request);
+        }
+    }
+
+    /// The cells' verdicts of the last depth query, where it ran them on the GPU.
+    pub fn take_cells(&mut self) -> Option<Vec<u32>> {
+        match &mut self.gpu {
+            GpuSlot::Ready(g) => g.take_cells(),
+            _ => None,
+        }
+    }
+
     /// Builds the self-filter's grids for the padding of `options` now, so that the first
     /// query does not (the node does this before it takes its first cloud).
     pub fn prepare_self_filter(&mut self, options: &QueryOptions) {

@@ -442,6 +442,43 @@ pub struct DepthParams {
 }
 const _: () = assert!(size_of::<DepthParams>() == 64);
 
+/// One view's lattice cells to judge on the GPU (`shaders/cell.wgsl`, in the depth query's
+/// submission): the image's camera and range limits, the range noise and the f32 rounding the
+/// free distances lose, the pixel angle's cosine and sine, the base and sub-balls' radii, and
+/// the lattice placed in the camera frame (its first centre and a step per index). Made by the
+/// unseen space (`unseen::PlacedView`, `unseen::BallSize`) with the CPU's very values. WGSL
+/// `CellParams` (a uniform).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable, Debug, PartialEq)]
+pub struct CellParams {
+    pub width: u32,
+    pub height: u32,
+    pub n0: u32,
+    pub n1: u32,
+    pub n2: u32,
+    pub cells: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub min_range: f32,
+    pub max_range: f32,
+    pub noise: f32,
+    pub rounding: f32,
+    pub cos_k: f32,
+    pub sin_k: f32,
+    pub ball: f32,
+    pub sub_ball: f32,
+    /// x y z and 0 (a WGSL `vec4<f32>`).
+    pub origin: [f32; 4],
+    pub step0: [f32; 4],
+    pub step1: [f32; 4],
+    pub step2: [f32; 4],
+}
+const _: () = assert!(size_of::<CellParams>() == 144);
+
 /// A host struct mirrored in WGSL: its WGSL name, size, and members with their offsets.
 pub struct Mirror {
     pub wgsl: &'static str,
@@ -540,6 +577,16 @@ pub const UNPROJECT_MIRRORS: &[Mirror] = &[mirror!(
     ]
 )];
 
+/// The structs of `shaders/cell.wgsl`.
+pub const CELL_MIRRORS: &[Mirror] = &[mirror!(
+    "CellParams",
+    CellParams,
+    [
+        width, height, n0, n1, n2, cells, pad0, pad1, fx, fy, cx, cy, min_range, max_range, noise,
+        rounding, cos_k, sin_k, ball, sub_ball, origin, step0, step1, step2
+    ]
+)];
+
 /// The WGSL declarations of the constants and codes above, generated so that the shader never
 /// repeats a number of the host's.
 pub fn wgsl_constants() -> String {
@@ -590,6 +637,8 @@ pub const REDUCE_SUBGROUPS_WGSL: &str = include_str!("../../shaders/reduce_subgr
 pub const REDUCE_SHARED_WGSL: &str = include_str!("../../shaders/reduce_shared.wgsl");
 /// The depth images' unprojection, embedded.
 pub const UNPROJECT_WGSL: &str = include_str!("../../shaders/unproject.wgsl");
+/// The unseen space's cells, embedded.
+pub const CELL_WGSL: &str = include_str!("../../shaders/cell.wgsl");
 /// The minima in 64-bit atomics ([`Minima::Packed64`]).
 pub const MINIMA_U64_WGSL: &str = include_str!("../../shaders/minima_u64.wgsl");
 /// The minima in 32-bit atomics and the arg-min pass ([`Minima::Split32`]).
@@ -612,4 +661,9 @@ pub fn shader_source(minima: Minima, reduce: Reduce) -> String {
 /// The unprojection shader as compiled: the generated constants, then `shaders/unproject.wgsl`.
 pub fn unproject_source() -> String {
     format!("{}\n{UNPROJECT_WGSL}", wgsl_constants())
+}
+
+/// The cells' shader as compiled: the generated constants, then `shaders/cell.wgsl`.
+pub fn cell_source() -> String {
+    format!("{}\n{CELL_WGSL}", wgsl_constants())
 }

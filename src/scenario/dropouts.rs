@@ -17,7 +17,7 @@
 //!
 //! Cost: one pass over the pixels and the clusters' discs.
 
-use super::renderer::{Hit, Noise};
+use super::noise::Noise;
 
 /// Probability that an edge pixel drops.
 pub const EDGE: f64 = 0.5;
@@ -31,11 +31,11 @@ pub(super) struct CameraDropouts {
     noise: Noise,
 }
 
-/// What the model needs of a pixel: what it hit at what range, and the hit's height above the
-/// floor (root z, m).
+/// What the model needs of a pixel: the range of what it hit (`None`: nothing), and where that
+/// is the person, the hit's height above the floor (root z, m).
 pub(super) struct Pixel {
-    pub hit: Option<(f64, Hit)>,
-    pub height_m: f64,
+    pub range_m: Option<f64>,
+    pub person_height_m: Option<f64>,
 }
 
 impl CameraDropouts {
@@ -48,15 +48,15 @@ impl CameraDropouts {
     }
 
     /// Drops (NaN) the pixels of `points` (`width × height`, row-major) the model drops, given
-    /// `pixels` (the same order); `person` (the scene's obstacle 1 is a person, `top_m` the top
-    /// of its shape) says whether it has hair and shoes. The count dropped by the model (a
-    /// pixel the renderer dropped already counts where the model drops it too).
+    /// `pixels` (the same order); `person_top_m`: the top of the person's shape, where the scene
+    /// has one. The count dropped by the model (a pixel the renderer dropped already counts
+    /// where the model drops it too).
     pub fn apply(
         &mut self,
         pixels: &[Pixel],
         width: usize,
         height: usize,
-        person: Option<f64>,
+        person_top_m: Option<f64>,
         points: &mut [[f32; 3]],
     ) -> usize {
         if self.rate <= 0.0 {
@@ -64,7 +64,7 @@ impl CameraDropouts {
         }
         let mut dropped = vec![false; pixels.len()];
         // 1. Depth edges.
-        let range = |i: usize| pixels[i].hit.map(|(t, _)| t);
+        let range = |i: usize| pixels[i].range_m;
         for (i, d) in dropped.iter_mut().enumerate() {
             let (u, v) = (i % width, i / width);
             let Some(t) = range(i) else { continue };
@@ -81,10 +81,11 @@ impl CameraDropouts {
             *d |= edge && draw < EDGE;
         }
         // 2. Dark surfaces: the person's hair and shoes.
-        if let Some(top) = person {
+        if let Some(top) = person_top_m {
             for (d, p) in dropped.iter_mut().zip(pixels) {
-                let on_person = matches!(p.hit, Some((_, Hit::Scene(1))));
-                *d |= on_person && (p.height_m > top - HAIR_M || p.height_m < SHOES_M);
+                *d |= p
+                    .person_height_m
+                    .is_some_and(|z| z > top - HAIR_M || z < SHOES_M);
             }
         }
         // 3. Clusters, up to the model's share.

@@ -50,6 +50,7 @@ mod bag;
 mod cameras;
 mod dropouts;
 mod error;
+mod noise;
 mod params;
 mod renderer;
 mod scene;

@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::dropouts::{CameraDropouts, Pixel};
 use super::error::ScenarioError;
+use super::noise::Noise;
 use parry3d::shape::TriMesh;
 
 use super::params::{ScenarioParams, CAMERA_LINK, DROPOUT_SEED_MIX, DS, SIDE_CAMERA_POSE};
@@ -35,27 +36,6 @@ pub enum Hit {
     /// The floor (`ScenarioParams::floor`): not an obstacle, left out of the truth as the
     /// robot's own points are.
     Floor,
-}
-
-/// SplitMix64 with Box–Muller: a fixed, reproducible stream.
-pub(super) struct Noise(pub(super) u64);
-
-impl Noise {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in (0, 1].
-    pub(super) fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) + 1) as f64 / (1u64 << 53) as f64
-    }
-    fn gaussian(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
 }
 
 /// `camera_link_from_optical`: z forward, x right, y down (REP 103).
@@ -291,10 +271,13 @@ impl<'a> Renderer<'a> {
         if self.params.camera_dropouts > 0.0 {
             let pixels: Vec<Pixel> = (hits.iter().enumerate())
                 .map(|(i, &hit)| Pixel {
-                    hit,
-                    height_m: hit.map_or(0.0, |(t, _)| {
-                        (world_from_optical * Point3::from(self.ray(i) * t)).z
-                    }),
+                    range_m: hit.map(|(t, _)| t),
+                    person_height_m: match hit {
+                        Some((t, Hit::Scene(1))) => {
+                            Some((world_from_optical * Point3::from(self.ray(i) * t)).z)
+                        }
+                        _ => None,
+                    },
                 })
                 .collect();
             let person = person_top_m(self.params.scene);

@@ -16,19 +16,27 @@
 //! base ball from every view that can see it ([`in_shadow`]); such a cell is not refined (its
 //! distance is the shadow's own, reported apart, and taking it hidden only lowers that).
 //!
+//! **Verdicts made on the GPU** (`shaders/cell.wgsl`, by the same rule, for a depth image in the
+//! query's submission): a view that carries them answers "ruled out or not" for the base ball
+//! and each sub-ball by one bit; the footprint is scanned here only where a cause is needed.
+//!
 //! Cost: the base ball in each view (most cells end there); where it stays hidden, up to eight
 //! sub-balls (each often decided by the pyramids).
 
+use super::ball::BallSize;
 use super::footprint::{judge, Cause, Need, Seen, Why};
 use super::lattice::{centre_at, Lattice};
 use super::prepared::PreparedView;
-use super::BallSize;
 
 /// A view with the lattice placed in its camera frame.
 pub struct PlacedView<'a> {
     pub view: &'a PreparedView,
     pub origin: [f32; 3],
     pub steps: [[f32; 3]; 3],
+    /// The GPU's verdicts on this lattice in this view, one word a cell in the lattice's
+    /// index order (bit 0: the base ball ruled out; bit `1 + k`: sub-ball `k`), if it made them.
+    verdicts: Option<&'a [u32]>,
+    dims: [usize; 3],
 }
 
 impl<'a> PlacedView<'a> {
@@ -38,7 +46,28 @@ impl<'a> PlacedView<'a> {
             view,
             origin,
             steps,
+            verdicts: None,
+            dims: lattice.dims(),
         }
+    }
+
+    /// The view with the GPU's `verdicts` on the same lattice (ignored unless one a cell).
+    pub fn with_verdicts(mut self, verdicts: Option<&'a [u32]>) -> Self {
+        let cells = self.dims.iter().product::<usize>();
+        self.verdicts = verdicts.filter(|v| v.len() == cells);
+        self
+    }
+
+    /// Whether it carries the GPU's verdicts.
+    pub fn has_verdicts(&self) -> bool {
+        self.verdicts.is_some()
+    }
+
+    /// The GPU's word on cell `ijk`, if there is one.
+    #[inline]
+    fn verdict(&self, ijk: [usize; 3]) -> Option<u32> {
+        let [n0, n1, _] = self.dims;
+        (self.verdicts).map(|v| v[ijk[0] + n0 * (ijk[1] + n1 * ijk[2])])
     }
 
     /// Cell `ijk`'s centre in the camera frame.
@@ -100,17 +129,24 @@ pub fn judge_cell(
     pyramids: bool,
 ) -> CellSeen {
     let mut whys = Vec::with_capacity(views.len());
-    let all = |p: &dyn Fn(&PlacedView) -> [f32; 3], r: f32, whys: &mut Vec<Why>| {
+    // `bit` of the GPU's word: 0 the base ball, 1 + k sub-ball k.
+    let all = |p: &dyn Fn(&PlacedView) -> [f32; 3], r: f32, bit: u32, whys: &mut Vec<Why>| {
         whys.clear();
         for (v, k) in views.iter().zip(known) {
-            match k.map_or_else(|| v.judge(p(v), r, need, pyramids), Seen::Hidden) {
+            let seen = match (k, v.verdict(ijk)) {
+                (Some(why), _) => Seen::Hidden(*why),
+                (None, Some(word)) if word >> bit & 1 == 1 => Seen::Free,
+                (None, Some(_)) if need == Need::Verdict => Seen::Hidden(Why::Unknown),
+                (None, _) => v.judge(p(v), r, need, pyramids),
+            };
+            match seen {
                 Seen::Free => return true,
                 Seen::Hidden(why) => whys.push(why),
             }
         }
         false
     };
-    if all(&|v| v.centre(ijk), size.radius_m, &mut whys) {
+    if all(&|v| v.centre(ijk), size.radius_m, 0, &mut whys) {
         return CellSeen::Free;
     }
     if need == Need::Shadow && in_shadow(&whys) {
@@ -119,7 +155,12 @@ pub fn judge_cell(
         return CellSeen::Hidden { shadow: true };
     }
     for k in 0..8 {
-        if !all(&|v| v.sub_centre(ijk, k), size.sub_radius_m, &mut whys) {
+        if !all(
+            &|v| v.sub_centre(ijk, k),
+            size.sub_radius_m,
+            1 + k as u32,
+            &mut whys,
+        ) {
             return CellSeen::Hidden { shadow: false };
         }
     }

@@ -18,7 +18,8 @@ use super::error::UnseenError;
 
 /// Default lattice resolution (m): 2 cm, the 2–4 cm range at its fine end. A 2 × 2 × 2 m
 /// volume is then 10⁶ cells, a CPU pass of a few tens of milliseconds per camera; it certifies
-/// an arm-level detection capability (70 mm; see `opening`), where 4 cm would not.
+/// an arm-level detection capability (70 mm: a base ball of 17.7 mm about each centre, `cell`),
+/// where 4 cm would not.
 pub const DEFAULT_RESOLUTION_M: f64 = 0.02;
 
 /// The most cells a lattice may hold: 16 M (a 5 m cube at 2 cm); beyond, the per-frame pass

@@ -50,9 +50,11 @@
 //! examined a few pyramid reads, per centre judged one read for free space and a footprint's
 //! pixels at a surface; measured by `ist_monitor bench monitor` (docs/unobserved.md).
 //!
-//! Files: `error`, `lattice`, `view` and `fit`, `prepared` and `pyramid`, `robot`,
-//! `footprint`, `cell`, `search`.
+//! Files: `error`, `lattice`, `ball`, `view` and `fit`, `camera`, `prepared` and `pyramid`,
+//! `robot`, `footprint`, `cell`, `search`.
 
+mod ball;
+mod camera;
 mod cell;
 mod error;
 mod fit;
@@ -64,66 +66,15 @@ mod robot;
 mod search;
 mod view;
 
+pub use ball::{BallSize, DEFAULT_DETECTION_CAPABILITY_M};
+pub use camera::{Cone, Optics, Rect};
 pub use cell::{in_shadow, judge_cell, CellSeen, PlacedView};
 pub use error::UnseenError;
 pub use fit::{fit_pinhole, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
-pub use footprint::{judge, Cause, Cone, Need, Optics, Pixels, Seen, Why, ROUNDING_M};
+pub use footprint::{judge, Cause, Need, Pixels, Seen, Why, ROUNDING_M};
 pub use lattice::{centre_at, Lattice, DEFAULT_RESOLUTION_M, MAX_CELLS};
-pub use prepared::{unit_rays, PreparedView};
+pub use prepared::{unit_rays, PreparedView, RobotImage};
 pub use pyramid::{Pyramid, Pyramids};
 pub use robot::{link_bounds, padded_spheres, place, LinkBound, PaddedSphere, RobotBody};
 pub use search::{fused_cause, Batch, Counts, Found, Search, Spot, BLOCK};
 pub use view::{RangeView, DEFAULT_RANGE_NOISE_M};
-
-/// Default detection capability (m): 70 mm, arm-level. ISO 13855 (with IEC 61496's ESPE
-/// classes) takes a detection capability above 40 mm and up to 70 mm as detecting an arm, and
-/// adds the reach of an arm (C = 850 mm) to the safety distance; 14 mm (finger) and 30–40 mm
-/// (hand) need the full `8·(d − 14)` intrusion allowance. At a 2 cm lattice a 70 mm body is
-/// judged by the ball of 17.7 mm about each centre; 40 mm leaves 2.7 mm, judged by few pixels
-/// beyond a metre: choose a 1 cm lattice for a hand.
-pub const DEFAULT_DETECTION_CAPABILITY_M: f64 = 0.07;
-
-/// The balls each lattice cell stands for, and what a distance to it loses (see the module
-/// doc and `cell`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BallSize {
-    /// The base ball's radius `r = D/2 − d/2`, rounded down to f32 (m).
-    pub radius_m: f32,
-    /// The sub-balls' radius `D/2 − d/4`, rounded down to f32 (m).
-    pub sub_radius_m: f32,
-    /// `R = D/2` (m).
-    pub capability_radius_m: f64,
-    /// `d/2`, half the cell diagonal (m).
-    pub half_diagonal_m: f64,
-    /// `R + d/2` (m): subtracted from the distance to a hidden centre.
-    pub margin_m: f64,
-}
-
-impl BallSize {
-    /// The ball for `detection_capability_m` on `lattice`; refused where it would hold no
-    /// point (`D` at most the cell diagonal).
-    pub fn new(lattice: &Lattice, detection_capability_m: f64) -> Result<Self, UnseenError> {
-        let half = lattice::positive("detection_capability", detection_capability_m)? / 2.0;
-        let d = lattice.cell_diagonal_m();
-        let r = half - d / 2.0;
-        if r <= 0.0 {
-            return Err(UnseenError::CapabilityBelowResolution {
-                detection_capability_m,
-                resolution_m: lattice.resolution_m(),
-                needed_m: d,
-            });
-        }
-        Ok(Self {
-            radius_m: crate::geometry::f32_at_most(r),
-            sub_radius_m: crate::geometry::f32_at_most(half - d / 4.0),
-            capability_radius_m: half,
-            half_diagonal_m: d / 2.0,
-            margin_m: half + d / 2.0,
-        })
-    }
-
-    /// The distance to a hidden body from the certified lower bound `lower_m` at its centre.
-    pub fn distance(&self, lower_m: f64) -> f64 {
-        (lower_m - self.margin_m).max(0.0)
-    }
-}

@@ -13,15 +13,22 @@
 //! (ray–sphere entry), the nearest kept per pixel (an atomic minimum on the f32's bits, which
 //! order as u32 for non-negative values).
 //!
+//! **Only what the scene needs** ([`RobotImage`]): the search asks of the robot's image only
+//! where the robot's shadow is reported apart (`unobserved_self_shadow: apart`); otherwise it
+//! needs each ray's free distance alone, and the robot's image is rendered afterwards only in
+//! the rows the causes of what was found read ([`PreparedView::render_robot_for`]): on the
+//! Kinect frame, the render was half the view's cost.
+//!
 //! Cost: two passes over the pixels, the pyramids (4/3 of a pass), and per sphere its image's
-//! pixels, in parallel (rayon).
+//! pixels (all of them, or those of the rows asked for), in parallel (rayon).
 
 use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;
 
 use crate::cloud::depth::PinholeCamera;
 
-use super::footprint::{cone_row, window, Cone, Optics, Pixels, Rect, ROUNDING_M};
+use super::camera::{cone_row, window, Cone, Optics, Rect};
+use super::footprint::{Pixels, ROUNDING_M};
 use super::pyramid::Pyramids;
 use super::robot::PaddedSphere;
 use super::view::RangeView;
@@ -29,18 +36,36 @@ use super::view::RangeView;
 /// Image rows per task of the robot's rendering.
 const BAND: usize = 8;
 
+/// How much of the robot's image [`PreparedView::prepare`] renders.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RobotImage {
+    /// Every pixel, and its pyramid: the search asks of the robot's shadow.
+    Whole,
+    /// None yet (every pixel ∞, no pyramid): the search asks only whether a ball is ruled out,
+    /// and the causes of what it found render the rows they read
+    /// ([`PreparedView::render_robot_for`]).
+    Deferred,
+}
+
 /// One view, ready for the footprint test (see the module doc).
 #[derive(Debug, Default)]
 pub struct PreparedView {
     camera: Option<PinholeCamera>,
     optics: Option<Optics>,
     camera_from_root: Isometry3<f64>,
+    /// The range noise its free distances were taken short by (m).
+    range_noise_m: f32,
     rays: Vec<[f32; 3]>,
     /// The free distances and the robot's image, each the base of its pyramid.
     pyramids: Pyramids,
+    /// The padded spheres' silhouettes, front to back, and which bands of `BAND` rows of the
+    /// robot's image are rendered.
+    shapes: Vec<Silhouette>,
+    rendered: Vec<bool>,
 }
 
 /// A padded sphere in the camera frame with the pixels its silhouette may cover.
+#[derive(Debug)]
 struct Silhouette {
     c: [f32; 3],
     l2: f32,
@@ -50,8 +75,8 @@ struct Silhouette {
 
 impl PreparedView {
     /// `view` made ready with the robot's padded spheres at its stamp (root frame), reusing
-    /// this one's buffers.
-    pub fn prepare(&mut self, view: &RangeView, robot: &[PaddedSphere]) {
+    /// this one's buffers; the robot's image rendered as `image` says.
+    pub fn prepare(&mut self, view: &RangeView, robot: &[PaddedSphere], image: RobotImage) {
         let camera = *view.camera();
         let optics = Optics::new(&camera, view.min_range2().sqrt(), view.max_range_m());
         if self.camera != Some(camera) {
@@ -61,6 +86,7 @@ impl PreparedView {
         self.optics = Some(optics);
         self.camera_from_root = view.root_from_camera().inverse();
         let noise = view.range_noise_m();
+        self.range_noise_m = noise;
         let (w, h) = (optics.width, optics.height);
         let free = self.pyramids.free.base_mut(w, h);
         free.par_iter_mut()
@@ -90,10 +116,41 @@ impl PreparedView {
                         .max(free[below * w + right]);
                 }
             });
-        self.render_robot(&optics, robot);
+        self.place_robot(&optics, robot);
         self.pyramids.free.build();
         self.pyramids.pairs.build();
-        self.pyramids.robot.build();
+        if image == RobotImage::Whole {
+            self.render_bands(&vec![true; self.rendered.len()]);
+        }
+    }
+
+    /// Renders the rows of the robot's image that the test of a ball of radius `r` at each of
+    /// `centres` (root frame) reads (its window), where not rendered yet, and its pyramid.
+    pub fn render_robot_for(&mut self, centres: &[[f32; 3]], r: f32) {
+        let Some(o) = self.optics else { return };
+        let mut wanted = vec![false; self.rendered.len()];
+        for c in centres {
+            let q = self.camera_from_root * Point3::from(c.map(f64::from));
+            let p = [q.x as f32, q.y as f32, q.z as f32];
+            let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+            if !(p[2] > r) {
+                continue;
+            }
+            let Some(alpha) = o.footprint(r, l) else {
+                continue;
+            };
+            let (u, v) = o.project(p);
+            // Where no window bounds the footprint, `window` gives the whole image.
+            if let Some(rect) = window(&o, u, v, p[2] / l, alpha) {
+                (wanted[rect.v0 / BAND..=rect.v1 / BAND].iter_mut()).for_each(|b| *b = true);
+            }
+        }
+        self.render_bands(&wanted);
+    }
+
+    /// Renders the robot's image whole (to draw it), where not yet.
+    pub fn render_robot_whole(&mut self) {
+        self.render_bands(&vec![true; self.rendered.len()]);
     }
 
     /// The view's camera, f32.
@@ -112,6 +169,11 @@ impl PreparedView {
         &self.camera_from_root
     }
 
+    /// The range noise its free distances were taken short by (m).
+    pub fn range_noise_m(&self) -> f32 {
+        self.range_noise_m
+    }
+
     pub fn pixels(&self) -> Pixels<'_> {
         Pixels {
             rays: &self.rays,
@@ -124,14 +186,14 @@ impl PreparedView {
         &self.pyramids
     }
 
-    /// Renders `spheres` (root frame) into the robot's image: per pixel a distance along its
-    /// ray at which it has met one of them, or ∞ (see [`render_blocks`]).
-    fn render_robot(&mut self, o: &Optics, spheres: &[PaddedSphere]) {
+    /// The padded `spheres` (root frame) placed in the camera frame, front to back, each with
+    /// the window its silhouette may cover; the robot's image blank (∞), no band rendered.
+    fn place_robot(&mut self, o: &Optics, spheres: &[PaddedSphere]) {
         let m = self.camera_from_root.rotation.to_rotation_matrix();
         let t = self.camera_from_root.translation.vector;
         let rot: [[f32; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32));
         let tr = [t.x as f32, t.y as f32, t.z as f32];
-        let mut shapes: Vec<Silhouette> = spheres
+        self.shapes = spheres
             .par_iter()
             .filter_map(|s| {
                 let c: [f32; 3] = std::array::from_fn(|r| {
@@ -158,11 +220,29 @@ impl PreparedView {
             })
             .collect();
         // Front to back: a pixel that a nearer sphere already took skips the others' roots.
-        shapes.sort_by(|a, b| {
+        self.shapes.sort_by(|a, b| {
             (a.l2.sqrt() - a.rho2.sqrt()).total_cmp(&(b.l2.sqrt() - b.rho2.sqrt()))
         });
+        self.pyramids
+            .robot
+            .base_mut(o.width, o.height)
+            .fill(f32::INFINITY);
+        self.rendered = vec![false; o.height.div_ceil(BAND)];
+    }
+
+    /// Renders the bands `wanted` not rendered yet, then the robot's pyramid.
+    fn render_bands(&mut self, wanted: &[bool]) {
+        let Some(o) = self.optics else { return };
+        let todo: Vec<bool> = (wanted.iter().zip(&self.rendered))
+            .map(|(w, r)| *w && !*r)
+            .collect();
+        if !todo.contains(&true) {
+            return;
+        }
         let robot = self.pyramids.robot.base_mut(o.width, o.height);
-        render(o, &self.rays, &shapes, robot);
+        render(&o, &self.rays, &self.shapes, robot, &todo);
+        (self.rendered.iter_mut().zip(&todo)).for_each(|(r, t)| *r |= *t);
+        self.pyramids.robot.build();
     }
 }
 
@@ -171,11 +251,12 @@ impl PreparedView {
 /// (`cone_row`), per pixel its ray's entry into the sphere, kept where nearer (a pixel already
 /// nearer skips the root). Exact per pixel ray: a pixel is given the robot only where its own
 /// ray meets the padded spheres, the side the robot's shadow needs.
-fn render(o: &Optics, rays: &[[f32; 3]], shapes: &[Silhouette], robot: &mut [f32]) {
+fn render(o: &Optics, rays: &[[f32; 3]], shapes: &[Silhouette], robot: &mut [f32], bands: &[bool]) {
     let w = o.width;
     robot
         .par_chunks_mut(BAND * w)
         .enumerate()
+        .filter(|(band, _)| bands[*band])
         .for_each(|(band, out)| {
             out.fill(f32::INFINITY);
             let (v_lo, v_hi) = (band * BAND, band * BAND + out.len() / w - 1);

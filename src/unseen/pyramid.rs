@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::footprint::Rect;
+use super::camera::Rect;
 
 /// The pyramids of a view's images (`prepared`): the free distance, the largest free distance of
 /// each 2 × 2 pixels (by their top-left pixel), and the distance to the robot.

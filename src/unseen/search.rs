@@ -45,12 +45,13 @@ use std::collections::BinaryHeap;
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
+use super::ball::BallSize;
+use super::camera::Rect;
 use super::cell::{judge_cell, CellSeen, PlacedView};
-use super::footprint::{judge, Cause, Need, Rect, Seen, Why, PAIR, ROUNDING_M};
+use super::footprint::{judge, Cause, Need, Seen, Why, PAIR, ROUNDING_M};
 use super::lattice::{centre_at, Lattice};
 use super::prepared::PreparedView;
 use super::robot::{LinkBound, RobotBody};
-use super::BallSize;
 
 /// Centres per block edge, and blocks per super-block edge.
 pub const BLOCK: usize = 4;
@@ -61,6 +62,9 @@ const FIRST_WAVE: usize = 32;
 pub struct Search<'a> {
     pub lattice: &'a Lattice,
     pub views: &'a [&'a PreparedView],
+    /// The GPU's verdicts on this lattice, per view where it made them (`cell`); may be
+    /// shorter than `views`.
+    pub verdicts: &'a [Option<&'a [u32]>],
     /// The robot at the frame's poses.
     pub robot: &'a RobotBody,
     /// Whether a root-frame centre lies in an exclusion volume.
@@ -95,7 +99,7 @@ pub struct Spot {
 }
 
 /// What the search counted.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counts {
     pub blocks: usize,
     /// Blocks a view saw free as a whole.
@@ -110,6 +114,8 @@ pub struct Counts {
     pub shadow: usize,
     /// Distance queries made.
     pub batches: usize,
+    /// Views whose cells the GPU judged (`cell`: their verdicts read, not scanned).
+    pub views_on_gpu: usize,
 }
 
 /// What the search found. Distances are the caller's certified lower bounds at the centres,
@@ -235,8 +241,11 @@ impl Search<'_> {
         &self,
         mut measure: impl FnMut(&[[f32; 3]], f64) -> Result<Batch, E>,
     ) -> Result<Found, E> {
-        let placed: Vec<PlacedView> = (self.views.iter())
-            .map(|v| PlacedView::new(v, self.lattice))
+        let placed: Vec<PlacedView> = (self.views.iter().enumerate())
+            .map(|(i, v)| {
+                let verdicts = self.verdicts.get(i).copied().flatten();
+                PlacedView::new(v, self.lattice).with_verdicts(verdicts)
+            })
             .collect();
         let (origin, steps) = self.lattice.in_frame(&Isometry3::identity());
         let keep = self.kept_indices();
@@ -258,6 +267,7 @@ impl Search<'_> {
             per_link: vec![f64::INFINITY; if per_link { links.len() } else { 0 }],
             counts: Counts {
                 blocks: nb[0] * nb[1] * nb[2],
+                views_on_gpu: placed.iter().filter(|p| p.has_verdicts()).count(),
                 ..Counts::default()
             },
             ..Found::default()
@@ -366,17 +376,36 @@ impl Search<'_> {
         }
         found.lower_m = (found.counts.hidden > 0).then_some(best);
         found.shadow_lower_m = (found.counts.shadow > 0).then_some(best_shadow);
-        if let Some(spot) = &mut found.nearest {
-            spot.cause = self.cause(&placed, spot.centre);
-        }
         near.sort_by(|a, b| a.near.total_cmp(&b.near));
-        found.near = (near.par_iter())
+        // Causes are named afterwards (`name_causes`), once the views can tell them.
+        found.near = (near.iter())
             .map(|h| Spot {
                 centre: h.centre,
-                cause: self.cause(&placed, h.centre),
+                cause: Cause::OutsideView,
             })
             .collect();
         Ok(found)
+    }
+
+    /// The root-frame centres whose causes [`Search::name_causes`] reads: the nearest hidden
+    /// place and those kept for the markers (a view prepared with `RobotImage::Deferred`
+    /// renders the rows their tests read first: `PreparedView::render_robot_for`).
+    pub fn spots(found: &Found) -> Vec<[f32; 3]> {
+        (found.nearest.iter().chain(&found.near))
+            .map(|s| s.centre)
+            .collect()
+    }
+
+    /// Names the cause of the nearest hidden place and of each kept for the markers (see
+    /// [`Search::spots`]).
+    pub fn name_causes(&self, found: &mut Found) {
+        let placed: Vec<PlacedView> = (self.views.iter())
+            .map(|v| PlacedView::new(v, self.lattice))
+            .collect();
+        if let Some(spot) = &mut found.nearest {
+            spot.cause = self.cause(&placed, spot.centre);
+        }
+        (found.near.par_iter_mut()).for_each(|s| s.cause = self.cause(&placed, s.centre));
     }
 
     /// The box of cells `lo..hi` with its middle, half diagonal and bound.

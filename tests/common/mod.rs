@@ -21,6 +21,16 @@ pub const DEMO_URDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/demo_arm.
 pub const DEMO_BAG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/bags/demo");
 pub const DEMO_CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo_arm.yaml");
 
+/// Overrides of the demo config for the generator's floorless scenes
+/// (`ScenarioParams::default()`) in tests of what the cameras see: the space no camera sees
+/// is not watched (without a floor every ray behind the scene returns nothing, and all of it is
+/// hidden), and the demo config's floor exclusion is moved 1 m under the cell, where it removes
+/// none of their points (a shoe's lowest points lie within the floor's 4 cm).
+pub const SEEN_ONLY_FLOORLESS: [(&str, &str); 2] = [
+    ("unobserved", "ignore"),
+    ("floor.translation", "[0.0, 0.0, -1.0]"),
+];
+
 /// The `ist_monitor` binary built for these tests.
 pub fn ist_monitor() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ist_monitor"))
@@ -326,7 +336,9 @@ impl Drop for Reap {
 }
 
 /// `--ros-args` that start the node on the CPU with the demo arm's joints held at 0 (these tests
-/// publish no `/joint_states`); more arguments follow.
+/// publish no `/joint_states`) and the unseen space off (their clouds, the real Kinect cloud and
+/// small ones of their own, are not the demo camera's: what no camera sees is tested on its own,
+/// `tests/node_unseen.rs`); more arguments follow.
 pub fn at_rest_args() -> Vec<String> {
     let joints =
         "[shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3, finger_left_joint]";
@@ -339,6 +351,8 @@ pub fn at_rest_args() -> Vec<String> {
         &format!("fixed_joint_state.names:={joints}"),
         "-p",
         "fixed_joint_state.positions:=[0, 0, 0, 0, 0, 0, 0]",
+        "-p",
+        "unobserved:=ignore",
     ]
     .map(String::from)
     .to_vec()

@@ -12,6 +12,7 @@ The samples here and in tests/messages.rs hold the same values, so the Rust side
 the decoded values and the bytes.
 """
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -140,13 +141,16 @@ def write(out):
 
 def plain(value):
     if isinstance(value, np.ndarray):
-        return value.tolist()
+        value = value.tolist()
     if isinstance(value, (list, tuple)):
         return [plain(v) for v in value]
     if hasattr(value, '__dataclass_fields__'):
         return {k: plain(getattr(value, k)) for k in value.__dataclass_fields__ if k != '__msgtype__'}
     if isinstance(value, (np.floating, np.integer)):
-        return value.item()
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        # JSON has no infinity: the monitor publishes +inf (nothing hidden) and NaN (failed).
+        return str(value)
     return value
 
 

@@ -14,7 +14,6 @@ use crate::msg::{
 };
 use crate::unseen::{Cause, Spot};
 
-use super::super::fusion::Fused;
 use super::super::level::Level;
 use super::super::stamped::stamped_distance;
 use super::facts::{Unseen, UnseenFacts};
@@ -45,13 +44,16 @@ pub fn cause_colour(cause: Cause) -> ColorRgba {
     ColorRgba { r, g, b, a: 0.4 }
 }
 
-/// The messages of the pass `unseen` in the picture `fused`, under `header` (root frame).
+/// The messages of the pass `unseen` under `header` (root frame), in a picture of the cell's
+/// level `level`, which the unseen distance sets where `limits` (`protect`, and nearer than the
+/// seen one).
 pub fn unseen_messages(
     config: &Config,
     robot: &str,
     header: &Header,
     unseen: &Unseen,
-    fused: &Fused,
+    level: Level,
+    limits: bool,
 ) -> UnseenMessages {
     let u = &config.unobserved;
     let header = Header {
@@ -103,11 +105,7 @@ pub fn unseen_messages(
         }
         Ok(f) => {
             fact_values(f, &mut values);
-            let level = if fused.unseen_limits {
-                fused.level
-            } else {
-                Level::Ok
-            };
+            let level = if limits { level } else { Level::Ok };
             let seen = |f: &UnseenFacts| match f.counts.blocks {
                 0 => String::new(),
                 _ => format!(
@@ -127,7 +125,7 @@ pub fn unseen_messages(
                 (Some(d), nearest) => format!(
                     "unseen space within {d:.3} m of the robot{}{}{}",
                     nearest.map_or(String::new(), |n| format!(" ({})", n.cause.name())),
-                    if fused.unseen_limits {
+                    if limits {
                         ", which sets the level (protect)"
                     } else {
                         ""
@@ -194,6 +192,7 @@ fn fact_values(f: &UnseenFacts, values: &mut Vec<KeyValue>) {
         ("hidden_found", c.hidden),
         ("shadow_found", c.shadow),
         ("distance_queries", c.batches),
+        ("views_on_gpu", c.views_on_gpu),
     ] {
         values.push(kv(key, n.to_string()));
     }

@@ -11,6 +11,8 @@
 //!   frame's processing; a source in fault, disabled or restarted leaves none;
 //! - its **steps** (`pass`): the volume placed at the frame's stamp, the robot placed at its
 //!   poses, the search with the engine's certified distance, the causes of what is nearest;
+//! - its **GPU part** (`gpu`): a depth image measured on the GPU has the lattice's cells judged in
+//!   the same submission, the verdicts kept with its view;
 //! - its **typed error** ([`UnseenFault`]) and its **messages** (`messages`).
 //!
 //! **Counted, never in the way.** The monitor runs the pass inside the frame, after the query
@@ -27,214 +29,15 @@
 
 mod error;
 mod facts;
+mod gpu;
 mod messages;
 mod pass;
+mod space;
 mod views;
-
-use nalgebra::Isometry3;
-
-use crate::cloud::exclusion::ExclusionVolume;
-use crate::cloud::RangeLimits;
-use crate::config::{Config, Unobserved};
-use crate::query::{Mode, QueryLink, QueryOptions};
-use crate::unseen::{padded_spheres, PreparedView, RangeView};
 
 pub use error::UnseenFault;
 pub use facts::{Unseen, UnseenFacts};
 pub use messages::{cause_colour, unseen_messages, UnseenMessages};
-pub use pass::PassInputs;
+pub use pass::{At, PassInputs};
+pub use space::UnseenSpace;
 pub use views::view_of;
-
-/// What each source gives the pass.
-#[derive(Debug, Clone, PartialEq)]
-struct SourceSlice {
-    name: String,
-    enabled: bool,
-    range_noise_m: f64,
-    limits: Option<RangeLimits>,
-}
-
-/// The cell's unseen space: its settings, its views and its latest pass (see the module doc).
-pub struct UnseenSpace {
-    settings: Unobserved,
-    sources: Vec<SourceSlice>,
-    /// The exclusion volumes that apply to every source.
-    volumes: Vec<ExclusionVolume>,
-    /// The query over the hidden places: certified at least, no self-filter.
-    query: QueryOptions,
-    padding_m: f32,
-    tf_tolerance_s: f64,
-    /// Per source: its latest frame's view, or why it observes nothing free.
-    views: Vec<Option<Result<PreparedView, String>>>,
-    /// The robot's reach from its root (m), once computed for the default volume.
-    reach_m: Option<Option<f64>>,
-    /// The time the frame being measured spent on its view (made and prepared), s.
-    view_s: f64,
-    last: Option<Unseen>,
-}
-
-impl UnseenSpace {
-    pub fn new(config: &Config) -> Self {
-        let mut space = Self {
-            settings: config.unobserved.clone(),
-            sources: Vec::new(),
-            volumes: Vec::new(),
-            query: config.query.clone(),
-            padding_m: 0.0,
-            tf_tolerance_s: config.tf_tolerance_s,
-            views: (0..config.sources.len()).map(|_| None).collect(),
-            reach_m: None,
-            view_s: 0.0,
-            last: None,
-        };
-        space.reconfigure(config);
-        space
-    }
-
-    /// Takes the slice of `config` (a run-time change: sources enabled or disabled, exclusion
-    /// volumes); a source whose enabled flag changed forgets its view.
-    pub fn reconfigure(&mut self, config: &Config) {
-        let sources: Vec<SourceSlice> = (config.sources.iter())
-            .map(|s| SourceSlice {
-                name: s.name.clone(),
-                enabled: s.enabled,
-                range_noise_m: s.range_noise_m,
-                limits: RangeLimits::new(s.min_range_m, s.max_range_m),
-            })
-            .collect();
-        for (k, s) in sources.iter().enumerate() {
-            if self
-                .sources
-                .get(k)
-                .is_some_and(|old| old.enabled != s.enabled)
-            {
-                self.views[k] = None;
-            }
-        }
-        self.sources = sources;
-        self.settings = config.unobserved.clone();
-        self.volumes = (config.exclusion_volumes.iter())
-            .filter(|v| v.sources.is_empty())
-            .cloned()
-            .collect();
-        let mut query = config.query.clone();
-        if query.mode == Mode::Fast {
-            query.mode = Mode::Certified;
-        }
-        self.padding_m = query.self_filter_padding_m.unwrap_or(0.0);
-        query.self_filter_padding_m = None;
-        self.query = query;
-        self.tf_tolerance_s = config.tf_tolerance_s;
-    }
-
-    /// Whether the pass runs at all (`unobserved: ignore` costs nothing).
-    pub fn enabled(&self) -> bool {
-        self.settings.enabled()
-    }
-
-    /// Whether the level, the stop and the speed factor take the unseen distance.
-    pub fn protects(&self) -> bool {
-        self.settings.protects()
-    }
-
-    pub fn settings(&self) -> &Unobserved {
-        &self.settings
-    }
-
-    /// Source `source` left no view (its frame was a fault, it was disabled or restarted).
-    pub fn forget(&mut self, source: usize) {
-        self.views[source] = None;
-    }
-
-    /// Every source's view forgotten, and the latest pass (the clock went back).
-    pub fn forget_all(&mut self) {
-        self.views.iter_mut().for_each(|v| *v = None);
-        self.last = None;
-    }
-
-    /// Source `source`'s latest frame: its view, or why it observes nothing free, made in
-    /// `made_s` seconds, prepared with the robot at that frame's `poses` (rendered into it with
-    /// the self-filter padding and each link's h). Nothing with `unobserved: ignore`.
-    pub fn observe(
-        &mut self,
-        source: usize,
-        view: Result<RangeView, String>,
-        made_s: f64,
-        links: &[QueryLink],
-        poses: &[Isometry3<f64>],
-    ) {
-        if !self.enabled() {
-            return;
-        }
-        let start = std::time::Instant::now();
-        let made = view.map(|view| {
-            let mut prepared = match self.views[source].take() {
-                Some(Ok(p)) => p,
-                _ => PreparedView::default(),
-            };
-            let spheres = padded_spheres(links, poses, self.padding_m, self.smallest_sphere_m());
-            prepared.prepare(&view, &spheres);
-            prepared
-        });
-        self.views[source] = Some(made);
-        self.view_s = made_s + start.elapsed().as_secs_f64();
-    }
-
-    /// The camera of source `source`'s latest view, for its next cloud to keep where it fits.
-    pub fn known_camera(&self, source: usize) -> Option<crate::cloud::depth::PinholeCamera> {
-        match &self.views[source] {
-            Some(Ok(p)) => p.camera().copied(),
-            _ => None,
-        }
-    }
-
-    /// The range limits and noise of source `source`.
-    pub fn source_limits(&self, source: usize) -> (Option<RangeLimits>, f64) {
-        let s = &self.sources[source];
-        (s.limits, s.range_noise_m)
-    }
-
-    /// The latest pass (`None` before the first, and with `unobserved: ignore`).
-    pub fn last(&self) -> Option<&Unseen> {
-        self.last.as_ref().filter(|_| self.enabled())
-    }
-
-    /// Under `protect`, a frame whose processing with the pass (`processing_s`) exceeds the
-    /// latency budget `budget_s` makes the latest pass a fault: too late to act on. Whether it
-    /// did.
-    pub fn check_late(&mut self, processing_s: f64, budget_s: f64) -> bool {
-        let late = self.protects() && processing_s > budget_s;
-        if let Some(last) = self.last.as_mut().filter(|_| late) {
-            last.outcome = Err(UnseenFault::Late {
-                elapsed_ms: processing_s * 1e3,
-                budget_ms: budget_s * 1e3,
-            });
-        }
-        late
-    }
-
-    /// The per-link unseen distances the separation stage holds each link to under `protect`
-    /// (the engine's order; `None` where the pass is off, failed or found nothing hidden: then
-    /// the seen distances alone apply, or a fault already stops the cell).
-    pub fn protecting_links(&self, links: usize) -> Option<Vec<f64>> {
-        if !self.protects() {
-            return None;
-        }
-        let facts = self.last()?.outcome.as_ref().ok()?;
-        let d = facts.distance_m?;
-        if facts.per_link.len() == links {
-            Some(facts.per_link.iter().map(|(_, l)| l.max(d)).collect())
-        } else {
-            // Per-link minima off: every link is at least as far as the nearest.
-            Some(vec![d; links])
-        }
-    }
-
-    /// The smallest sphere rendered into a view, and taken for the cells the robot holds: a
-    /// quarter cell. The padding and the larger spheres about them cover most of the smaller
-    /// ones' image, and leaving them out leaves a ray not the robot's, or a cell undropped: the
-    /// conservative side.
-    fn smallest_sphere_m(&self) -> f32 {
-        (0.25 * self.settings.resolution_m) as f32
-    }
-}

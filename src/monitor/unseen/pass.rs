@@ -8,7 +8,10 @@
 //! 3. **The search** (`unseen::Search`) over every live view, the exclusion volumes that apply
 //!    to every source placed at the stamp, with the engine's certified lower bound over the
 //!    hidden centres (certified mode at least, no self-filter), per link as configured.
-//! 4. **The facts**: the distances less the ball's margin, the nearest hidden place and why.
+//! 4. **The causes** of the nearest hidden place and of those kept for the markers: each view's
+//!    robot image rendered in the rows their tests read (where the search did not need it
+//!    whole: `unseen::prepared`), then each view's word on them.
+//! 5. **The facts**: the distances less the ball's margin, the nearest hidden place and why.
 //!
 //! No enabled source observes anything free (only unorganized clouds, no frame yet): the whole
 //! volume is hidden, and the unseen distance is 0 at once, without the search's cost.
@@ -25,17 +28,23 @@ use crate::unseen::{BallSize, Batch, Lattice, PreparedView, RobotBody, Search};
 
 use super::error::UnseenFault;
 use super::facts::{Unseen, UnseenFacts};
-use super::UnseenSpace;
+use super::space::UnseenSpace;
 
-/// What a pass reads besides its own state, all at the frame's stamp.
-pub struct PassInputs<'a> {
+/// Where a pass places its frames: the frame's stamp, the robot's poses then, and TF.
+#[derive(Clone, Copy)]
+pub struct At<'a> {
     pub stamp_ns: i64,
     /// `root_from_link` at the stamp, the kinematics' order.
     pub poses: &'a [Isometry3<f64>],
     pub kinematics: &'a Kinematics,
+    pub tf: &'a TfBuffer,
+}
+
+/// What a pass reads besides its own state, all at the frame's stamp.
+pub struct PassInputs<'a> {
+    pub at: At<'a>,
     /// The query engine: its links, and the certified distance over the hidden centres.
     pub engine: &'a mut Engine,
-    pub tf: &'a TfBuffer,
 }
 
 impl UnseenSpace {
@@ -49,7 +58,7 @@ impl UnseenSpace {
             f.stages_s.insert(0, ("view", view_s));
         }
         self.last = Some(Unseen {
-            stamp_ns: input.stamp_ns,
+            stamp_ns: input.at.stamp_ns,
             outcome,
             compute_s: view_s + start.elapsed().as_secs_f64(),
         });
@@ -66,7 +75,7 @@ impl UnseenSpace {
             last = now;
         };
         // 1. The volume.
-        let lattice = self.place_volume(input)?;
+        let lattice = self.place_volume(&input.at, input.engine.links())?;
         let ball = BallSize::new(&lattice, self.settings.detection_capability_m)
             .map_err(UnseenFault::Lattice)?;
         let per_source: Vec<(String, Result<(), String>)> = (self.sources.iter())
@@ -81,12 +90,7 @@ impl UnseenSpace {
                 (s.name.clone(), state)
             })
             .collect();
-        let views: Vec<&PreparedView> = (self.sources.iter())
-            .zip(&self.views)
-            .filter(|(s, _)| s.enabled)
-            .filter_map(|(_, v)| v.as_ref().and_then(|v| v.as_ref().ok()))
-            .collect();
-        if views.is_empty() {
+        if self.live_views(&lattice).0.is_empty() {
             return Ok(UnseenFacts {
                 distance_m: Some(0.0),
                 per_source,
@@ -98,8 +102,8 @@ impl UnseenSpace {
         }
         lap("volume");
         // 2. The robot, and the exclusion volumes.
-        let volumes = self.place_volumes(input)?;
-        let (engine, poses, query) = (&mut *input.engine, input.poses, &self.query);
+        let volumes = self.place_volumes(&input.at)?;
+        let (engine, poses, query) = (&mut *input.engine, input.at.poses, &self.query);
         let links = engine.shared_links();
         if links.iter().all(|l| l.spheres.is_empty()) {
             return Err(UnseenFault::NoSpheres);
@@ -115,31 +119,35 @@ impl UnseenSpace {
         // 3. The search.
         let names: Vec<String> = links.iter().map(|l| l.name.clone()).collect();
         let excluded = |c: [f32; 3]| volumes.iter().any(|v| v.contains(c));
-        let search = Search {
-            lattice: &lattice,
-            views: &views,
-            robot: &robot,
-            excluded: &excluded,
-            size: ball,
-            apart: self.settings.self_shadow == crate::config::SelfShadow::Apart,
-            per_link_range_m: self
-                .query
-                .per_link
-                .then_some(f64::from(self.query.per_link_range_m)),
-            markers: self.settings.markers,
-        };
         let max = f64::from(query.max_distance_m);
         let mut options = query.clone();
-        let found = search.run(|centres, need| {
-            // Per link, only what may still lower a link's best is measured exactly.
-            options.per_link_range_m = query.per_link_range_m.min(need.max(0.0) as f32);
-            engine
-                .query(centres, &Isometry3::identity(), poses, &options)
-                .map(|r| batch(&r, max))
-                .map_err(|e| UnseenFault::Query(e.to_string()))
-        })?;
+        let (views, verdicts) = self.live_views(&lattice);
+        let mut found = (self.search(&lattice, &views, &verdicts, &robot, &excluded, ball)).run(
+            |centres, need| {
+                // Per link, only what may still lower a link's best is measured exactly.
+                options.per_link_range_m = query.per_link_range_m.min(need.max(0.0) as f32);
+                engine
+                    .query(centres, &Isometry3::identity(), poses, &options)
+                    .map(|r| batch(&r, max))
+                    .map_err(|e| UnseenFault::Query(e.to_string()))
+            },
+        )?;
         lap("search");
-        // 4. The facts.
+        // 4. Why the places found are hidden: each view's robot image where their tests read it
+        // (rendered whole already where the search needed it), then each view's word.
+        let spots = Search::spots(&found);
+        if !spots.is_empty() {
+            for (_, v) in (self.sources.iter().zip(&mut self.views)).filter(|(s, _)| s.enabled) {
+                if let Some(Ok(v)) = v {
+                    v.render_robot_for(&spots, ball.radius_m);
+                }
+            }
+            let (views, verdicts) = self.live_views(&lattice);
+            (self.search(&lattice, &views, &verdicts, &robot, &excluded, ball))
+                .name_causes(&mut found);
+        }
+        lap("causes");
+        // 5. The facts.
         let reach = |l: f64| if l.is_finite() { l } else { max };
         Ok(UnseenFacts {
             distance_m: found.lower_m.map(|l| ball.distance(reach(l))),
@@ -160,14 +168,53 @@ impl UnseenSpace {
         })
     }
 
+    /// The enabled sources' views, with the GPU's verdicts on `lattice` where it made them.
+    fn live_views(&self, lattice: &Lattice) -> (Vec<&PreparedView>, Vec<Option<&[u32]>>) {
+        (self.sources.iter().zip(&self.views).zip(&self.gpu_cells))
+            .filter(|((s, _), _)| s.enabled)
+            .filter_map(|((_, v), g)| {
+                let view = v.as_ref().and_then(|v| v.as_ref().ok())?;
+                Some((view, g.verdicts_on(lattice)))
+            })
+            .unzip()
+    }
+
+    /// The search over `views` with the settings' capability, shadow and markers.
+    fn search<'a>(
+        &self,
+        lattice: &'a Lattice,
+        views: &'a [&'a PreparedView],
+        verdicts: &'a [Option<&'a [u32]>],
+        robot: &'a RobotBody,
+        excluded: &'a (dyn Fn([f32; 3]) -> bool + Sync),
+        size: BallSize,
+    ) -> Search<'a> {
+        Search {
+            lattice,
+            views,
+            verdicts,
+            robot,
+            excluded,
+            size,
+            apart: self.settings.self_shadow == crate::config::SelfShadow::Apart,
+            per_link_range_m: (self.query.per_link)
+                .then_some(f64::from(self.query.per_link_range_m)),
+            markers: self.settings.markers,
+        }
+    }
+
     /// Step 1: the lattice over the monitored volume at the frame's stamp.
-    fn place_volume(&mut self, input: &PassInputs) -> Result<Lattice, UnseenFault> {
+    pub(super) fn place_volume(
+        &mut self,
+        at: &At,
+        links: &[QueryLink],
+    ) -> Result<Lattice, UnseenFault> {
         let (root_from_box, half) = match &self.settings.volume.clone() {
             Some(v) => {
-                let root = input.kinematics.root_link().to_owned();
+                let root = at.kinematics.root_link().to_owned();
                 let frame = v.frame.clone().unwrap_or(root);
                 let root_from_frame =
-                    place_frame(input, &frame, self.tf_tolerance_s).map_err(|reason| {
+                    place_frame(at, &frame, self.tf_tolerance_s).map_err(|reason| {
                         UnseenFault::VolumeFrame {
                             frame: frame.clone(),
                             reason,
@@ -179,7 +226,7 @@ impl UnseenSpace {
                 )
             }
             None => {
-                let reach = self.reach(input.kinematics, input.engine.links())?;
+                let reach = self.reach(at.kinematics, links)?;
                 let e = reach + self.settings.margin_m;
                 (Isometry3::translation(0.0, 0.0, 0.5 * e), [e, e, 0.5 * e])
             }
@@ -188,11 +235,11 @@ impl UnseenSpace {
     }
 
     /// The exclusion volumes that apply to every source, placed in the root frame.
-    fn place_volumes(&self, input: &PassInputs) -> Result<Vec<Placed>, UnseenFault> {
+    fn place_volumes(&self, at: &At) -> Result<Vec<Placed>, UnseenFault> {
         (self.volumes.iter())
             .map(|v| {
                 let root_from_frame =
-                    place_frame(input, &v.frame, self.tf_tolerance_s).map_err(|reason| {
+                    place_frame(at, &v.frame, self.tf_tolerance_s).map_err(|reason| {
                         UnseenFault::ExclusionFrame {
                             volume: v.name.clone(),
                             reason,
@@ -217,18 +264,14 @@ impl UnseenSpace {
 }
 
 /// `frame` in the root frame at the stamp (a robot link at the poses, else through TF).
-fn place_frame(
-    input: &PassInputs,
-    frame: &str,
-    tolerance_s: f64,
-) -> Result<Isometry3<f64>, String> {
-    let kinematics = input.kinematics;
-    let link_pose = |name: &str| kinematics.link_index(name).map(|i| input.poses[i]);
+fn place_frame(at: &At, frame: &str, tolerance_s: f64) -> Result<Isometry3<f64>, String> {
+    let kinematics = at.kinematics;
+    let link_pose = |name: &str| kinematics.link_index(name).map(|i| at.poses[i]);
     tf::root_from_sensor(
-        input.tf,
+        at.tf,
         frame,
         kinematics.root_link(),
-        Some(input.stamp_ns),
+        Some(at.stamp_ns),
         tolerance_s,
         &link_pose,
     )

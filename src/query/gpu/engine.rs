@@ -5,6 +5,7 @@
 use std::sync::atomic::AtomicU8;
 use std::sync::Arc;
 
+use super::cell::CellPass;
 use super::unproject::Unproject;
 use crate::query::layout::{Minima, Reduce};
 
@@ -14,6 +15,8 @@ pub struct GpuEngine {
     pub(super) queue: wgpu::Queue,
     pub(super) pipelines: Pipelines,
     pub(super) unproject: Unproject,
+    /// The unseen space's cells, judged after `unproject` when a request is pending.
+    pub(super) cells: CellPass,
     /// The adapter, as wgpu describes it.
     pub adapter: wgpu::AdapterInfo,
     /// How the minima are kept on this adapter.

@@ -31,10 +31,12 @@
 //! `setup` (with `bindings`, the buffers and layout entries every part makes alike); `buffers`,
 //! those that grow with the cloud; `run`, a query's host steps ([`HOST_STEPS`]), as the CPU's
 //! `run`; `passes`, its dispatches; `transfer`, what crosses to and from the device;
-//! `unproject`, a depth image's first pass.
+//! `unproject`, a depth image's first pass; `cell`, the unseen space's cells judged in the same
+//! submission (`shaders/cell.wgsl`).
 
 mod bindings;
 mod buffers;
+mod cell;
 mod engine;
 mod error;
 mod options;

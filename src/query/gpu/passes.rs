@@ -1,14 +1,15 @@
 //! The dispatches of one GPU query ([`Step`]) and how they are recorded: in three compute passes
 //! (the ones before `plan`, `plan`, the ones after: the dispatch buffer `plan` writes is read as
 //! indirect arguments after it), after a fourth for a depth image's `unproject` (its own bind
-//! group, which writes the points the others read), with a timestamp at each end; or, to profile, each dispatch in a
+//! group, which writes the points the others read) and, where the unseen space asks, a fifth
+//! for its `cells` (`cell.rs`; its own bind group too), with a timestamp at each end; or, to profile, each dispatch in a
 //! pass of its own with its own timestamps (`bench gpu --passes`).
 
 use super::engine::Pipelines;
 use crate::query::layout::{SEED_STRIDE, WORKGROUP};
 
 /// Most dispatches in one query.
-pub(super) const MAX_STEPS: usize = 10;
+pub(super) const MAX_STEPS: usize = 11;
 /// Room for the timestamps in the readback.
 pub(super) const STAMP_BYTES: u64 = 16 * MAX_STEPS as u64;
 

@@ -18,8 +18,8 @@ use crate::query::bounds::{pack_minimum, threshold, Bounds, EMPTY};
 use crate::query::finish;
 use crate::query::input::Input;
 use crate::query::layout::{
-    self, Candidate, Counters, DepthParams, Minima, QueryParams, RobotBox, Stage, Tiling,
-    GPU_CANDIDATES, MAX_LINKS, SEED_STRIDE,
+    self, Candidate, CellParams, Counters, DepthParams, Minima, QueryParams, RobotBox, Stage,
+    Tiling, GPU_CANDIDATES, MAX_LINKS, SEED_STRIDE,
 };
 use crate::query::link::QueryLink;
 use crate::query::options::{Backend, Mode, QueryOptions};
@@ -70,8 +70,24 @@ impl GpuEngine {
             None => self.upload(bytemuck::cast_slice(input.points))?,
         };
         let uploaded = Instant::now();
-        let (commands, readback) =
-            self.encode(&params, depth.is_some(), upload, input.options.mode)?;
+        // The unseen space's cells, where asked for and the image has pixels: their bind group
+        // over the points `unproject` writes, and how many.
+        let cells = match (&depth, self.cells.request, self.sized.as_ref()) {
+            (Some(_), Some(request), Some(sized)) if params.n_points > 0 => {
+                let group =
+                    (self.cells).prepare(&self.device, &self.queue, &sized.points, &request);
+                Some((group, request.cells))
+            }
+            _ => None,
+        };
+        let cell_step = cells.as_ref().map(|(group, n)| (group, *n));
+        let (commands, readback) = self.encode(
+            &params,
+            depth.is_some(),
+            upload,
+            input.options.mode,
+            cell_step,
+        )?;
         // The small writes (queue.write_buffer) go first in this submission, then the points'
         // copy, then the passes.
         let written = Instant::now();
@@ -88,6 +104,12 @@ impl GpuEngine {
         // device once more.
         self.remap_staging();
         self.read_back(submission)?;
+        if let Some((_, n)) = cell_step {
+            // The query's answer stands without them: the CPU then judges the cells.
+            self.cells.last = (self.cells.read(&self.device, n))
+                .map_err(|e| log::warn!("the unseen cells' verdicts were lost ({e}): CPU"))
+                .ok();
+        }
         let mapped = Instant::now();
         let read = self.read(&readback, input.options.mode);
         let Some(counts) = self.write_bounds(read, &params, bounds, input.options) else {
@@ -211,6 +233,7 @@ impl GpuEngine {
         depth: bool,
         upload: u64,
         mode: Mode,
+        cells: Option<(&wgpu::BindGroup, u32)>,
     ) -> Result<(wgpu::CommandBuffer, Readback), GpuError> {
         let Some(sized) = self.sized.as_ref() else {
             return Err(GpuError::Device("no point buffers".into()));
@@ -237,6 +260,17 @@ impl GpuEngine {
                 )
             };
             steps.insert(0, unproject);
+            if let Some((group, n)) = cells {
+                let judge = Step {
+                    group: Some(group),
+                    ..Step::direct(
+                        "cells",
+                        &self.cells.pipeline,
+                        groups((n as usize).div_ceil(layout::WORKGROUP as usize)),
+                    )
+                };
+                steps.insert(1, judge);
+            }
         }
         let mut encoder = self
             .device
@@ -254,6 +288,9 @@ impl GpuEngine {
             self.timestamps.as_ref().map(|(set, _)| set),
             self.profile,
         );
+        if let Some((_, n)) = cells {
+            self.cells.copy_out(&mut encoder, n);
+        }
         let state_size = std::mem::size_of::<Counters>() as u64;
         let minima_size = 8 * l as u64;
         encoder.copy_buffer_to_buffer(&self.state, 0, &self.readback, 0, state_size);
@@ -435,4 +472,18 @@ fn split_minima(
         }
     }
     Some(packed)
+}
+
+impl GpuEngine {
+    /// Asks the next depth query to judge the unseen space's cells `request` (`cell.rs`, after
+    /// `unproject` in the same submission); `None` takes a request back.
+    pub fn request_cells(&mut self, request: Option<CellParams>) {
+        self.cells.request = request;
+        self.cells.last = None;
+    }
+
+    /// The verdicts of the last query that ran the cells' pass (one word a cell), taken.
+    pub fn take_cells(&mut self) -> Option<Vec<u32>> {
+        self.cells.last.take()
+    }
 }

@@ -6,6 +6,7 @@
 use std::borrow::Cow;
 
 use super::bindings::{layout_entry, storage};
+use super::cell::CellPass;
 use super::engine::{GpuEngine, Pipelines, HOST_STEPS};
 use super::error::GpuError;
 use super::options::GpuOptions;
@@ -339,6 +340,7 @@ impl GpuEngine {
             layout,
             pipelines,
             unproject: Unproject::new(&device),
+            cells: CellPass::new(&device),
             device,
             queue,
             sized: None,

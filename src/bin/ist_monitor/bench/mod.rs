@@ -1,13 +1,15 @@
 //! Benchmarks: `bench packing` (`packing.rs`), `bench query` (`query.rs`, its rows in `rows.rs`, its plot in
 //! `plot.rs`),
-//! `bench gpu` (`gpu.rs`), `bench ssm` (`ssm.rs`, the separation monitor) and `bench monitor`
-//! (`monitor.rs`, fusion and the stray-point filter), over the real scenes of `scenes.rs`. Figures are medians with
+//! `bench gpu` (`gpu.rs`), `bench ssm` (`ssm.rs`, the separation monitor), `bench monitor`
+//! (`monitor.rs`, fusion, the stray-point filter and the unseen space) and `bench unseen`
+//! (`picture.rs`, a frame's unseen space drawn), over the real scenes of `scenes.rs`. Figures are medians with
 //! the 10th and 90th percentiles ([`ist_monitor::stats::Spread`]), each beside a floor or a
 //! peer measured in the same run.
 
 mod gpu;
 mod monitor;
 mod packing;
+mod picture;
 mod plot;
 mod query;
 mod rows;
@@ -32,8 +34,12 @@ pub enum Bench {
     /// the query of the same frames; with --plot, distance, S_p and the factor over time.
     Ssm(ssm::BenchSsmArgs),
     /// What the monitor adds to the query on the real Kinect cloud: the fusion across sources
-    /// with the output messages, and the stray-point filter, as ratios to the query.
+    /// with the output messages, the stray-point filter and the unseen space, as ratios to the
+    /// query.
     Monitor(monitor::BenchMonitorArgs),
+    /// A picture of one frame's unseen space, drawn from a replay: the view with the hidden
+    /// places nearest the robot coloured by cause, and the same places from above.
+    Unseen(picture::BenchUnseenArgs),
 }
 
 pub fn run(bench: Bench) -> Result<()> {
@@ -43,5 +49,6 @@ pub fn run(bench: Bench) -> Result<()> {
         Bench::Gpu(args) => gpu::bench_gpu(args),
         Bench::Ssm(args) => ssm::bench_ssm(args),
         Bench::Monitor(args) => monitor::bench_monitor(args),
+        Bench::Unseen(args) => picture::bench_unseen(args),
     }
 }

@@ -45,7 +45,7 @@ fn find_font(dirs: &[std::path::PathBuf]) -> Option<std::path::PathBuf> {
 }
 
 /// Registers the plot's font once per process (plotters keeps a `'static` reference).
-fn register_font(font: Option<&Path>) -> Result<()> {
+pub(super) fn register_font(font: Option<&Path>) -> Result<()> {
     static FONT: OnceLock<Vec<u8>> = OnceLock::new();
     if FONT.get().is_some() {
         return Ok(());
