@@ -133,7 +133,7 @@ impl PreparedView {
             let q = self.camera_from_root * Point3::from(c.map(f64::from));
             let p = [q.x as f32, q.y as f32, q.z as f32];
             let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-            if !(p[2] > r) {
+            if p[2].is_nan() || p[2] <= r {
                 continue;
             }
             let Some(alpha) = o.footprint(r, l) else {
