@@ -59,6 +59,25 @@ fn demo_monitor() -> Monitor {
     .unwrap()
 }
 
+/// The summary's percentiles are those of its frames' times, the unseen-space pass's as the
+/// processing's (the pass's were once taken from the frames unsorted).
+#[test]
+fn the_summary_quotes_the_frames_percentiles() {
+    let (frames, summary) = replay_all(&mut demo_monitor(), &bundled("demo"), Clock::Log);
+    let sorted = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let processing = sorted(frames.iter().map(|f| f.processing_ms).collect());
+    let unseen = sorted(frames.iter().filter_map(|f| f.unseen_ms).collect());
+    assert_eq!(unseen.len(), frames.len());
+    let at = ist_monitor::stats::percentile;
+    assert_eq!(Some(summary.processing_p50_ms), at(&processing, 0.5));
+    assert_eq!(Some(summary.processing_p99_ms), at(&processing, 0.99));
+    assert_eq!(summary.unseen_p50_ms, at(&unseen, 0.5));
+    assert_eq!(summary.unseen_p99_ms, at(&unseen, 0.99));
+}
+
 /// Every frame of both bundled bags: the recorded exact distance lies in the certified interval,
 /// and exact mode gives it within 1e-4 m.
 #[test]

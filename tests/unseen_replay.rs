@@ -22,13 +22,13 @@ const VOLUME: [(&str, &str); 2] = [
     ("monitored_volume.translation", "[-0.1, 0.0, 0.3]"),
 ];
 
-/// The generator's floor (its top at z = 0) dropped, up to 4 cm, by an exclusion volume.
+/// The generator's floor (its top at z = 0) dropped, up to 1 cm, by an exclusion volume.
 const FLOOR: [(&str, &str); 5] = [
     ("exclusion_volumes", "[floor]"),
     ("floor.frame", "world"),
     ("floor.shape", "box"),
     ("floor.size", "[8.0, 8.0, 0.2]"),
-    ("floor.translation", "[0.0, 0.0, -0.06]"),
+    ("floor.translation", "[0.0, 0.0, -0.09]"),
 ];
 
 /// The robot's shadow counted as any hidden space (the demo configs report it apart).

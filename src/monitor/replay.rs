@@ -274,6 +274,7 @@ pub fn replay_frames(
         w.finish()?;
     }
     times.sort_by(f64::total_cmp);
+    unseen_times.sort_by(f64::total_cmp);
     summary.processing_p50_ms = percentile(&times, 0.5).unwrap_or(0.0);
     summary.processing_p99_ms = percentile(&times, 0.99).unwrap_or(0.0);
     summary.unseen_p50_ms = percentile(&unseen_times, 0.5);

@@ -17,9 +17,10 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use super::error::UnseenError;
 
 /// Default lattice resolution (m): 2 cm, the 2–4 cm range at its fine end. A 2 × 2 × 2 m
-/// volume is then 10⁶ cells, a CPU pass of a few tens of milliseconds per camera; it certifies
-/// an arm-level detection capability (70 mm: a base ball of 17.7 mm about each centre, `cell`),
-/// where 4 cm would not.
+/// volume is then 10⁶ cells, which the search prunes to the few hundred blocks that can be
+/// nearer than what it finds (5 ms on the Kinect frame on 2 cores, docs/unobserved.md); it
+/// certifies an arm-level detection capability (70 mm: a base ball of 17.7 mm about each centre,
+/// `cell`), where 4 cm would not.
 pub const DEFAULT_RESOLUTION_M: f64 = 0.02;
 
 /// The most cells a lattice may hold: 16 M (a 5 m cube at 2 cm); beyond, the per-frame pass

@@ -24,16 +24,23 @@
 //! The steps, in the order a frame runs them:
 //! 1. [`RangeView`] (`view`, `fit`): per source its pixel grid, pose, depths and range limits,
 //!    from a depth image or an organized cloud; [`PreparedView`] (`prepared`, `pyramid`): per
-//!    frame of its source, its free distance and the robot's padded body along every ray, and
-//!    their min/max pyramids;
+//!    frame of its source, its free distance and the robot's padded body along every ray (the
+//!    robot only where the search or the causes read it: [`RobotImage`]), and their min/max
+//!    pyramids;
 //! 2. the footprint test (`footprint`), per view and ball; the cell's verdict over the views
 //!    (`cell`);
 //! 3. the search (`search`): blocks of centres in the order of their bound from the robot
 //!    (`robot`), only those that can be nearer than the best distance found, a block that one
 //!    view sees wholly free skipped; the caller's certified distance over the hidden centres,
 //!    wave by wave;
-//! 4. [`BallSize::distance`]: that distance less `R + d/2` (the hidden ball's nearest point is
+//! 4. the causes of the nearest hidden place and of those kept for markers
+//!    ([`Search::name_causes`]);
+//! 5. [`BallSize::distance`]: that distance less `R + d/2` (the hidden ball's nearest point is
 //!    `R` from its centre, which is within `d/2` of the lattice centre), floored at 0.
+//!
+//! The GPU judges the cells of a depth image's view in the query's submission where the query
+//! runs there (`shaders/cell.wgsl`, the rule of `footprint` without its shortcuts); a
+//! [`PlacedView`] carrying its verdicts answers from them (`cell`).
 //!
 //! **What is guaranteed.** Take a ball of diameter `D` inside the monitored volume and outside
 //! the robot and the exclusion volumes, such that every pixel whose area meets it returns

@@ -25,7 +25,7 @@ pub const DEMO_CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config/demo_
 /// (`ScenarioParams::default()`) in tests of what the cameras see: the space no camera sees
 /// is not watched (without a floor every ray behind the scene returns nothing, and all of it is
 /// hidden), and the demo config's floor exclusion is moved 1 m under the cell, where it removes
-/// none of their points (a shoe's lowest points lie within the floor's 4 cm).
+/// none of their points (a shoe's lowest points lie within the floor's centimetre).
 pub const SEEN_ONLY_FLOORLESS: [(&str, &str); 2] = [
     ("unobserved", "ignore"),
     ("floor.translation", "[0.0, 0.0, -1.0]"),
