@@ -130,6 +130,9 @@ fn node_args() -> Vec<String> {
         ("stop_distance", STOP_DISTANCE.to_string()),
         // The state of the last cloud is held (not a stale source) while the recorder runs on.
         ("camera.source_timeout", "60.0".into()),
+        // What is checked is each cloud's unseen distance, not the machine's load: a frame over
+        // the budget (a fault under `protect`, tests/unseen_monitor.rs) is left out.
+        ("latency_budget", "10.0".into()),
     ]));
     args
 }

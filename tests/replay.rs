@@ -34,6 +34,9 @@ fn run(bag: &Path, mode: &str) -> (Vec<ReplayFrame>, Summary) {
         &[
             ("mode".to_string(), mode.to_string()),
             ("unobserved".to_string(), unobserved.to_string()),
+            // Under `protect` a frame later than the budget is a fault: what this compares is
+            // each frame's inputs, not the machine's load (CI once ran a frame over 50 ms).
+            (UNREACHED_BUDGET.0.into(), UNREACHED_BUDGET.1.into()),
         ],
     )
     .unwrap();
@@ -76,6 +79,30 @@ fn the_summary_quotes_the_frames_percentiles() {
     assert_eq!(Some(summary.processing_p99_ms), at(&processing, 0.99));
     assert_eq!(summary.unseen_p50_ms, at(&unseen, 0.5));
     assert_eq!(summary.unseen_p99_ms, at(&unseen, 0.99));
+}
+
+/// Under `protect`, a frame later than the latency budget with the pass is a fault of the cell:
+/// ERROR, no distance, and the replay's summary counts it (it once said "0 faults" of frames
+/// that published no distance), the unseen distance's promise not checked on them.
+#[test]
+fn a_late_pass_under_protect_is_a_counted_fault() {
+    let overrides = [("latency_budget".to_string(), "0.000001".to_string())];
+    let config = Config::load(Path::new(DEMO_CONFIG), &overrides).unwrap();
+    assert!(config.unobserved.protects());
+    let (frames, summary) = replay_all(
+        &mut Monitor::new(config, &|_| {}).unwrap(),
+        &bundled("demo"),
+        Clock::Log,
+    );
+    assert!(frames.len() >= 20);
+    for f in &frames {
+        assert_eq!(f.level, Level::Error, "frame {}", f.index);
+        assert_eq!(f.min_distance_m, None, "frame {}", f.index);
+        let fault = f.unseen_fault.as_deref().expect("the late pass named");
+        assert!(fault.contains("latency_budget"), "{fault}");
+    }
+    assert_eq!(summary.faults.get("unseen_late"), Some(&frames.len()));
+    assert_eq!(summary.protected_above_truth, 0);
 }
 
 /// Every frame of both bundled bags: the recorded exact distance lies in the certified interval,

@@ -91,9 +91,13 @@ impl Monitor {
             Err(_) => self.unseen.forget(source),
         }
         let processing_s = start.elapsed().as_secs_f64();
+        let mut unseen_fault = None;
         if unseen_s.is_some() {
             self.unseen
                 .check_late(processing_s, self.config.latency_budget_s);
+            unseen_fault = (self.unseen.last())
+                .filter(|_| self.unseen.protects())
+                .and_then(|u| u.outcome.as_ref().err().cloned());
         }
         let speed = self
             .config
@@ -131,6 +135,7 @@ impl Monitor {
             unseen_stages_s,
             unseen_nearest,
             unseen_counts,
+            unseen_fault,
             outputs,
         }
     }

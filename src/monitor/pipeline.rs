@@ -44,6 +44,9 @@ pub struct Frame {
     pub unseen_nearest: Option<crate::unseen::Spot>,
     /// What the pass's search examined and found.
     pub unseen_counts: Option<crate::unseen::Counts>,
+    /// Under `protect`, why this frame's pass gave no distance (a fault of the cell: ERROR, no
+    /// distance); late passes included.
+    pub unseen_fault: Option<super::unseen::UnseenFault>,
     pub outputs: Outputs,
 }
 

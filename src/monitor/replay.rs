@@ -92,6 +92,9 @@ pub struct ReplayFrame {
     /// robot's shadow apart (`apart`: all of the volume's where nothing counted is hidden, as
     /// the search then examines it whole), and the views whose cells the GPU judged.
     pub unseen_counts: Option<crate::unseen::Counts>,
+    /// Under `protect`, why the pass gave no distance: a fault of the cell (ERROR, no
+    /// distance), a late pass among them.
+    pub unseen_fault: Option<String>,
     /// The unobserved-space pass, ms, and each of its stages.
     pub unseen_ms: Option<f64>,
     pub unseen_stages_ms: Vec<(&'static str, f64)>,
@@ -100,7 +103,8 @@ pub struct ReplayFrame {
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Summary {
     pub frames: usize,
-    /// Clouds that gave a fault instead of a distance, by kind.
+    /// Clouds that gave a fault instead of a distance, by kind; under `protect` an unseen-space
+    /// pass that gave none (`unseen_late`, …) counts as its frame's fault.
     pub faults: BTreeMap<String, usize>,
     /// Clouds not processed (a replay processes every cloud; the live node drops old ones).
     pub dropped: usize,
@@ -241,6 +245,8 @@ pub fn replay_frames(
         times.push(frame.processing_s * 1e3);
         if let Err(f) = &frame.result {
             *summary.faults.entry(f.kind().into()).or_default() += 1;
+        } else if let Some(f) = &frame.unseen_fault {
+            *summary.faults.entry(f.kind().into()).or_default() += 1;
         }
         let row = ReplayFrame::of(summary.frames, &frame, &truths, m.log_time_ns);
         summary.frames += 1;
@@ -255,7 +261,8 @@ pub fn replay_frames(
             let seen = row.min_distance_m.unwrap_or(f64::INFINITY);
             let unseen = row.unseen_m.unwrap_or(f64::INFINITY);
             summary.protected_checked += 1;
-            if seen.min(unseen) > t + 1e-4 && row.fault.is_none() {
+            let faulted = row.fault.is_some() || row.unseen_fault.is_some();
+            if seen.min(unseen) > t + 1e-4 && !faulted {
                 summary.protected_above_truth += 1;
             }
         }
@@ -471,6 +478,7 @@ impl ReplayFrame {
             unseen_cause: frame.unseen_nearest.map(|n| n.cause.name()),
             unseen_point: frame.unseen_nearest.map(|n| n.centre),
             unseen_counts: frame.unseen_counts,
+            unseen_fault: frame.unseen_fault.as_ref().map(|f| f.to_string()),
             unseen_ms: frame.unseen_s.map(|s| s * 1e3),
             unseen_stages_ms: (frame.unseen_stages_s.iter())
                 .map(|(n, s)| (*n, s * 1e3))

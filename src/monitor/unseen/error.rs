@@ -34,3 +34,18 @@ pub enum UnseenFault {
     )]
     Late { elapsed_ms: f64, budget_ms: f64 },
 }
+
+impl UnseenFault {
+    /// A short key for counting faults by kind (as `Fault::kind`), each prefixed `unseen_`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            UnseenFault::VolumeFrame { .. } => "unseen_volume_tf",
+            UnseenFault::ExclusionFrame { .. } => "unseen_exclusion_tf",
+            UnseenFault::ReachUnknown => "unseen_reach_unknown",
+            UnseenFault::NoSpheres => "unseen_no_spheres",
+            UnseenFault::Lattice(_) => "unseen_lattice",
+            UnseenFault::Query(_) => "unseen_query",
+            UnseenFault::Late { .. } => "unseen_late",
+        }
+    }
+}
