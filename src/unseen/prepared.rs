@@ -19,8 +19,10 @@
 //! the rows the causes of what was found read ([`PreparedView::render_robot_for`]): on the
 //! Kinect frame, the render was half the view's cost.
 //!
-//! Cost: two passes over the pixels, the pyramids (4/3 of a pass), and per sphere its image's
-//! pixels (all of them, or those of the rows asked for), in parallel (rayon).
+//! Cost: one pass over the pixels for the free distances and their 2 × 2 maxima (bands of rows,
+//! each reading the row below it again), the two pyramids built side by side (4/3 of a pass
+//! each), and per sphere its image's pixels (all of them, or those of the rows asked for), in
+//! parallel (rayon).
 
 use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;
@@ -88,37 +90,51 @@ impl PreparedView {
         let noise = view.range_noise_m();
         self.range_noise_m = noise;
         let (w, h) = (optics.width, optics.height);
-        let free = self.pyramids.free.base_mut(w, h);
-        free.par_iter_mut()
-            .zip(view.ranges().par_iter().zip(&self.rays))
-            .for_each(|(g, (&z, d))| {
-                *g = if z.is_finite() {
-                    // |d̃| = 1 / d_z for the unit ray d of d̃ = (x/z, y/z, 1).
-                    ((z - noise) / d[2] - ROUNDING_M).max(0.0)
-                } else {
-                    -1.0
-                };
-            });
-        // The largest free distance of each 2 × 2 pixels (clipped at the edges).
-        let (free, pairs) = (&self.pyramids.free, &mut self.pyramids.pairs);
-        let free = free.base();
-        pairs
-            .base_mut(w, h)
-            .par_chunks_mut(w)
+        let (ranges, rays) = (view.ranges(), &self.rays);
+        // |d̃| = 1 / d_z for the unit ray d of d̃ = (x/z, y/z, 1).
+        let free_at = |i: usize| {
+            let z = ranges[i];
+            if z.is_finite() {
+                ((z - noise) / rays[i][2] - ROUNDING_M).max(0.0)
+            } else {
+                -1.0
+            }
+        };
+        // The free distances, and the largest of each 2 × 2 pixels (by the top-left one,
+        // clipped at the edges), in one pass: bands of rows, each with the row below it.
+        let Pyramids { free, pairs, .. } = &mut self.pyramids;
+        let (free, pairs) = (free.base_mut(w, h), pairs.base_mut(w, h));
+        free.par_chunks_mut(BAND * w)
+            .zip(pairs.par_chunks_mut(BAND * w))
             .enumerate()
-            .for_each(|(v, row)| {
-                let below = (v + 1).min(h - 1);
-                for (u, out) in row.iter_mut().enumerate() {
-                    let right = (u + 1).min(w - 1);
-                    *out = free[v * w + u]
-                        .max(free[v * w + right])
-                        .max(free[below * w + u])
-                        .max(free[below * w + right]);
+            .for_each(|(band, (f, p))| {
+                let (v0, rows) = (band * BAND, f.len() / w);
+                for (k, g) in f.iter_mut().enumerate() {
+                    *g = free_at(v0 * w + k);
+                }
+                let below: Vec<f32> = if v0 + rows < h {
+                    ((v0 + rows) * w..(v0 + rows + 1) * w)
+                        .map(free_at)
+                        .collect()
+                } else {
+                    f[(rows - 1) * w..].to_vec()
+                };
+                for r in 0..rows {
+                    let row = &f[r * w..(r + 1) * w];
+                    let next = if r + 1 < rows {
+                        &f[(r + 1) * w..(r + 2) * w]
+                    } else {
+                        &below[..]
+                    };
+                    for (u, out) in p[r * w..(r + 1) * w].iter_mut().enumerate() {
+                        let right = (u + 1).min(w - 1);
+                        *out = row[u].max(row[right]).max(next[u]).max(next[right]);
+                    }
                 }
             });
         self.place_robot(&optics, robot);
-        self.pyramids.free.build();
-        self.pyramids.pairs.build();
+        let Pyramids { free, pairs, .. } = &mut self.pyramids;
+        rayon::join(|| free.build(), || pairs.build());
         if image == RobotImage::Whole {
             self.render_bands(&vec![true; self.rendered.len()]);
         }
