@@ -339,3 +339,31 @@ fn the_ros_package_is_declared() {
     assert!(root.join("config/ur5e.yaml").exists());
     assert!(root.join("LICENSE").exists());
 }
+
+/// `bench monitor` on our own demo bag: each monitor replays the bag up to its first cloud
+/// first, so the generated bag's joint states place the robot (it once measured a lone cloud
+/// with no joint state, and the pass never ran). The rows follow the config: its volume, its
+/// shadow and the other.
+#[test]
+fn bench_monitor_runs_on_the_demo_bag() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = ist_monitor()
+        .current_dir(root)
+        .args(["bench", "monitor", "--unseen-only", "--runs", "2"])
+        .args(["--config", "config/demo_arm.yaml", "bags/demo"])
+        .output()
+        .expect("runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for row in [
+        "unseen space, the config's volume, shadow apart (67500 cells)",
+        "unseen space, the config's volume, shadow count (67500 cells)",
+        "unseen space, 2 × 2 × 2 m at 2 cm, shadow apart",
+    ] {
+        assert!(stdout.contains(row), "no row {row:?}:\n{stdout}");
+    }
+}

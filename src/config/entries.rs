@@ -7,6 +7,8 @@
 
 use std::collections::BTreeMap;
 
+use yaml_rust2::Yaml;
+
 use super::error::ConfigError;
 use super::params::PARAMETERS;
 use super::values::Values;
@@ -18,6 +20,49 @@ pub(super) const LISTS: [(&str, &str); 4] = [
     ("exclusion_volumes", "<volume>."),
     ("attached_objects", "<object>."),
 ];
+
+/// `later` over `values` (a later source: a `--params-file`, `-p`). Where it takes an entry out
+/// of a list (`-p exclusion_volumes:=[]`), that entry's parameters given earlier are left out,
+/// and logged, as the running node leaves them out; an entry still listed keeps them, and any
+/// other undeclared name is still refused ([`Entries::read`]).
+pub(super) fn apply_later(
+    values: &mut BTreeMap<String, Yaml>,
+    later: impl IntoIterator<Item = (String, Yaml)>,
+) {
+    let before = listed(values);
+    values.extend(later);
+    let after = listed(values);
+    for ((list, template), (was, now)) in LISTS.iter().zip(before.iter().zip(&after)) {
+        for gone in was.iter().filter(|e| !now.contains(e)) {
+            let of_entry = |name: &str| {
+                (name.strip_prefix(gone.as_str()))
+                    .and_then(|r| r.strip_prefix('.'))
+                    .is_some_and(|rest| {
+                        let declared = format!("{template}{rest}");
+                        PARAMETERS.iter().any(|d| d.name == declared)
+                    })
+            };
+            let dropped: Vec<String> = values.keys().filter(|k| of_entry(k)).cloned().collect();
+            for name in &dropped {
+                values.remove(name);
+            }
+            if !dropped.is_empty() {
+                log::info!(
+                    "{gone} is no longer in {list}: its parameters ({}) are left out",
+                    dropped.join(", ")
+                );
+            }
+        }
+    }
+}
+
+/// The entries of each list in `values` (an unreadable list as none: [`Entries::read`] says why).
+fn listed(values: &BTreeMap<String, Yaml>) -> [Vec<String>; 4] {
+    let v = Values {
+        values: values.clone(),
+    };
+    LISTS.map(|(list, _)| v.strings(list).unwrap_or_default())
+}
 
 /// The names of one list entry's parameters: `("<name>.rest", "<template>.rest")`.
 pub(super) fn names(entry: &str, template: &str, rest: &str) -> (String, String) {

@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use yaml_rust2::{Yaml, YamlLoader};
 
 use super::config::Config;
+use super::entries::apply_later;
 use super::error::ConfigError;
 use super::params::{scalar_yaml, PARAMETERS};
 use super::values::flatten;
@@ -164,9 +165,8 @@ impl Config {
         let (namespace, node_name) = key_name(&key);
         let mut values = BTreeMap::new();
         flatten("", &section, &mut values);
-        for (name, value) in overrides {
-            values.insert(name.clone(), scalar_yaml(value));
-        }
+        let later = (overrides.iter()).map(|(name, value)| (name.clone(), scalar_yaml(value)));
+        apply_later(&mut values, later);
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_values(&node_name, &namespace, Some(base), values)
     }
@@ -205,14 +205,15 @@ impl Config {
                 matched = true;
                 let mut file_values = BTreeMap::new();
                 flatten("", &section, &mut file_values);
-                for (name, value) in file_values {
+                let later = file_values.into_iter().map(|(name, value)| {
                     let value = if is_path(&name) {
                         anchored(&name, value, dir)
                     } else {
                         value
                     };
-                    values.insert(name, value);
-                }
+                    (name, value)
+                });
+                apply_later(&mut values, later);
             }
             if !matched {
                 log::warn!(
@@ -222,9 +223,8 @@ impl Config {
                 );
             }
         }
-        for (name, value) in &sources.overrides {
-            values.insert(name.clone(), scalar_yaml(value));
-        }
+        let later = (sources.overrides.iter()).map(|(n, value)| (n.clone(), scalar_yaml(value)));
+        apply_later(&mut values, later);
         Self::from_values(&node, &namespace, Some(&base), values)
     }
 }
@@ -271,6 +271,54 @@ mod tests {
         ] {
             assert_eq!(key_matches(key, fqn), expected, "{key} against {fqn}");
         }
+    }
+
+    /// An entry that `-p` (or a later params file) takes out of its list leaves its parameters
+    /// out, as the running node does (the loader once refused `-p exclusion_volumes:=[]` with
+    /// "floor.frame is not declared"); a typo in the list, or a name under no entry, is still
+    /// refused.
+    #[test]
+    fn an_entry_taken_out_of_its_list_leaves_its_parameters_out() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = write(
+            dir.path(),
+            "cell.yaml",
+            "ist_monitor:\n  ros__parameters:\n    robot_description: arm.urdf\n    \
+             exclusion_volumes: [floor]\n    floor:\n      frame: world\n      \
+             size: [2.0, 2.0, 0.02]\n",
+        );
+        let load = |o: &[(&str, &str)]| {
+            let o: Vec<(String, String)> = (o.iter())
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect();
+            Config::load(&file, &o)
+        };
+        assert_eq!(load(&[]).unwrap().exclusion_volumes.len(), 1);
+        let none = load(&[("exclusion_volumes", "[]")]).unwrap();
+        assert!(none.exclusion_volumes.is_empty());
+        let e = load(&[("exclusion_volumes", "[flor]")])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("parameter flor."), "{e}");
+        let e = load(&[("exclusion_volumes", "[]"), ("flor.frame", "world")])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("flor.frame is not declared"), "{e}");
+        // A later params file takes the list as `-p` does.
+        let later = write(
+            dir.path(),
+            "later.yaml",
+            "/**:\n  ros__parameters:\n    exclusion_volumes: []\n",
+        );
+        let sources = ParameterSources {
+            config: Some(file.clone()),
+            params_files: vec![later],
+            ..ParameterSources::default()
+        };
+        assert!(Config::from_sources(&sources)
+            .unwrap()
+            .exclusion_volumes
+            .is_empty());
     }
 
     fn write(dir: &Path, name: &str, text: &str) -> PathBuf {

@@ -4,15 +4,20 @@
 //! (one source, and two), the stray-point filter and ten exclusion volumes (placed where the
 //! cloud has points, and where it has none: the filter's own cost), each as a ratio to the
 //! decode + poses + query of the same frames; and the unseen space (`unseen_rows`). The variants
-//! are alternated frame by frame in one run, so the machine's drift hits them alike.
+//! are alternated frame by frame in one run, so the machine's drift hits them alike. Each
+//! monitor first replays the bag up to its first cloud (`primed`): a generated bag's joint
+//! states place the robot as they do in `replay`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
 
 use ist_monitor::bag::read_messages;
+use ist_monitor::choice::Choice;
 use ist_monitor::cloud::pointcloud2;
+use ist_monitor::config::SelfShadow;
+use ist_monitor::monitor::replay::{replay_frames, Clock};
 use ist_monitor::monitor::{Frame, Monitor};
 use ist_monitor::stats::Spread;
 
@@ -61,7 +66,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         None => crate::demo::shared(&args.shared)?
             .join("bags/moveit_perception_tutorial/perception_tutorial_mcap"),
     };
-    let mut plain = monitor(&args, &[] as &[(&str, &str)])?;
+    let mut plain = primed(monitor(&args, &[] as &[(&str, &str)])?, &bag)?;
     let source = plain
         .config
         .sources
@@ -76,27 +81,30 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
     };
     let payload = &cloud.data;
     if args.unseen_only {
-        return unseen_rows(&args, payload);
+        return unseen_rows(&args, &bag, payload);
     }
     let sources = format!("[{name}, {name}_2]");
     let second_topic = format!("{name}_2.topic");
-    let mut two = monitor(
-        &args,
-        &[
-            ("sources", sources.as_str()),
-            (&second_topic, "/bench/second"),
-        ],
+    let mut two = primed(
+        monitor(
+            &args,
+            &[
+                ("sources", sources.as_str()),
+                (&second_topic, "/bench/second"),
+            ],
+        )?,
+        &bag,
     )?;
-    let mut stray = monitor(&args, &[("stray_filter.min_points", "4")])?;
+    let mut stray = primed(monitor(&args, &[("stray_filter.min_points", "4")])?, &bag)?;
     let root = plain.model.kinematics.root_link().to_owned();
-    let mut excluding = monitor(&args, &ten_volumes(&root, 0.0, None))?;
-    let mut excluding_nothing = monitor(&args, &ten_volumes(&root, 10.0, None))?;
+    let mut excluding = primed(monitor(&args, &ten_volumes(&root, 0.0, None))?, &bag)?;
+    let mut excluding_nothing = primed(monitor(&args, &ten_volumes(&root, 10.0, None))?, &bag)?;
     // The nine boxes as meshes (an STL of a 0.3 m box, 5 mm of padding).
     let stl = std::env::temp_dir().join(format!("ist_monitor_bench_{}.stl", std::process::id()));
     write_box_stl(&stl, 0.3).with_context(|| format!("writing {}", stl.display()))?;
     let meshes = monitor(&args, &ten_volumes(&root, 0.0, Some(&stl)));
     let _ = std::fs::remove_file(&stl);
-    let mut excluding_meshes = meshes?;
+    let mut excluding_meshes = primed(meshes?, &bag)?;
 
     // Warm-up: the GPU probe (backend auto), the caches and the self-filter's grids.
     for m in [
@@ -202,7 +210,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         pct(ratio(&query_meshes, &query)),
         excluded_meshes / args.runs as u64
     );
-    unseen_rows(&args, payload)
+    unseen_rows(&args, &bag, payload)
 }
 
 /// The unseen space on the same cloud, alternated frame by frame with the same monitor's
@@ -210,29 +218,45 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
 /// rule, with the shadow apart, and over a 2 × 2 × 2 m volume at 2 cm (10⁶ cells). Each row: the
 /// pass, all of it (the frame's view made and prepared, the volume, the robot, the search), as a
 /// ratio to the same run's frame with `ignore`; its stages; what the search examined.
-fn unseen_rows(args: &BenchMonitorArgs, payload: &[u8]) -> Result<()> {
-    let mut peer = monitor(args, &[] as &[(&str, &str)])?;
+fn unseen_rows(args: &BenchMonitorArgs, bag: &Path, payload: &[u8]) -> Result<()> {
+    let mut peer = primed(monitor(args, &[] as &[(&str, &str)])?, bag)?;
     let cube = [
         ("unobserved", "report"),
         ("monitored_volume.size", "[2.0, 2.0, 2.0]"),
         ("monitored_volume.translation", "[0.0, 0.0, 0.5]"),
     ];
+    // The config's own volume and shadow, its volume with the other shadow, and a fixed cube.
+    let volume = match peer.config.unobserved.volume {
+        Some(_) => "the config's volume",
+        None => "default volume",
+    };
+    let own = peer.config.unobserved.self_shadow;
+    let other = match own {
+        SelfShadow::Count => SelfShadow::Apart,
+        SelfShadow::Apart => SelfShadow::Count,
+    };
     let mut variants = [
         (
-            "default volume",
-            monitor(args, &[("unobserved", "report")])?,
+            format!("{volume}, shadow {}", own.name()),
+            primed(monitor(args, &[("unobserved", "report")])?, bag)?,
         ),
         (
-            "default volume, shadow apart",
-            monitor(
-                args,
-                &[
-                    ("unobserved", "report"),
-                    ("unobserved_self_shadow", "apart"),
-                ],
+            format!("{volume}, shadow {}", other.name()),
+            primed(
+                monitor(
+                    args,
+                    &[
+                        ("unobserved", "report"),
+                        ("unobserved_self_shadow", other.name()),
+                    ],
+                )?,
+                bag,
             )?,
         ),
-        ("2 × 2 × 2 m at 2 cm", monitor(args, &cube)?),
+        (
+            format!("2 × 2 × 2 m at 2 cm, shadow {}", own.name()),
+            primed(monitor(args, &cube)?, bag)?,
+        ),
     ];
     for _ in 0..3 {
         cloud_frame(&mut peer, 0, payload);
@@ -369,6 +393,15 @@ fn ten_volumes(root: &str, away: f64, mesh: Option<&std::path::Path>) -> Vec<(St
 
 /// Source `source`'s cloud from its CDR payload, decoded as `replay` decodes it (the decoding
 /// timed with the frame).
+/// `m` after the bag's inputs up to its first cloud (TF, joint states, camera info: a generated
+/// bag's joints come from its joint states, the Kinect config's from the config), and that
+/// cloud, replayed by its stamps.
+fn primed(mut m: Monitor, bag: &Path) -> Result<Monitor> {
+    replay_frames(&mut m, bag, None, Clock::Stamp, 1, &mut |_| {})
+        .with_context(|| format!("replaying the first cloud of {}", bag.display()))?;
+    Ok(m)
+}
+
 fn cloud_frame(m: &mut Monitor, source: usize, payload: &[u8]) -> Frame {
     let start = std::time::Instant::now();
     match pointcloud2::decode(payload) {
