@@ -116,7 +116,9 @@ pub struct Summary {
     pub max_error_vs_truth_m: Option<f64>,
     /// Frames with a recorded truth whose smaller of `~/min_distance` and `~/unseen_distance`
     /// (what `protect` takes) exceeds it by more than 0.1 mm, and how many were checked: the
-    /// unseen distance's promise where the obstacle hides.
+    /// unseen distance's promise where the obstacle hides. The promise is for a body inside the
+    /// monitored volume: the bag's truth does not say where its body is, so a frame whose body
+    /// lies outside the volume may count here without a broken promise.
     pub protected_above_truth: usize,
     pub protected_checked: usize,
     /// The unobserved-space pass, ms (median and 99th percentile over the frames that ran it).

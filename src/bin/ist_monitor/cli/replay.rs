@@ -221,7 +221,8 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
     if let (Some(p50), Some(p99)) = (summary.unseen_p50_ms, summary.unseen_p99_ms) {
         println!(
             "unobserved space: pass p50 {p50:.1} ms, p99 {p99:.1} ms; frames with a truth where \
-             min(min_distance, unseen_distance) exceeds it: {} of {}",
+             min(min_distance, unseen_distance) exceeds it: {} of {} (promised for a body \
+             inside the monitored volume)",
             summary.protected_above_truth, summary.protected_checked
         );
     }
