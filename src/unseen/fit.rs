@@ -103,58 +103,32 @@ pub fn fits(camera: &PinholeCamera, points: &[[f32; 3]]) -> bool {
     if w == 0 || points.len() as u64 != u64::from(camera.width) * u64::from(camera.height) {
         return false;
     }
-    let check = Reprojection::of(camera);
+    // f32 is exact to 1e-4 px here; the half-pixel test has room for it.
+    let (fx, fy, cx, cy) = (
+        camera.fx as f32,
+        camera.fy as f32,
+        camera.cx as f32,
+        camera.cy as f32,
+    );
+    let limit = MAX_RESIDUAL_PX as f32;
     let (ok, valid) = points
         .par_chunks(w)
         .enumerate()
-        .map(|(v, row)| check.row(v, row))
-        .reduce(|| (true, 0), |a, b| (a.0 && b.0, a.1 + b.1));
-    check.holds(ok, valid)
-}
-
-/// [`fits`] a row at a time, for a caller that reads the points' rows anyway (the view's
-/// ranges are taken in the same pass).
-#[derive(Debug, Clone, Copy)]
-pub struct Reprojection {
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-}
-
-impl Reprojection {
-    pub fn of(camera: &PinholeCamera) -> Self {
-        // f32 is exact to 1e-4 px here; the half-pixel test has room for it.
-        Self {
-            fx: camera.fx as f32,
-            fy: camera.fy as f32,
-            cx: camera.cx as f32,
-            cy: camera.cy as f32,
-        }
-    }
-
-    /// Whether every valid point of `row` (pixel row `v`) re-projects within
-    /// [`MAX_RESIDUAL_PX`] of its pixel, and how many are valid.
-    #[inline]
-    pub fn row(&self, v: usize, row: &[[f32; 3]]) -> (bool, usize) {
-        let limit = MAX_RESIDUAL_PX as f32;
-        let (mut ok, mut valid) = (true, 0usize);
-        for (u, p) in row.iter().enumerate() {
-            if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite() && p[2] > 0.0) {
-                continue;
+        .map(|(v, row)| {
+            let (mut ok, mut valid) = (true, 0usize);
+            for (u, p) in row.iter().enumerate() {
+                if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite() && p[2] > 0.0) {
+                    continue;
+                }
+                valid += 1;
+                let du = (fx * p[0] / p[2] + cx - u as f32).abs();
+                let dv = (fy * p[1] / p[2] + cy - v as f32).abs();
+                ok &= du <= limit && dv <= limit;
             }
-            valid += 1;
-            let du = (self.fx * p[0] / p[2] + self.cx - u as f32).abs();
-            let dv = (self.fy * p[1] / p[2] + self.cy - v as f32).abs();
-            ok &= du <= limit && dv <= limit;
-        }
-        (ok, valid)
-    }
-
-    /// Whether rows that gave (`ok`, `valid`) in all fit the camera.
-    pub fn holds(&self, ok: bool, valid: usize) -> bool {
-        ok && valid >= MIN_FIT_POINTS
-    }
+            (ok, valid)
+        })
+        .reduce(|| (true, 0), |a, b| (a.0 && b.0, a.1 + b.1));
+    ok && valid >= MIN_FIT_POINTS
 }
 
 #[cfg(test)]

@@ -77,7 +77,7 @@ pub use ball::{BallSize, DEFAULT_DETECTION_CAPABILITY_M};
 pub use camera::{Cone, Optics, Rect};
 pub use cell::{in_shadow, judge_cell, CellSeen, PlacedView};
 pub use error::UnseenError;
-pub use fit::{fit_pinhole, fits, Reprojection, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
+pub use fit::{fit_pinhole, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
 pub use footprint::{judge, Cause, Need, Pixels, Seen, Why, ROUNDING_M};
 pub use lattice::{centre_at, Lattice, DEFAULT_RESOLUTION_M, MAX_CELLS};
 pub use prepared::{unit_rays, PreparedView, RobotImage};

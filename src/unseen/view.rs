@@ -25,7 +25,7 @@ use crate::cloud::depth::{DepthView, PinholeCamera};
 use crate::cloud::RangeLimits;
 
 use super::error::UnseenError;
-use super::fit::{fit_pinhole, Reprojection};
+use super::fit::{fit_pinhole, fits};
 
 /// Default range noise (m): a return at `r` is taken to show free space up to `r − 0.02`.
 /// A Kinect-class structured-light camera's depth noise is about 1.5 cm (1σ) at 3 m and grows
@@ -100,8 +100,7 @@ impl RangeView {
     /// The view of an organized cloud: `points` (row-major `width × height`, in the cloud's
     /// optical frame, which `root_from_camera` places), the intrinsics fitted from them
     /// ([`super::fit::fit_pinhole`]), or `known` where it still fits every point
-    /// ([`super::fit::fits`], in the same pass as the ranges: a source's camera does not change
-    /// from frame to frame). An
+    /// ([`super::fit::fits`]: a source's camera does not change from frame to frame). An
     /// unorganized cloud, or one no pinhole camera fits, is an error: that source observes
     /// nothing free.
     pub fn from_organized_cloud(
@@ -124,26 +123,11 @@ impl RangeView {
                 height,
             });
         }
-        // The ranges, and whether the known camera still fits, in one pass over the points.
-        let w = width as usize;
-        let mut ranges = vec![0.0f32; points.len()];
-        let known = known.filter(|c| c.width == width && c.height == height);
-        let check = known.map(Reprojection::of);
-        let (ok, valid) = ranges
-            .par_chunks_mut(w)
-            .zip(points.par_chunks(w))
-            .enumerate()
-            .map(|(v, (out, row))| {
-                for (o, &p) in out.iter_mut().zip(row) {
-                    *o = keep(p, range);
-                }
-                check.map_or((false, 0), |c| c.row(v, row))
-            })
-            .reduce(|| (true, 0), |a, b| (a.0 && b.0, a.1 + b.1));
-        let camera = match (known, check) {
-            (Some(c), Some(check)) if check.holds(ok, valid) => *c,
+        let camera = match known {
+            Some(c) if c.width == width && c.height == height && fits(c, points) => *c,
             _ => fit_pinhole(points, width, height)?,
         };
+        let ranges = points.par_iter().map(|&p| keep(p, range)).collect();
         Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
     }
 
@@ -300,8 +284,7 @@ mod tests {
         assert!(view.ranges()[5].is_nan() && (view.ranges()[6] - 2.06).abs() < 1e-6);
         // The last rows lie beyond 3.5 m.
         assert!(view.ranges()[199].is_nan());
-        // The camera of an earlier frame is kept where it fits, refitted where it does not
-        // (checked in the same pass as the ranges).
+        // The camera of an earlier frame is kept where it fits, refitted where it does not.
         let kept = *view.camera();
         let again = |known: &PinholeCamera| {
             RangeView::from_organized_cloud(
