@@ -58,6 +58,8 @@ pub struct PreparedView {
     /// The range noise its free distances were taken short by (m).
     range_noise_m: f32,
     rays: Vec<[f32; 3]>,
+    /// Each unit ray's z, apart, for the free distances' pass.
+    ray_z: Vec<f32>,
     /// The free distances and the robot's image, each the base of its pyramid.
     pyramids: Pyramids,
     /// The padded spheres' silhouettes, front to back, and which bands of `BAND` rows of the
@@ -83,6 +85,7 @@ impl PreparedView {
         let optics = Optics::new(&camera, view.min_range2().sqrt(), view.max_range_m());
         if self.camera != Some(camera) {
             self.rays = unit_rays(&camera);
+            self.ray_z = self.rays.iter().map(|d| d[2]).collect();
             self.camera = Some(camera);
         }
         self.optics = Some(optics);
@@ -90,16 +93,7 @@ impl PreparedView {
         let noise = view.range_noise_m();
         self.range_noise_m = noise;
         let (w, h) = (optics.width, optics.height);
-        let (ranges, rays) = (view.ranges(), &self.rays);
-        // |d̃| = 1 / d_z for the unit ray d of d̃ = (x/z, y/z, 1).
-        let free_at = |i: usize| {
-            let z = ranges[i];
-            if z.is_finite() {
-                ((z - noise) / rays[i][2] - ROUNDING_M).max(0.0)
-            } else {
-                -1.0
-            }
-        };
+        let (ranges, ray_z) = (view.ranges(), &self.ray_z[..]);
         // The free distances, and the largest of each 2 × 2 pixels (by the top-left one,
         // clipped at the edges), in one pass: bands of rows, each with the row below it.
         let Pyramids { free, pairs, .. } = &mut self.pyramids;
@@ -108,28 +102,22 @@ impl PreparedView {
             .zip(pairs.par_chunks_mut(BAND * w))
             .enumerate()
             .for_each(|(band, (f, p))| {
-                let (v0, rows) = (band * BAND, f.len() / w);
-                for (k, g) in f.iter_mut().enumerate() {
-                    *g = free_at(v0 * w + k);
-                }
-                let below: Vec<f32> = if v0 + rows < h {
-                    ((v0 + rows) * w..(v0 + rows + 1) * w)
-                        .map(free_at)
-                        .collect()
+                let (start, n) = (band * BAND * w, f.len());
+                let end = start + n;
+                free_distances(f, &ranges[start..end], &ray_z[start..end], noise);
+                let below = if end < w * h {
+                    let mut row = vec![0.0; w];
+                    free_distances(&mut row, &ranges[end..end + w], &ray_z[end..end + w], noise);
+                    row
                 } else {
-                    f[(rows - 1) * w..].to_vec()
+                    f[n - w..].to_vec()
                 };
-                for r in 0..rows {
-                    let row = &f[r * w..(r + 1) * w];
-                    let next = if r + 1 < rows {
-                        &f[(r + 1) * w..(r + 2) * w]
-                    } else {
-                        &below[..]
+                for (r, out) in p.chunks_exact_mut(w).enumerate() {
+                    let next = match f.get((r + 1) * w..(r + 2) * w) {
+                        Some(next) => next,
+                        None => &below[..],
                     };
-                    for (u, out) in p[r * w..(r + 1) * w].iter_mut().enumerate() {
-                        let right = (u + 1).min(w - 1);
-                        *out = row[u].max(row[right]).max(next[u]).max(next[right]);
-                    }
+                    largest_of_pairs(&f[r * w..(r + 1) * w], next, out);
                 }
             });
         self.place_robot(&optics, robot);
@@ -306,6 +294,31 @@ fn render(o: &Optics, rays: &[[f32; 3]], shapes: &[Silhouette], robot: &mut [f32
                 }
             }
         });
+}
+
+/// Each pixel's free distance along its ray: its depth `z` less the range `noise`, over its unit
+/// ray's z (|d̃| = 1 / d_z for the unit ray d of d̃ = (x/z, y/z, 1)), less [`ROUNDING_M`]; −1
+/// for no return.
+#[inline]
+fn free_distances(out: &mut [f32], z: &[f32], ray_z: &[f32], noise: f32) {
+    for ((g, &z), &dz) in out.iter_mut().zip(z).zip(ray_z) {
+        *g = if z.is_finite() {
+            ((z - noise) / dz - ROUNDING_M).max(0.0)
+        } else {
+            -1.0
+        };
+    }
+}
+
+/// `out[u]`: the largest of `row[u]`, `row[u + 1]`, `next[u]`, `next[u + 1]` (the last column
+/// alone at the edge).
+#[inline]
+fn largest_of_pairs(row: &[f32], next: &[f32], out: &mut [f32]) {
+    let w = out.len();
+    for ((o, a), b) in out.iter_mut().zip(row.windows(2)).zip(next.windows(2)) {
+        *o = a[0].max(a[1]).max(b[0]).max(b[1]);
+    }
+    out[w - 1] = row[w - 1].max(next[w - 1]);
 }
 
 /// Each pixel's unit ray through its centre, camera frame (row-major).
