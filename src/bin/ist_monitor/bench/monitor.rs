@@ -45,9 +45,10 @@ pub struct BenchMonitorArgs {
 /// The bench's default config.
 const CONFIG: &str = "config/panda_perception_tutorial.yaml";
 
-/// A monitor of the config with `extra` parameters.
+/// A monitor of the config with `extra` parameters, [`primed`] with `bag`.
 fn monitor(
     args: &BenchMonitorArgs,
+    bag: &Path,
     extra: &[(impl AsRef<str>, impl AsRef<str>)],
 ) -> Result<Monitor> {
     let mut extra: Vec<(String, String)> = (extra.iter())
@@ -57,7 +58,7 @@ fn monitor(
     if !extra.iter().any(|(k, _)| k == "unobserved") {
         extra.push(("unobserved".into(), "ignore".into()));
     }
-    monitor_from_config(args.config.load(CONFIG, &extra)?)
+    primed(monitor_from_config(args.config.load(CONFIG, &extra)?)?, bag)
 }
 
 pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
@@ -66,7 +67,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
         None => crate::demo::shared(&args.shared)?
             .join("bags/moveit_perception_tutorial/perception_tutorial_mcap"),
     };
-    let mut plain = primed(monitor(&args, &[] as &[(&str, &str)])?, &bag)?;
+    let mut plain = monitor(&args, &bag, &[] as &[(&str, &str)])?;
     let source = plain
         .config
         .sources
@@ -85,26 +86,21 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
     }
     let sources = format!("[{name}, {name}_2]");
     let second_topic = format!("{name}_2.topic");
-    let mut two = primed(
-        monitor(
-            &args,
-            &[
-                ("sources", sources.as_str()),
-                (&second_topic, "/bench/second"),
-            ],
-        )?,
-        &bag,
-    )?;
-    let mut stray = primed(monitor(&args, &[("stray_filter.min_points", "4")])?, &bag)?;
+    let second = [
+        ("sources", sources.as_str()),
+        (&second_topic, "/bench/second"),
+    ];
+    let mut two = monitor(&args, &bag, &second)?;
+    let mut stray = monitor(&args, &bag, &[("stray_filter.min_points", "4")])?;
     let root = plain.model.kinematics.root_link().to_owned();
-    let mut excluding = primed(monitor(&args, &ten_volumes(&root, 0.0, None))?, &bag)?;
-    let mut excluding_nothing = primed(monitor(&args, &ten_volumes(&root, 10.0, None))?, &bag)?;
+    let mut excluding = monitor(&args, &bag, &ten_volumes(&root, 0.0, None))?;
+    let mut excluding_nothing = monitor(&args, &bag, &ten_volumes(&root, 10.0, None))?;
     // The nine boxes as meshes (an STL of a 0.3 m box, 5 mm of padding).
     let stl = std::env::temp_dir().join(format!("ist_monitor_bench_{}.stl", std::process::id()));
     write_box_stl(&stl, 0.3).with_context(|| format!("writing {}", stl.display()))?;
-    let meshes = monitor(&args, &ten_volumes(&root, 0.0, Some(&stl)));
+    let meshes = monitor(&args, &bag, &ten_volumes(&root, 0.0, Some(&stl)));
     let _ = std::fs::remove_file(&stl);
-    let mut excluding_meshes = primed(meshes?, &bag)?;
+    let mut excluding_meshes = meshes?;
 
     // Warm-up: the GPU probe (backend auto), the caches and the self-filter's grids.
     for m in [
@@ -219,7 +215,7 @@ pub fn bench_monitor(args: BenchMonitorArgs) -> Result<()> {
 /// pass, all of it (the frame's view made and prepared, the volume, the robot, the search), as a
 /// ratio to the same run's frame with `ignore`; its stages; what the search examined.
 fn unseen_rows(args: &BenchMonitorArgs, bag: &Path, payload: &[u8]) -> Result<()> {
-    let mut peer = primed(monitor(args, &[] as &[(&str, &str)])?, bag)?;
+    let mut peer = monitor(args, bag, &[] as &[(&str, &str)])?;
     let cube = [
         ("unobserved", "report"),
         ("monitored_volume.size", "[2.0, 2.0, 2.0]"),
@@ -238,24 +234,22 @@ fn unseen_rows(args: &BenchMonitorArgs, bag: &Path, payload: &[u8]) -> Result<()
     let mut variants = [
         (
             format!("{volume}, shadow {}", own.name()),
-            primed(monitor(args, &[("unobserved", "report")])?, bag)?,
+            monitor(args, bag, &[("unobserved", "report")])?,
         ),
         (
             format!("{volume}, shadow {}", other.name()),
-            primed(
-                monitor(
-                    args,
-                    &[
-                        ("unobserved", "report"),
-                        ("unobserved_self_shadow", other.name()),
-                    ],
-                )?,
+            monitor(
+                args,
                 bag,
+                &[
+                    ("unobserved", "report"),
+                    ("unobserved_self_shadow", other.name()),
+                ],
             )?,
         ),
         (
             format!("2 × 2 × 2 m at 2 cm, shadow {}", own.name()),
-            primed(monitor(args, &cube)?, bag)?,
+            monitor(args, bag, &cube)?,
         ),
     ];
     for _ in 0..3 {
