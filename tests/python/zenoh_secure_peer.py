@@ -6,6 +6,7 @@ does (keys, hashes and attachments of zenoh_interop.py).
 
 PLAN: {"topic": the cloud topic, "seconds": how long every session publishes,
        "wait": how long to wait for the first session's first distance,
+       "settle": how long the others' sessions are given to be known before recording (2 s),
        "sessions": [{"name", "config": {zenoh config key: JSON5 value as a string},
                      "cloud": path of a CDR PointCloud2}, ...]}.
 
@@ -110,7 +111,10 @@ def main():
             if camera.distances:
                 break
     others = [Member(zenoh, spec, topic) for spec in plan["sessions"][1:]]
-    time.sleep(0.5)  # the others' publishers and subscribers reach the router
+    # The others' publishers, tokens and subscribers reach the router and, through it, the node
+    # (0.5 s was once too little on a loaded CI machine: the node answered the camera before it
+    # knew the second writer).
+    time.sleep(plan.get("settle", 2.0))
     members = [camera] + others
     for m in members:
         with m.lock:
