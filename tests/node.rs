@@ -708,11 +708,6 @@ fn zenoh_transport_serves_the_node() {
     if !common::in_private_network("zenoh_transport_serves_the_node") {
         return;
     }
-    use ist_monitor::cloud::depth::{
-        encode_depth, points_from_depth, DepthEncoding, PinholeCamera,
-    };
-    use ist_monitor::cloud::pointcloud2::{encode, Layout};
-    use ist_monitor::msg::{CameraInfo, Header, Time};
     let Some(python) = common::venv_python() else {
         return;
     };
@@ -728,8 +723,67 @@ fn zenoh_transport_serves_the_node() {
         common::skip("the venv has no eclipse-zenoh (bash .ci/run installs it)");
         return;
     }
-    let (model, trees) = common::demo_trees();
     let dir = tempfile::tempdir().unwrap();
+    let (plan, expected_cloud, expected_depth) = zenoh_peer_plan(dir.path());
+    let router = spawn(&["zenoh-router"]);
+    std::thread::sleep(Duration::from_millis(500));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/zenoh_interop.py");
+    let peer = Command::new(&python)
+        .arg(script)
+        .arg("tcp/localhost:7447")
+        .args(["--set", "hysteresis=0.03"])
+        .args(&plan)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1000));
+    let mut node = ist_monitor();
+    over_zenoh(&mut node);
+    let node = node
+        .args(common::at_rest_args())
+        .args([
+            "-p",
+            "sources:=[camera, depth]",
+            "-p",
+            "camera.source_timeout:=0.5",
+            "-p",
+            "depth.type:=depth_image",
+            "-p",
+            "depth.topic:=/camera/depth/image_raw",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let _reap = common::Reap(vec![router.id(), node.id(), peer.id()]);
+    let out = peer.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "zenoh_interop.py: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let peer: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    check_zenoh_answers(&peer, expected_cloud, expected_depth);
+    check_zenoh_graph(&peer);
+    play_the_demo_over_zenoh(dir.path(), node, router);
+}
+
+/// `c` on the zenoh transport, as rmw_zenoh is chosen.
+fn over_zenoh(c: &mut Command) {
+    c.env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp");
+}
+
+/// The zenoh peer's plan (a PointCloud2, a depth image with its CameraInfo, the optical frame
+/// on a latched /tf_static; files written into `dir`) and the library's answers on the same
+/// points: the cloud's and the depth image's certified lower bounds.
+fn zenoh_peer_plan(dir: &Path) -> (Vec<String>, f64, f64) {
+    use ist_monitor::cloud::depth::{
+        encode_depth, points_from_depth, DepthEncoding, PinholeCamera,
+    };
+    use ist_monitor::cloud::pointcloud2::{encode, Layout};
+    use ist_monitor::msg::{CameraInfo, Header, Time};
+    let (model, trees) = common::demo_trees();
     let k = &model.kinematics;
     let poses = k.link_poses(&vec![0.0; k.variables().len()]);
     let camera_link = poses[k.link_index("camera_link").unwrap()];
@@ -787,7 +841,7 @@ fn zenoh_transport_serves_the_node() {
             transform: ist_monitor::msg::Transform::from_isometry(&optical),
         }],
     };
-    let tf_path = dir.path().join("tf_static.cdr");
+    let tf_path = dir.join("tf_static.cdr");
     std::fs::write(&tf_path, msg::encode(&tf_static).unwrap()).unwrap();
     let mut plan = vec![
         "--latched".to_string(),
@@ -802,7 +856,7 @@ fn zenoh_transport_serves_the_node() {
         "--together".into(),
     ];
     for (i, (topic, ty, bytes)) in files.iter().enumerate() {
-        let path = dir.path().join(format!("{i}.cdr"));
+        let path = dir.join(format!("{i}.cdr"));
         std::fs::write(&path, bytes).unwrap();
         plan.push(format!("{topic}={},{ty}", path.display()));
     }
@@ -823,48 +877,12 @@ fn zenoh_transport_serves_the_node() {
     points_from_depth(&image, &camera, None, &mut depth_points).unwrap();
     let expected_depth = lower(&depth_points, camera_link * optical);
 
-    let zenoh = |c: &mut Command| {
-        c.env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp");
-    };
-    let mut router = spawn(&["zenoh-router"]);
-    std::thread::sleep(Duration::from_millis(500));
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/zenoh_interop.py");
-    let peer = Command::new(&python)
-        .arg(script)
-        .arg("tcp/localhost:7447")
-        .args(["--set", "hysteresis=0.03"])
-        .args(&plan)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(Duration::from_millis(1000));
-    let mut node = ist_monitor();
-    zenoh(&mut node);
-    let node = node
-        .args(common::at_rest_args())
-        .args([
-            "-p",
-            "sources:=[camera, depth]",
-            "-p",
-            "camera.source_timeout:=0.5",
-            "-p",
-            "depth.type:=depth_image",
-            "-p",
-            "depth.topic:=/camera/depth/image_raw",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let _reap = common::Reap(vec![router.id(), node.id(), peer.id()]);
-    let out = peer.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "zenoh_interop.py: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let peer: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    (plan, expected_cloud, expected_depth)
+}
+
+/// What the zenoh peer received: each source's own measure and the cell's fused distance as the
+/// library's, by the exact keys, with rmw_zenoh's attachments; the cached speed factor.
+fn check_zenoh_answers(peer: &serde_json::Value, expected_cloud: f64, expected_depth: f64) {
     // Each source measured on its own, as its own status in /diagnostics says (6 decimals)...
     for (status, expected) in [
         ("ist_monitor: camera", expected_cloud),
@@ -912,6 +930,11 @@ fn zenoh_transport_serves_the_node() {
     let cached = peer["speed_scaling"].as_array().unwrap();
     assert_eq!(cached.len(), 1, "{peer}");
     assert!((0.0..=1.0).contains(&cached[0].as_f64().unwrap()), "{peer}");
+}
+
+/// The node in the ROS graph as the zenoh peer saw it: its liveliness tokens, `ros2 param list`
+/// and `ros2 param set` with its /parameter_events.
+fn check_zenoh_graph(peer: &serde_json::Value) {
     // The node, its publishers and its subscriptions are in the ROS graph (liveliness tokens),
     // with their types' hashes and QoS.
     let tokens: Vec<&str> = peer["liveliness"]
@@ -993,10 +1016,16 @@ fn zenoh_transport_serves_the_node() {
     assert_eq!(event["deleted"], serde_json::json!([]), "{event}");
     let age_ns = ist_monitor::msg::Time::now_nanos() - event["stamp_ns"].as_i64().unwrap();
     assert!((0..60_000_000_000).contains(&age_ns), "{event}");
+}
+
+/// The demo bag played twice over zenoh to `node` (through `router`) and recorded over zenoh:
+/// every cloud answered, the silence between the plays an ERROR, then distances again; SIGTERM
+/// ends the node and the router cleanly.
+fn play_the_demo_over_zenoh(dir: &Path, node: Child, mut router: Child) {
     // The demo bag over zenoh, twice, recorded over zenoh.
-    let record = dir.path().join("outputs.mcap");
+    let record = dir.join("outputs.mcap");
     let mut recorder = ist_monitor();
-    zenoh(&mut recorder);
+    over_zenoh(&mut recorder);
     let mut recorder = recorder
         .args([
             "record",
@@ -1011,7 +1040,7 @@ fn zenoh_transport_serves_the_node() {
     std::thread::sleep(Duration::from_millis(1000));
     let play = |wait: &str| {
         let mut c = ist_monitor();
-        zenoh(&mut c);
+        over_zenoh(&mut c);
         play_measured(c, wait, "/ist_monitor/link_distances", None)
     };
     let first = play("1.0");

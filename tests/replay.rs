@@ -531,16 +531,6 @@ fn two_camera_monitor() -> Monitor {
     Monitor::new(config, &|_| {}).unwrap()
 }
 
-/// The demo config alone, with the same latency budget as [`two_camera_monitor`].
-fn one_camera_monitor() -> Monitor {
-    let budget = [(UNREACHED_BUDGET.0.into(), UNREACHED_BUDGET.1.into())];
-    Monitor::new(
-        Config::load(Path::new(DEMO_CONFIG), &budget).unwrap(),
-        &|_| {},
-    )
-    .unwrap()
-}
-
 /// A second camera that sees only a far wall never releases the stop the first one raised: the
 /// cell's level, stop and distance are those of the nearer camera on every frame of either
 /// source (the wall frames repeat the camera's last distance and level).
@@ -549,7 +539,7 @@ fn a_far_camera_never_releases_the_stop_a_near_one_raised() {
     let dir = tempfile::tempdir().unwrap();
     let bag = dir.path().join("two_cameras.mcap");
     common::write_two_camera_bag(&bag, false);
-    let (alone, _) = replay_all(&mut one_camera_monitor(), Path::new(DEMO_BAG), Clock::Log);
+    let (alone, _) = replay_all(&mut demo_monitor(), Path::new(DEMO_BAG), Clock::Log);
     let (fused, s) = replay_all(&mut two_camera_monitor(), &bag, Clock::Log);
     assert!(s.faults.is_empty(), "{:?}", s.faults);
     assert_eq!(fused.len(), 2 * alone.len());

@@ -295,6 +295,17 @@ fn named(
     })
 }
 
+/// The test robot at the identity pose, with the cells its spheres take for `ball`.
+fn robot_body(lattice: &Lattice, robot: &Robot, ball: &BallSize) -> RobotBody {
+    RobotBody::new(
+        lattice,
+        &robot.link,
+        &[Isometry3::identity()],
+        ball.radius_m,
+        0.0,
+    )
+}
+
 /// `then` of the search over `views`.
 fn searching(
     lattice: &Lattice,
@@ -304,13 +315,7 @@ fn searching(
     apart: bool,
     then: &mut dyn FnMut(&Search) -> ist_monitor::unseen::Found,
 ) -> ist_monitor::unseen::Found {
-    let body = RobotBody::new(
-        lattice,
-        &robot.link,
-        &[Isometry3::identity()],
-        ball.radius_m,
-        0.0,
-    );
+    let body = robot_body(lattice, robot, ball);
     let refs: Vec<&PreparedView> = views.iter().collect();
     let s = Search {
         lattice,
@@ -335,13 +340,7 @@ fn brute_force(
     ball: &BallSize,
     apart: bool,
 ) -> Option<f64> {
-    let body = RobotBody::new(
-        lattice,
-        &robot.link,
-        &[Isometry3::identity()],
-        ball.radius_m,
-        0.0,
-    );
+    let body = robot_body(lattice, robot, ball);
     let dims = lattice.dims();
     let half = lattice.half_extents_m();
     let h = lattice.resolution_m();

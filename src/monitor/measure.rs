@@ -91,14 +91,8 @@ impl Monitor {
             Err(_) => self.unseen.forget(source),
         }
         let processing_s = start.elapsed().as_secs_f64();
-        let mut unseen_fault = None;
-        if unseen_s.is_some() {
-            self.unseen
-                .check_late(processing_s, self.config.latency_budget_s);
-            unseen_fault = (self.unseen.last())
-                .filter(|_| self.unseen.protects())
-                .and_then(|u| u.outcome.as_ref().err().cloned());
-        }
+        let unseen_fault = unseen_s
+            .and_then(|_| (self.unseen).check_late(processing_s, self.config.latency_budget_s));
         let speed = self
             .config
             .ssm

@@ -142,15 +142,22 @@ impl Rect {
 /// axis (see the module doc); the whole image when the cone reaches the image plane's horizon.
 #[inline]
 pub fn window(o: &Optics, u: f32, v: f32, cos_phi: f32, alpha: Cone) -> Option<Rect> {
+    let Some(half) = half_window(cos_phi, alpha) else {
+        return Rect::whole(o);
+    };
+    let (hu, hv) = (o.fx * half + 1.0, o.fy * half + 1.0);
+    Rect::covering(o, u - hu, u + hu, v - hv, v + hv)
+}
+
+/// The half side, on the image plane at unit depth, of the window of a cone `alpha` about a
+/// direction at `cos φ` from the optical axis: `tan α / c²`, `c = cos(φ + α)`. `None` when the
+/// cone comes within `acos 0.05` of the image plane's horizon (no window bounds it).
+#[inline]
+pub fn half_window(cos_phi: f32, alpha: Cone) -> Option<f32> {
     let cos_phi = cos_phi.clamp(-1.0, 1.0);
     let sin_phi = (1.0 - cos_phi * cos_phi).sqrt();
     let c = cos_phi * alpha.cos - sin_phi * alpha.sin;
-    if c <= 0.05 {
-        return Rect::whole(o);
-    }
-    let half = alpha.tan() / (c * c);
-    let (hu, hv) = (o.fx * half + 1.0, o.fy * half + 1.0);
-    Rect::covering(o, u - hu, u + hu, v - hv, v + hv)
+    (c > 0.05).then(|| alpha.tan() / (c * c))
 }
 
 /// The columns of row `v` (within `rect`) whose rays may lie in the cone `(d̃·p)² ≥ k·|d̃|²`

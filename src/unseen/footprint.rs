@@ -322,41 +322,56 @@ mod tests {
         Optics::new(&camera, 0.0, f32::INFINITY)
     }
 
+    /// A test image's unit rays, free distances and robot image, owned.
+    struct Image {
+        rays: Vec<[f32; 3]>,
+        free: Vec<f32>,
+        robot: Vec<f32>,
+    }
+
+    impl Image {
+        fn px(&self) -> Pixels<'_> {
+            Pixels {
+                rays: &self.rays,
+                free: &self.free,
+                robot: &self.robot,
+            }
+        }
+    }
+
     /// Unit rays, free distances for depth `z(u, v)` (NaN: no return) and a robot image.
     fn pixels(
         o: &Optics,
         z: impl Fn(usize, usize) -> f32,
         robot: impl Fn(usize, usize) -> f32,
-    ) -> (Vec<[f32; 3]>, Vec<f32>, Vec<f32>) {
-        let mut rays = Vec::new();
-        let mut free = Vec::new();
-        let mut rob = Vec::new();
+    ) -> Image {
+        let mut image = Image {
+            rays: Vec::new(),
+            free: Vec::new(),
+            robot: Vec::new(),
+        };
         for v in 0..o.height {
             for u in 0..o.width {
                 let d = [(u as f32 - o.cx) / o.fx, (v as f32 - o.cy) / o.fy, 1.0f32];
                 let n = (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
-                rays.push([d[0] / n, d[1] / n, 1.0 / n]);
+                image.rays.push([d[0] / n, d[1] / n, 1.0 / n]);
                 let depth = z(u, v);
-                free.push(if depth.is_nan() {
+                image.free.push(if depth.is_nan() {
                     -1.0
                 } else {
                     depth * n - ROUNDING_M
                 });
-                rob.push(robot(u, v));
+                image.robot.push(robot(u, v));
             }
         }
-        (rays, free, rob)
+        image
     }
 
     #[test]
     fn a_wall_behind_rules_out_a_ball_and_one_in_front_hides_it() {
         let o = optics();
-        let (rays, free, robot) = pixels(&o, |_, _| 2.0, |_, _| f32::INFINITY);
-        let px = Pixels {
-            rays: &rays,
-            free: &free,
-            robot: &robot,
-        };
+        let image = pixels(&o, |_, _| 2.0, |_, _| f32::INFINITY);
+        let px = image.px();
         // A 3 cm ball at 1 m: the wall at 2 m passes through it.
         assert_eq!(
             judge(&o, &px, None, [0.0, 0.0, 1.0], 0.03, Need::Cause),
@@ -390,22 +405,18 @@ mod tests {
     fn dropped_pixels_do_not_keep_a_ball_a_dark_disc_does() {
         let o = optics();
         // Every other pixel dropped, in a checkerboard: each footprint keeps returns.
-        let (rays, free, robot) = pixels(
+        let image = pixels(
             &o,
             |u, v| if (u + v) % 2 == 0 { f32::NAN } else { 2.0 },
             |_, _| f32::INFINITY,
         );
-        let px = Pixels {
-            rays: &rays,
-            free: &free,
-            robot: &robot,
-        };
+        let px = image.px();
         assert_eq!(
             judge(&o, &px, None, [0.0, 0.0, 1.0], 0.05, Need::Cause),
             Seen::Free
         );
         // A disc of 12 pixels' radius about the centre returns nothing.
-        let (rays, free, robot) = pixels(
+        let image = pixels(
             &o,
             |u, v| {
                 let (du, dv) = (u as f32 - 31.5, v as f32 - 23.5);
@@ -417,11 +428,7 @@ mod tests {
             },
             |_, _| f32::INFINITY,
         );
-        let px = Pixels {
-            rays: &rays,
-            free: &free,
-            robot: &robot,
-        };
+        let px = image.px();
         assert_eq!(
             judge(&o, &px, None, [0.0, 0.0, 1.0], 0.05, Need::Cause),
             Seen::Hidden(Why::Known(Cause::NoReturn))
@@ -437,16 +444,12 @@ mod tests {
         let o = optics();
         // The robot's padded body 0.8 m along every central ray; its surface returned at 0.8 m.
         let near = |u: usize, v: usize| (u as i32 - 32).abs() < 15 && (v as i32 - 24).abs() < 15;
-        let (rays, free, robot) = pixels(
+        let image = pixels(
             &o,
             |u, v| if near(u, v) { 0.8 } else { 2.0 },
             |u, v| if near(u, v) { 0.8 } else { f32::INFINITY },
         );
-        let px = Pixels {
-            rays: &rays,
-            free: &free,
-            robot: &robot,
-        };
+        let px = image.px();
         let behind = [0.0, 0.0, 1.2];
         assert_eq!(
             judge(&o, &px, None, behind, 0.05, Need::Cause),
@@ -457,11 +460,10 @@ mod tests {
             Seen::Hidden(Why::Known(Cause::RobotShadow))
         );
         // The same returns with no robot rendered there: another body's shadow.
-        let (_, _, none) = pixels(&o, |_, _| 2.0, |_, _| f32::INFINITY);
+        let none = pixels(&o, |_, _| 2.0, |_, _| f32::INFINITY);
         let px = Pixels {
-            rays: &rays,
-            free: &free,
-            robot: &none,
+            robot: &none.robot,
+            ..image.px()
         };
         assert_eq!(
             judge(&o, &px, None, behind, 0.05, Need::Shadow),

@@ -32,7 +32,7 @@ use crate::cloud::depth::PinholeCamera;
 use super::camera::{cone_row, window, Cone, Optics, Rect};
 use super::footprint::{Pixels, ROUNDING_M};
 use super::pyramid::Pyramids;
-use super::robot::PaddedSphere;
+use super::robot::{PaddedSphere, Rigid32};
 use super::view::RangeView;
 
 /// Image rows per task of the robot's rendering.
@@ -193,16 +193,11 @@ impl PreparedView {
     /// The padded `spheres` (root frame) placed in the camera frame, front to back, each with
     /// the window its silhouette may cover; the robot's image blank (∞), no band rendered.
     fn place_robot(&mut self, o: &Optics, spheres: &[PaddedSphere]) {
-        let m = self.camera_from_root.rotation.to_rotation_matrix();
-        let t = self.camera_from_root.translation.vector;
-        let rot: [[f32; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32));
-        let tr = [t.x as f32, t.y as f32, t.z as f32];
+        let camera_from_root = Rigid32::of(&self.camera_from_root);
         self.shapes = spheres
             .par_iter()
             .filter_map(|s| {
-                let c: [f32; 3] = std::array::from_fn(|r| {
-                    (0..3).map(|k| rot[r][k] * s.centre[k]).sum::<f32>() + tr[r]
-                });
+                let c = camera_from_root.apply(s.centre);
                 let rho = s.radius + s.padding;
                 if c[2] + rho <= 0.0 {
                     return None;

@@ -181,6 +181,18 @@ impl RobotBody {
         smallest_m: f32,
     ) -> Self {
         let spheres = padded_spheres(links, poses, 0.0, smallest_m);
+        Self::from_spheres(lattice, links, poses, &spheres, ball_m)
+    }
+
+    /// As [`RobotBody::new`], from the spheres already placed at `poses` (their padding is not
+    /// taken: a cell is dropped by the inner spheres themselves).
+    pub fn from_spheres(
+        lattice: &Lattice,
+        links: &[QueryLink],
+        poses: &[Isometry3<f64>],
+        spheres: &[PaddedSphere],
+        ball_m: f32,
+    ) -> Self {
         let to = ToCells::new(lattice);
         let dims = lattice.dims();
         // The cells the spheres' reach covers, in cell coordinates (centre i at i + ½).
@@ -258,20 +270,15 @@ impl RobotBody {
 
 /// The lattice's frame in f32: a root-frame point to fractional cell coordinates.
 struct ToCells {
-    rotation: [[f32; 3]; 3],
-    translation: [f32; 3],
+    box_from_root: Rigid32,
     inv_h: f32,
     half: [f32; 3],
 }
 
 impl ToCells {
     fn new(lattice: &Lattice) -> Self {
-        let box_from_root = lattice.root_from_box().inverse();
-        let m = box_from_root.rotation.to_rotation_matrix();
-        let t = box_from_root.translation.vector;
         Self {
-            rotation: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32)),
-            translation: [t.x as f32, t.y as f32, t.z as f32],
+            box_from_root: Rigid32::of(&lattice.root_from_box().inverse()),
             inv_h: (1.0 / lattice.resolution_m()) as f32,
             half: lattice.dims().map(|n| 0.5 * n as f32),
         }
@@ -280,9 +287,33 @@ impl ToCells {
     /// Cell coordinates of a root-frame point: cell `i` spans `[i, i + 1)`.
     #[inline]
     fn at(&self, p: [f32; 3]) -> [f32; 3] {
+        let q = self.box_from_root.apply(p);
+        std::array::from_fn(|r| q[r] * self.inv_h + self.half[r])
+    }
+}
+
+/// A rigid transform rounded to f32 once, its rotation as a matrix, for the hot loops that
+/// move many root-frame points into one frame (a lattice's box, a camera's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rigid32 {
+    rotation: [[f32; 3]; 3],
+    translation: [f32; 3],
+}
+
+impl Rigid32 {
+    pub fn of(iso: &Isometry3<f64>) -> Self {
+        let m = iso.rotation.to_rotation_matrix();
+        let t = iso.translation.vector;
+        Self {
+            rotation: std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)] as f32)),
+            translation: [t.x as f32, t.y as f32, t.z as f32],
+        }
+    }
+
+    #[inline]
+    pub fn apply(&self, p: [f32; 3]) -> [f32; 3] {
         std::array::from_fn(|r| {
-            let q = (0..3).map(|c| self.rotation[r][c] * p[c]).sum::<f32>() + self.translation[r];
-            q * self.inv_h + self.half[r]
+            (0..3).map(|c| self.rotation[r][c] * p[c]).sum::<f32>() + self.translation[r]
         })
     }
 }

@@ -46,7 +46,7 @@ use nalgebra::Isometry3;
 use rayon::prelude::*;
 
 use super::ball::BallSize;
-use super::camera::Rect;
+use super::camera::{half_window, Rect};
 use super::cell::{judge_cell, CellSeen, PlacedView};
 use super::footprint::{judge, Cause, Need, Seen, Why, PAIR, ROUNDING_M};
 use super::lattice::{centre_at, Lattice};
@@ -620,12 +620,9 @@ impl Search<'_> {
         let Some(alpha) = o.footprint(r_sub, near) else {
             return BlockSeen::Mixed;
         };
-        let cos_min = cos_min.clamp(-1.0, 1.0);
-        let c = cos_min * alpha.cos - (1.0 - cos_min * cos_min).sqrt() * alpha.sin;
-        if c <= 0.05 {
+        let Some(half) = half_window(cos_min, alpha) else {
             return BlockSeen::Mixed;
-        }
-        let half = alpha.tan() / (c * c);
+        };
         let (hu, hv) = (o.fx * half + 1.6 + shift, o.fy * half + 1.6 + shift);
         let Some(rect) = Rect::covering(o, u_lo - hu, u_hi + hu, v_lo - hv, v_hi + hv) else {
             return BlockSeen::Mixed;

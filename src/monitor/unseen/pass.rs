@@ -3,8 +3,8 @@
 //! 1. **The volume** (`place_volume`): the lattice over `monitored_volume`, its frame placed at
 //!    the frame's stamp; by default the robot's reach plus a margin above the root's z = 0
 //!    plane, taken as the floor; the ball each centre stands for ([`BallSize`]).
-//! 2. **The robot** (`place_robot`): the centres whose ball meets an inner sphere, and each
-//!    link's bounding sphere, at the poses.
+//! 2. **The robot**: the centres whose ball meets an inner sphere (the spheres its view was
+//!    prepared with at the same poses, else placed now), and each link's bounding sphere.
 //! 3. **The search** (`unseen::Search`) over every live view, the exclusion volumes that apply
 //!    to every source placed at the stamp, with the engine's certified lower bound over the
 //!    hidden centres (certified mode at least, no self-filter), per link as configured.
@@ -103,18 +103,14 @@ impl UnseenSpace {
         lap("volume");
         // 2. The robot, and the exclusion volumes.
         let volumes = self.place_volumes(&input.at)?;
-        let (engine, poses, query) = (&mut *input.engine, input.at.poses, &self.query);
-        let links = engine.shared_links();
+        let links = input.engine.shared_links();
         if links.iter().all(|l| l.spheres.is_empty()) {
             return Err(UnseenFault::NoSpheres);
         }
-        let robot = RobotBody::new(
-            &lattice,
-            &links,
-            poses,
-            ball.radius_m,
-            self.smallest_sphere_m(),
-        );
+        let poses = input.at.poses;
+        let spheres = self.take_spheres(&links, poses);
+        let robot = RobotBody::from_spheres(&lattice, &links, poses, &spheres, ball.radius_m);
+        let (engine, query) = (&mut *input.engine, &self.query);
         lap("robot");
         // 3. The search.
         let names: Vec<String> = links.iter().map(|l| l.name.clone()).collect();

@@ -8,7 +8,7 @@ use crate::cloud::exclusion::ExclusionVolume;
 use crate::cloud::RangeLimits;
 use crate::config::{Config, Unobserved};
 use crate::query::{Mode, QueryLink, QueryOptions};
-use crate::unseen::{padded_spheres, Lattice, PreparedView, RangeView, RobotImage};
+use crate::unseen::{padded_spheres, Lattice, PaddedSphere, PreparedView, RangeView, RobotImage};
 
 use super::error::UnseenFault;
 use super::facts::Unseen;
@@ -40,6 +40,10 @@ pub struct UnseenSpace {
     pub(super) reach_m: Option<Option<f64>>,
     /// The time the frame being measured spent on its view (made and prepared), s.
     pub(super) view_s: f64,
+    /// The robot's padded spheres its view was prepared with, and the poses they were placed
+    /// at: handed to the same frame's pass (`take_spheres`), which places them only where
+    /// there are none.
+    pub(super) spheres: Option<(Vec<Isometry3<f64>>, Vec<PaddedSphere>)>,
     pub(super) last: Option<Unseen>,
 }
 
@@ -56,6 +60,7 @@ impl UnseenSpace {
             gpu_cells: vec![GpuCells::default(); config.sources.len()],
             reach_m: None,
             view_s: 0.0,
+            spheres: None,
             last: None,
         };
         space.reconfigure(config);
@@ -117,11 +122,13 @@ impl UnseenSpace {
     pub fn forget(&mut self, source: usize) {
         self.views[source] = None;
         self.gpu_cells[source] = GpuCells::default();
+        self.spheres = None;
     }
 
     /// Every source's view forgotten, and the latest pass (the clock went back).
     pub fn forget_all(&mut self) {
         self.views.iter_mut().for_each(|v| *v = None);
+        self.spheres = None;
         self.gpu_cells
             .iter_mut()
             .for_each(|c| *c = GpuCells::default());
@@ -143,25 +150,40 @@ impl UnseenSpace {
             return;
         }
         let start = std::time::Instant::now();
+        // The robot's image is read by the search only for the shadow apart; otherwise the
+        // causes of what it found render what they read (`pass`).
+        let image = if self.settings.self_shadow == crate::config::SelfShadow::Apart {
+            RobotImage::Whole
+        } else {
+            RobotImage::Deferred
+        };
         let made = view.map(|view| {
             let mut prepared = match self.views[source].take() {
                 Some(Ok(p)) => p,
                 _ => PreparedView::default(),
             };
-            let spheres = padded_spheres(links, poses, self.padding_m, self.smallest_sphere_m());
-            // The robot's image is read by the search only for the shadow apart; otherwise
-            // the causes of what it found render what they read (`pass`).
-            let image = if self.settings.self_shadow == crate::config::SelfShadow::Apart {
-                RobotImage::Whole
-            } else {
-                RobotImage::Deferred
-            };
+            let spheres = self.take_spheres(links, poses);
             prepared.prepare(&view, &spheres, image);
+            self.spheres = Some((poses.to_vec(), spheres));
             prepared
         });
         self.views[source] = Some(made);
         self.gpu_cells[source] = GpuCells::default();
         self.view_s = made_s + start.elapsed().as_secs_f64();
+    }
+
+    /// The robot's spheres at `poses`, padded for the views (each grown by the self-filter
+    /// padding and its link's h): those the frame's view was prepared with where they were
+    /// placed at `poses`, else placed now. Taken: a later frame places its own.
+    pub(super) fn take_spheres(
+        &mut self,
+        links: &[QueryLink],
+        poses: &[Isometry3<f64>],
+    ) -> Vec<PaddedSphere> {
+        match self.spheres.take() {
+            Some((at, spheres)) if at == poses => spheres,
+            _ => padded_spheres(links, poses, self.padding_m, self.smallest_sphere_m()),
+        }
     }
 
     /// The camera of source `source`'s latest view, for its next cloud to keep where it fits.
@@ -196,17 +218,20 @@ impl UnseenSpace {
     }
 
     /// Under `protect`, a frame whose processing with the pass (`processing_s`) exceeds the
-    /// latency budget `budget_s` makes the latest pass a fault: too late to act on. Whether it
-    /// did.
-    pub fn check_late(&mut self, processing_s: f64, budget_s: f64) -> bool {
-        let late = self.protects() && processing_s > budget_s;
-        if let Some(last) = self.last.as_mut().filter(|_| late) {
+    /// latency budget `budget_s` makes the latest pass a fault: too late to act on. The cell's
+    /// fault from the latest pass under `protect` (a late one included), if any.
+    pub fn check_late(&mut self, processing_s: f64, budget_s: f64) -> Option<UnseenFault> {
+        if !self.protects() {
+            return None;
+        }
+        let last = self.last.as_mut()?;
+        if processing_s > budget_s {
             last.outcome = Err(UnseenFault::Late {
                 elapsed_ms: processing_s * 1e3,
                 budget_ms: budget_s * 1e3,
             });
         }
-        late
+        last.outcome.as_ref().err().cloned()
     }
 
     /// The per-link unseen distances the separation stage holds each link to under `protect`

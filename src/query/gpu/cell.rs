@@ -8,9 +8,7 @@
 //! `GpuEngine::take_cells`. A query that does not run on the GPU leaves none: the CPU then
 //! judges the cells (`unseen::cell`), by the same rule.
 
-use std::borrow::Cow;
-
-use super::bindings::layout_entry;
+use super::bindings::one_pass;
 use super::error::GpuError;
 use crate::query::layout::{self, CellParams};
 
@@ -29,38 +27,14 @@ pub(super) struct CellPass {
 
 impl CellPass {
     pub(super) fn new(device: &wgpu::Device) -> Self {
-        // Compiled with wgpu's runtime checks: it indexes the points by the image's size.
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("cell.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::cell_source())),
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("cells"),
-            entries: &[
-                layout_entry(0, wgpu::BufferBindingType::Storage { read_only: true }),
-                layout_entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
-                layout_entry(2, wgpu::BufferBindingType::Uniform),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("cells"),
-            bind_group_layouts: &[&layout],
-            push_constant_ranges: &[],
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("cells"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("judge_cells"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cell params"),
-            size: std::mem::size_of::<CellParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        // It indexes the points by the image's size.
+        let (pipeline, layout, params) = one_pass(
+            device,
+            "cells",
+            layout::cell_source(),
+            "judge_cells",
+            std::mem::size_of::<CellParams>(),
+        );
         Self {
             pipeline,
             layout,

@@ -4,9 +4,7 @@
 //! (`cloud::depth::DepthView`), so that they are the CPU's points bit for bit. The host then
 //! unprojects only the few points the result names (`Input::point`).
 
-use std::borrow::Cow;
-
-use super::bindings::layout_entry;
+use super::bindings::one_pass;
 use super::error::GpuError;
 use crate::cloud::depth::{DepthEncoding, DepthView};
 use crate::query::layout::{self, DepthParams, DEPTH_M32, DEPTH_MM16};
@@ -20,43 +18,17 @@ pub(super) struct Unproject {
 
 impl Unproject {
     pub(super) fn new(device: &wgpu::Device) -> Self {
-        // Compiled with wgpu's runtime checks: a short pass, which indexes the image by the
-        // row step it is given.
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("unproject.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Owned(layout::unproject_source())),
-        });
-        let entry = layout_entry;
-        let group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("unproject"),
-            entries: &[
-                entry(0, wgpu::BufferBindingType::Storage { read_only: true }),
-                entry(1, wgpu::BufferBindingType::Storage { read_only: false }),
-                entry(2, wgpu::BufferBindingType::Uniform),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("unproject"),
-            bind_group_layouts: &[&group_layout],
-            push_constant_ranges: &[],
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("unproject"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("unproject"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("depth params"),
-            size: std::mem::size_of::<DepthParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        // A short pass, which indexes the image by the row step it is given.
+        let (pipeline, layout, params) = one_pass(
+            device,
+            "unproject",
+            layout::unproject_source(),
+            "unproject",
+            std::mem::size_of::<DepthParams>(),
+        );
         Self {
             pipeline,
-            layout: group_layout,
+            layout,
             params,
         }
     }
