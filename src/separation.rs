@@ -495,6 +495,18 @@ impl SpeedScaler {
         self.state.iter().map(|s| s.0).fold(1.0, f64::min)
     }
 
+    /// Source `source`'s frame allows at most `allowed` (`None`: a fault, 0), by outputs that go
+    /// before the frame's last word (its seen outputs, before the unseen pass under `protect`):
+    /// a lower factor is taken at once, a higher one waits for [`SpeedScaler::update`] with the
+    /// frame's whole picture. Returns the factor published.
+    pub fn lower(&mut self, source: usize, allowed: Option<f64>) -> f64 {
+        if let Some((current, _)) = self.state.get_mut(source) {
+            let target = allowed.filter(|k| k.is_finite()).unwrap_or(0.0);
+            *current = current.min(target.clamp(0.0, 1.0));
+        }
+        self.factor()
+    }
+
     /// Source `source`'s frame stamped `stamp_ns` allows `allowed` (`None`: a fault, 0);
     /// returns the factor published.
     pub fn update(&mut self, source: usize, stamp_ns: i64, allowed: Option<f64>) -> f64 {

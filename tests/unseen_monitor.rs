@@ -365,10 +365,13 @@ fn an_organized_clouds_view_keeps_its_minimum_range() {
     assert!(with("0.6").is_finite());
 }
 
-/// The pass's time is in the frame's processing, and so in the speed factor's reaction time
-/// (a tiny cloud, a large volume: the pass outweighs the query); under `protect` a frame
-/// later than the latency budget with its pass is a fault of the cell (ERROR, said), under
-/// `report` a WARN.
+/// The pass's time is in the frame's processing, and under `protect` in the speed factor's
+/// reaction time (a tiny cloud, a large volume: the pass outweighs the query), on the first
+/// frame (no pass before it: the pass runs before any output) and on the next (its seen outputs
+/// go first, the last word waits for the pass). Under `report` the pass moves neither the level
+/// nor the factor: the seen outputs go first with both, without the pass's topics, and the
+/// last word keeps them. Under `protect` a frame later than the latency budget with its pass is
+/// a fault of the cell (ERROR, said), under `report` a WARN.
 #[test]
 fn the_pass_is_counted_and_a_late_pass_is_a_fault_under_protect() {
     let camera = front();
@@ -376,18 +379,32 @@ fn the_pass_is_counted_and_a_late_pass_is_a_fault_under_protect() {
     let points = Scene::arm(&model).render(&camera);
     let (mut m, _) = monitor(
         &camera,
+        &[("unobserved", "protect"), ("speed_scaling.enabled", "true")],
+    );
+    for k in 0..2 {
+        let f = frame(&mut m, &camera, &points);
+        assert_eq!(f.first.is_some(), k == 1, "frame {k}");
+        let pass = f.unseen_s.expect("the pass ran");
+        assert!(f.processing_s >= pass, "{} < {pass}", f.processing_s);
+        let separation = f.speed.as_ref().unwrap().separation.as_ref().unwrap();
+        let reaction = m.config.ssm.reaction_time_s;
+        assert!(
+            separation.reaction_s >= reaction + pass,
+            "frame {k}: reaction {} s leaves out the pass's {pass} s",
+            separation.reaction_s
+        );
+    }
+    let (mut m, _) = monitor(
+        &camera,
         &[("unobserved", "report"), ("speed_scaling.enabled", "true")],
     );
     let f = frame(&mut m, &camera, &points);
-    let pass = f.unseen_s.expect("the pass ran");
-    assert!(f.processing_s >= pass, "{} < {pass}", f.processing_s);
-    let separation = f.speed.as_ref().unwrap().separation.as_ref().unwrap();
-    let reaction = m.config.ssm.reaction_time_s;
-    assert!(
-        separation.reaction_s >= reaction + pass,
-        "reaction {} s leaves out the pass's {pass} s",
-        separation.reaction_s
-    );
+    let (first, first_s) = f.first.as_ref().expect("the seen outputs went first");
+    assert!(*first_s <= f.processing_s);
+    assert!(first.unseen_distance.is_none() && f.outputs.unseen_distance.is_some());
+    assert_eq!(first.level, f.outputs.level);
+    let factor = |o: &ist_monitor::monitor::Outputs| o.speed_scaling.as_ref().map(|s| s.factor);
+    assert_eq!(factor(first), factor(&f.outputs));
     for (policy, want) in [("report", Level::Warn), ("protect", Level::Error)] {
         let (mut m, _) = monitor(
             &camera,
@@ -445,4 +462,60 @@ fn protect_holds_the_speed_factor_to_the_unseen_distance() {
         factors.push(separation.allowed);
     }
     assert!(factors[1] < factors[0], "factors {factors:?}");
+}
+
+/// Under `protect` a frame's seen outputs go before its pass, with the previous frame's pass:
+/// they raise the level at once (a body seen near) but never lower it nor count towards
+/// lowering it; a release is the frame's own last word, once its pass has run. A dark ball near
+/// the arm stops the cell; it leaves: with `release_frames: 2` the first clear frame keeps the
+/// stop, and the second's seen outputs still do though they and the previous pass are both
+/// clear (counted there, the release would come before the frame's own pass confirmed it); its
+/// last word releases. A lit ball then comes near: the seen outputs stop the cell before the
+/// pass.
+#[test]
+fn protect_releases_only_on_the_frames_own_pass() {
+    let camera = front();
+    let (model, _) = common::demo_trees();
+    let near = [0.25, 0.0, 0.45];
+    let scene = |ball: Option<bool>| {
+        let mut scene = Scene::arm(&model);
+        if let Some(dark) = ball {
+            scene.balls.push((near, 0.05, dark));
+        }
+        scene.render(&camera)
+    };
+    let truth = distance_to(&model, near, 0.05);
+    let (mut m, _) = monitor(
+        &camera,
+        &[
+            ("unobserved", "protect"),
+            ("unobserved_self_shadow", "apart"),
+            ("speed_scaling.enabled", "true"),
+            ("stop_distance", "0.3"),
+            ("warn_distance", "0.4"),
+            ("release_frames", "2"),
+        ],
+    );
+    assert!(truth < 0.3, "{truth}");
+    let f = frame(&mut m, &camera, &scene(Some(true)));
+    assert!(f.first.is_none(), "no pass before the first frame");
+    assert_eq!(f.outputs.level, Level::Error, "unseen {}", unseen(&f));
+    let f = frame(&mut m, &camera, &scene(None));
+    assert!(unseen(&f) > 0.32, "unseen {}", unseen(&f));
+    assert_eq!(f.outputs.level, Level::Error, "one clear frame of two");
+    let f = frame(&mut m, &camera, &scene(None));
+    let (first, _) = f.first.as_ref().expect("the seen outputs went first");
+    assert_eq!(
+        first.level,
+        Level::Error,
+        "released only by the frame's pass"
+    );
+    assert!(first.safety_stop.data);
+    assert_eq!(first.speed_scaling.as_ref().map(|s| s.factor), Some(0.0));
+    assert!(f.outputs.level < Level::Error, "released on its own pass");
+    assert!(!f.outputs.safety_stop.data);
+    let f = frame(&mut m, &camera, &scene(Some(false)));
+    let (first, _) = f.first.as_ref().expect("the seen outputs went first");
+    assert_eq!(first.level, Level::Error, "a body seen near stops at once");
+    assert!(first.safety_stop.data && f.outputs.safety_stop.data);
 }

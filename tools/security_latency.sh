@@ -37,11 +37,8 @@ while [ $# -gt 0 ]; do
     *) echo "security_latency.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
-interfaces=$(awk -F: 'NR > 2 { gsub(/ /, "", $1); print $1 }' /proc/self/net/dev | sort | xargs)
-if [ "$interfaces" != lo ]; then
-  echo "security_latency.sh: network interfaces [$interfaces]: run it inside ../shared/tools/netns-run" >&2
-  exit 2
-fi
+source tools/lib/private_network.sh
+require_private_network security_latency.sh
 bin=$repo/target/release/ist_monitor
 bag=$repo/../shared/bags/moveit_perception_tutorial/perception_tutorial_mcap
 config=$repo/config/panda_perception_tutorial.yaml

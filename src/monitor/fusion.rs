@@ -32,7 +32,10 @@
 //! valid point self-filtered), a pass that failed or came later than the latency budget is a
 //! fault of the cell (ERROR, no distance: what no camera sees is not known free), and the
 //! speed-scaling factor is 0 while the unseen distance holds the level at ERROR (between the
-//! thresholds the separation stage holds each link to its unseen distance: `measure`).
+//! thresholds the separation stage holds each link to its unseen distance: `measure`). Under
+//! `protect` no pass yet is a fault too. A frame's seen outputs, which go before its pass, are
+//! fused with `Step::Raise` (the level may rise, never fall), its last word with `Step::Whole`
+//! (`measure`).
 
 use crate::config::Config;
 use crate::query::{Nearest, Outcome, QueryResult};
@@ -41,8 +44,22 @@ use super::level::{Level, LevelTracker};
 use super::source::{Latest, Part, Source};
 use super::unseen::Unseen;
 
+/// How a picture may move the cell's level.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Step {
+    /// A frame's last word: the level follows the distance (raised at once, lowered after
+    /// `release_frames` such steps).
+    Whole,
+    /// A frame's seen outputs, before its unseen pass under `protect`: the level may rise, never
+    /// fall (the latest pass is the previous frame's: a release waits for this frame's).
+    Raise,
+    /// No new distance (a heartbeat; a frame's unseen outputs under `report`): the level stays
+    /// as the results left it, faults aside.
+    Keep,
+}
+
 /// What the fused picture is made for: a frame of `source` stamped `stamp_ns`, or a
-/// heartbeat (`beat`: no new result; `stamp_ns` is the clock).
+/// heartbeat (`Step::Keep`; `stamp_ns` is the clock).
 pub struct Moment {
     pub source: usize,
     pub stamp_ns: i64,
@@ -52,7 +69,7 @@ pub struct Moment {
     pub over_budget: bool,
     /// The speed scaler's factor (`None` with the separation monitor off).
     pub factor: Option<f64>,
-    pub beat: bool,
+    pub step: Step,
 }
 
 /// The cell's picture at one instant, as fusion decided it (see the module doc).
@@ -144,6 +161,10 @@ pub fn fuse<'a>(
             faults.push(format!("unobserved space not known: {reason}"));
             None
         }
+        None if protect => {
+            faults.push("unobserved space not known: no pass yet".into());
+            None
+        }
         _ => None,
     };
     let mut picture = Fused {
@@ -188,12 +209,15 @@ pub fn fuse<'a>(
     let whole = picture.faults.is_empty();
     let mut level = if !whole {
         fused.update(None)
-    } else if moment.beat {
-        // A heartbeat brings no new result: the level stays as the results left it.
+    } else if moment.step == Step::Keep {
+        // No new distance: the level stays as the results left it.
         fused.level()
     } else if let Some(d) = level_distance {
         let before = fused.level();
-        let level = fused.update(Some(d));
+        let level = match moment.step {
+            Step::Raise => fused.raise_for(d),
+            _ => fused.update(Some(d)),
+        };
         if holding {
             fused.hold_at_least(before.max(Level::Warn))
         } else {

@@ -73,6 +73,19 @@ impl LevelTracker {
         self.level
     }
 
+    /// The level for `d` by outputs that go before the frame's last word (its seen outputs,
+    /// before the unseen pass under `protect`): raised at once where `d` asks for more, never
+    /// lowered, and nothing counted towards lowering it (the frame's [`LevelTracker::update`]
+    /// does that, once).
+    pub fn raise_for(&mut self, d: f64) -> Level {
+        let target = self.target(d);
+        if target > self.level {
+            self.level = target;
+            self.lower_streak = 0;
+        }
+        self.level
+    }
+
     /// The level for a conservative distance `d` (`None`: no distance is known, a fault).
     pub fn update(&mut self, d: Option<f64>) -> Level {
         let Some(d) = d else {
@@ -80,22 +93,8 @@ impl LevelTracker {
             self.lower_streak = 0;
             return self.level;
         };
-        // Thresholds are raised by the hysteresis for the levels we are above.
-        let up = |level: Level, threshold: f64, current: Level| {
-            if current >= level {
-                threshold + self.hysteresis_m
-            } else {
-                threshold
-            }
-        };
         let current = self.level;
-        let target = if d < up(Level::Error, self.stop_m, current) {
-            Level::Error
-        } else if d < up(Level::Warn, self.warn_m, current) {
-            Level::Warn
-        } else {
-            Level::Ok
-        };
+        let target = self.target(d);
         // Raising is immediate; lowering waits for `release_frames` results in a row.
         if target >= current {
             self.lower_streak = 0;
@@ -108,6 +107,26 @@ impl LevelTracker {
             }
         }
         self.level
+    }
+
+    /// The level `d` asks for, with the hysteresis of the level held.
+    fn target(&self, d: f64) -> Level {
+        // Thresholds are raised by the hysteresis for the levels we are above.
+        let up = |level: Level, threshold: f64, current: Level| {
+            if current >= level {
+                threshold + self.hysteresis_m
+            } else {
+                threshold
+            }
+        };
+        let current = self.level;
+        if d < up(Level::Error, self.stop_m, current) {
+            Level::Error
+        } else if d < up(Level::Warn, self.warn_m, current) {
+            Level::Warn
+        } else {
+            Level::Ok
+        }
     }
 }
 

@@ -6,38 +6,79 @@
 //! root frame at the stamp (`tf::root_from_sensor`) → the points of the source's exclusion
 //! volumes dropped (`cloud::exclusion`, each volume placed in the sensor frame at the stamp) →
 //! the query (`query::Engine`; with `stray_filter` on, `stray` rejects isolated nearest
-//! points) → the unseen space over every source's latest view (`unseen`, its view made from
-//! this frame's points before the exclusion volumes drop theirs) → the separation stage
-//! (`crate::separation`: joint velocities at the stamp, link twists, the speed-scaling factor
-//! through `SpeedScaler`) → the source's report and the fused outputs. Every stage up to the
-//! separation is in the frame's processing time, which the reaction time and the latency budget
-//! take. Any step that fails makes the frame a fault with its reason (`fault`).
+//! points) → the separation stage (`crate::separation`: joint velocities at the stamp, link
+//! twists, the speed-scaling factor through `SpeedScaler`) → the source's report and the fused
+//! outputs. Every stage up to the separation is in the frame's processing time, which the
+//! reaction time and the latency budget take. Any step that fails makes the frame a fault with
+//! its reason (`fault`).
+//!
+//! With the unseen space on (`unseen`), those are the frame's **seen outputs**, handed to the
+//! caller at once (the node publishes them), and then come: the frame's view (made from its
+//! points as they came, before the exclusion volumes dropped theirs; made before the query
+//! where the GPU judges its cells in the query's submission) → the pass over every source's
+//! latest view → the frame's **last word**, whose processing includes the pass. Under `report`
+//! the last word keeps the level and the factor. Under `protect` the seen outputs take the
+//! previous frame's pass and may only raise the level (`LevelTracker::raise_for`) and lower the
+//! factor (`SpeedScaler::lower`); the last word takes this frame's pass, the level and the factor
+//! as a whole frame's (`fusion::Step`). Before any pass, or after one that gave no distance,
+//! the pass runs before any output: the seen outputs could only say ERROR.
 
 use std::time::Instant;
 
 use nalgebra::Isometry3;
 
-use crate::cloud::depth;
+use crate::cloud::depth::{self, PinholeCamera};
 use crate::cloud::exclusion::{self, ExclusionVolume};
 use crate::cloud::RangeLimits;
 use crate::msg::{Image, PointCloud2, Writer};
-use crate::query::{Outcome, QueryResult};
+use crate::query::{Outcome, QueryLink, QueryResult};
 use crate::separation::{self, SpeedScaling};
 use crate::tf;
 
 use super::fault::Fault;
-use super::fusion::Moment;
+use super::fusion::{Moment, Step};
+use super::outputs::Outputs;
 use super::pipeline::{Frame, Monitor};
 use super::report::{published_distance, FrameFacts};
 use super::stray;
-use super::unseen::{view_of, At, PassInputs};
+use super::unseen::{view_of, At, PassInputs, UnseenSpace};
 
-/// What a processed cloud leaves for the separation stage.
-pub(super) struct Motion {
+/// What a processed cloud leaves for the separation stage and the unseen pass.
+pub(super) struct Motion<'a> {
     poses: Vec<Isometry3<f64>>,
     stamp_ns: i64,
     /// Clock minus stamp, s (0 without a clock).
     age_s: f64,
+    /// The frame's points for the unseen pass's view, made after the seen outputs went out
+    /// (`None`: made before the query, where the GPU judges its cells in the same submission,
+    /// or no pass).
+    view: Option<PendingView<'a>>,
+}
+
+/// A frame's points kept for the unseen pass's view (see [`Motion::view`]): all its returns,
+/// those in exclusion volumes included (they block rays as any other).
+enum PendingView<'a> {
+    Depth {
+        view: depth::DepthView<'a>,
+        camera: PinholeCamera,
+        root_from_sensor: Isometry3<f64>,
+    },
+    /// A cloud's points (range limits applied), `None` until the cloud hands them over
+    /// (`process`: moved, where no exclusion volume changed them).
+    Cloud {
+        points: Option<Vec<[f32; 3]>>,
+        width: Option<usize>,
+        root_from_sensor: Isometry3<f64>,
+    },
+}
+
+/// What a frame's unseen pass reports into its [`Frame`].
+#[derive(Default)]
+struct PassReport {
+    unseen_s: Option<f64>,
+    stages_s: Vec<(&'static str, f64)>,
+    nearest: Option<crate::unseen::Spot>,
+    counts: Option<crate::unseen::Counts>,
 }
 
 /// What a source's message gives its query: a cloud's points, or a depth image with the buffer
@@ -55,102 +96,171 @@ enum Points<'a, 'b> {
 
 impl Monitor {
     /// The frame of source `source` that `process` measures, received at `start`: its
-    /// separation stage, its report and the fused outputs.
-    pub(super) fn finish_frame(
+    /// separation stage, its report and the fused outputs. Where the unseen pass runs, the seen
+    /// outputs go first (handed to `early` at once, kept in [`Frame::first`]); then the pass;
+    /// then the frame's last word, with the pass's time in its processing, its reaction time
+    /// and its latency budget.
+    pub(super) fn finish_frame<'a>(
         &mut self,
         source: usize,
         start: Instant,
         stamp_ns: i64,
         now_ns: Option<i64>,
-        process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion), Fault>,
+        process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion<'a>), Fault>,
+        early: &mut dyn FnMut(&Outputs),
     ) -> Frame {
-        let processed = process(self);
-        // The unseen space over every source's latest view, the robot at this frame's poses:
-        // inside the frame, so that its time is in the reaction time and the latency budget.
-        let (mut unseen_s, mut unseen_stages_s) = (None, Vec::new());
-        let (mut unseen_nearest, mut unseen_counts) = (None, None);
-        match &processed {
-            Ok((_, motion)) if self.unseen.enabled() => {
-                let unseen = self.unseen.run(PassInputs {
-                    at: At {
-                        stamp_ns,
-                        poses: &motion.poses,
-                        kinematics: &self.model.kinematics,
-                        tf: &self.tf,
-                    },
-                    engine: &mut self.engine,
-                });
-                unseen_s = Some(unseen.compute_s);
-                if let Ok(f) = &unseen.outcome {
-                    unseen_stages_s = f.stages_s.clone();
-                    unseen_nearest = f.nearest;
-                    unseen_counts = Some(f.counts);
-                }
+        let (result, motion) = match process(self) {
+            Ok((r, m)) => (Ok(r), Some(m)),
+            Err(f) => {
+                self.unseen.forget(source);
+                (Err(f), None)
             }
-            Ok(_) => {}
-            Err(_) => self.unseen.forget(source),
-        }
-        let processing_s = start.elapsed().as_secs_f64();
-        let unseen_fault = unseen_s
-            .and_then(|_| (self.unseen).check_late(processing_s, self.config.latency_budget_s));
-        let speed = self
-            .config
-            .ssm
-            .enabled
-            .then(|| self.speed_scaling(source, stamp_ns, &processed, processing_s));
-        let result = processed.map(|(r, _)| r);
+        };
+        let passes = motion.is_some() && self.unseen.enabled();
+        let protects = self.unseen.protects();
+        // 1. The seen picture: the source's report and its outputs.
+        let seen_s = start.elapsed().as_secs_f64();
+        let first_step = if passes && protects {
+            Step::Raise
+        } else {
+            Step::Whole
+        };
+        let speed = self.config.ssm.enabled.then(|| {
+            self.speed_scaling(
+                source,
+                stamp_ns,
+                &result,
+                motion.as_ref(),
+                seen_s,
+                first_step,
+            )
+        });
         let name = self.config.sources[source].name.clone();
         let fusion_start = Instant::now();
         let facts = FrameFacts {
             source: &name,
             result: &result,
-            processing_s,
+            processing_s: seen_s,
             speed: speed.as_ref(),
         };
         let over_budget =
             self.sources[source].frame(&self.config, &self.model.name, stamp_ns, facts);
-        let moment = Moment {
+        let mut moment = Moment {
             source,
             stamp_ns,
             now_ns: now_ns.unwrap_or(stamp_ns),
             over_budget,
             factor: speed.as_ref().map(|s| s.factor),
-            beat: false,
+            step: first_step,
         };
-        let outputs = self.outputs(&moment);
+        let (mut processing_s, mut speed, mut first, mut pass) = (seen_s, speed, None, None);
+        let (mut outputs_s, mut unseen_fault) = (0.0, None);
+        let outputs = match motion.filter(|_| passes) {
+            None => self.outputs(&moment, true),
+            Some(mut motion) => {
+                // The seen outputs go first: nothing of them waits for the pass. Under `protect`
+                // only where the latest pass gave a distance: otherwise they could only say
+                // ERROR without one, and the frame's last word follows at once.
+                let latest_ok = (self.unseen.last()).is_some_and(|u| u.outcome.is_ok());
+                if !protects || latest_ok {
+                    let seen = self.outputs(&moment, false);
+                    outputs_s = fusion_start.elapsed().as_secs_f64();
+                    early(&seen);
+                    first = Some((seen, start.elapsed().as_secs_f64()));
+                }
+                // 2. The unseen space over every source's latest view (this frame's made
+                // now), the robot at this frame's poses.
+                if let Some(pending) = motion.view.take() {
+                    self.observe(source, pending, &motion.poses);
+                }
+                pass = Some(self.unseen_pass(stamp_ns, &motion));
+                processing_s = start.elapsed().as_secs_f64();
+                unseen_fault = (self.unseen).check_late(processing_s, self.config.latency_budget_s);
+                // 3. The frame's last word. Under `protect` the level and the speed factor take
+                // this frame's pass (a release is decided here, once); under `report` the pass
+                // moves neither.
+                if protects && self.config.ssm.enabled {
+                    let s = Step::Whole;
+                    let last = self.speed_scaling(
+                        source,
+                        stamp_ns,
+                        &result,
+                        Some(&motion),
+                        processing_s,
+                        s,
+                    );
+                    moment.factor = Some(last.factor);
+                    speed = Some(last);
+                }
+                moment.step = if protects { Step::Whole } else { Step::Keep };
+                let last_start = Instant::now();
+                let outputs = self.outputs(&moment, true);
+                outputs_s += last_start.elapsed().as_secs_f64();
+                outputs
+            }
+        };
+        if first.is_none() {
+            outputs_s = fusion_start.elapsed().as_secs_f64();
+        }
+        let pass = pass.unwrap_or_default();
         Frame {
             source: name,
             stamp_ns,
             result,
             processing_s,
             speed,
-            outputs_s: fusion_start.elapsed().as_secs_f64(),
-            unseen_s,
-            unseen_stages_s,
-            unseen_nearest,
-            unseen_counts,
+            outputs_s,
+            unseen_s: pass.unseen_s,
+            unseen_stages_s: pass.stages_s,
+            unseen_nearest: pass.nearest,
+            unseen_counts: pass.counts,
             unseen_fault,
+            first,
             outputs,
         }
     }
 
+    /// Runs the unseen pass after a frame's query, the robot at its poses.
+    fn unseen_pass(&mut self, stamp_ns: i64, motion: &Motion) -> PassReport {
+        let unseen = self.unseen.run(PassInputs {
+            at: At {
+                stamp_ns,
+                poses: &motion.poses,
+                kinematics: &self.model.kinematics,
+                tf: &self.tf,
+            },
+            engine: &mut self.engine,
+        });
+        let facts = unseen.outcome.as_ref().ok();
+        PassReport {
+            unseen_s: Some(unseen.compute_s),
+            stages_s: facts.map(|f| f.stages_s.clone()).unwrap_or_default(),
+            nearest: facts.and_then(|f| f.nearest),
+            counts: facts.map(|f| f.counts),
+        }
+    }
+
     /// The separation stage (`crate::separation`): the factor this frame allows, through the
-    /// scaler. A frame without a distance, or without joint velocities, allows 0.
+    /// scaler (only lowered by a `Step::Raise`: the seen outputs before the pass under
+    /// `protect`). A frame without a distance, or without joint velocities, allows 0.
     fn speed_scaling(
         &mut self,
         source: usize,
         stamp_ns: i64,
-        processed: &Result<(QueryResult, Motion), Fault>,
+        result: &Result<QueryResult, Fault>,
+        motion: Option<&Motion>,
         processing_s: f64,
+        step: Step,
     ) -> SpeedScaling {
         let start = Instant::now();
         let ssm = &self.config.ssm;
-        let separation = match processed {
-            Err(fault) => Err(format!("no distance: {fault}")),
-            Ok((r, _)) if published_distance(r).is_none() => {
+        let separation = match (result, motion) {
+            (Err(fault), _) => Err(format!("no distance: {fault}")),
+            (Ok(r), _) if published_distance(r).is_none() => {
                 Err("no distance: no valid points, or every valid point self-filtered".into())
             }
-            Ok((r, m)) => match self
+            (Ok(_), None) => Err("no poses".to_string()),
+            (Ok(r), Some(m)) => match self
                 .joints
                 .velocities_at(Some(m.stamp_ns), self.config.joint_state_tolerance_s)
             {
@@ -180,7 +290,10 @@ impl Monitor {
             },
         };
         let allowed = separation.as_ref().ok().map(|s| s.allowed);
-        let factor = self.scaler.update(source, stamp_ns, allowed);
+        let factor = match step {
+            Step::Raise => self.scaler.lower(source, allowed),
+            _ => self.scaler.update(source, stamp_ns, allowed),
+        };
         SpeedScaling {
             factor,
             separation,
@@ -239,7 +352,7 @@ impl Monitor {
         source: usize,
         message: &PointCloud2,
         now_ns: Option<i64>,
-    ) -> Result<(QueryResult, Motion), Fault> {
+    ) -> Result<(QueryResult, Motion<'static>), Fault> {
         let stamp_ns = message.header.stamp.as_nanos();
         self.check_stamp(source, stamp_ns, now_ns)?;
         let mut cloud = message.to_cloud()?;
@@ -257,17 +370,26 @@ impl Monitor {
             points: &mut cloud.points,
             width,
         };
-        self.measure(source, stamp_ns, &frame, points, now_ns)
+        let (result, mut motion) = self.measure(source, stamp_ns, &frame, points, now_ns)?;
+        // The points as they came go to the pass's view (a copy was kept where exclusion
+        // volumes changed them).
+        if let Some(PendingView::Cloud {
+            points: p @ None, ..
+        }) = &mut motion.view
+        {
+            *p = Some(std::mem::take(&mut cloud.points));
+        }
+        Ok((result, motion))
     }
 
     /// A depth image: its points made with the source's camera model (`cloud::depth`), then
     /// measured as a cloud's (made on the GPU where the query runs there: `Points::Depth`).
-    pub(super) fn process_depth(
+    pub(super) fn process_depth<'i>(
         &mut self,
         source: usize,
-        image: &Image,
+        image: &'i Image,
         now_ns: Option<i64>,
-    ) -> Result<(QueryResult, Motion), Fault> {
+    ) -> Result<(QueryResult, Motion<'i>), Fault> {
         let stamp_ns = image.header.stamp.as_nanos();
         self.check_stamp(source, stamp_ns, now_ns)?;
         let frame = Some(image.header.frame_id.clone()).filter(|f| !f.is_empty());
@@ -306,14 +428,14 @@ impl Monitor {
     /// stage needs. A depth image goes to the engine whole (`Engine::query_depth`: on the GPU
     /// its points are made there) unless an exclusion volume or the stray filter needs its
     /// points here.
-    fn measure(
+    fn measure<'b>(
         &mut self,
         source: usize,
         stamp_ns: i64,
         frame: &str,
-        points: Points,
+        points: Points<'_, 'b>,
         now_ns: Option<i64>,
-    ) -> Result<(QueryResult, Motion), Fault> {
+    ) -> Result<(QueryResult, Motion<'b>), Fault> {
         let stamp = Some(stamp_ns);
         let q = self.joints.at(stamp, self.config.joint_state_tolerance_s)?;
         let poses = self.model.kinematics.link_poses(&q);
@@ -329,40 +451,37 @@ impl Monitor {
             self.config.tf_tolerance_s,
             &link_pose,
         )?;
+        let name = &self.config.sources[source].name;
+        let excludes = (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));
+        let needs_points = self.config.stray.enabled() || excludes;
+        // The unseen pass's view of these points: made after the seen outputs (the pass's
+        // first stage), or now where the GPU judges its cells in the query's submission.
+        let mut pending = None;
         if self.unseen.enabled() {
-            let start = Instant::now();
-            let (limits, noise) = self.unseen.source_limits(source);
             let view = match &points {
                 Points::Depth { view, .. } => match self.sources[source].camera() {
-                    Ok(c) => view_of(
-                        Some((view, &c)),
-                        None,
-                        &root_from_sensor,
-                        limits,
-                        noise,
-                        None,
-                    ),
-                    Err(_) => Err("no camera model".into()),
+                    Ok(camera) => Ok(PendingView::Depth {
+                        view: **view,
+                        camera,
+                        root_from_sensor,
+                    }),
+                    Err(_) => Err("no camera model".to_string()),
                 },
-                Points::Cloud { points, width } => {
-                    let known = self.unseen.known_camera(source);
-                    let cloud = Some((&**points, *width));
-                    view_of(
-                        None,
-                        cloud,
-                        &root_from_sensor,
-                        limits,
-                        noise,
-                        known.as_ref(),
-                    )
-                }
+                Points::Cloud { points, width } => Ok(PendingView::Cloud {
+                    // Where exclusion volumes change them, a copy of them as they came.
+                    points: excludes.then(|| points.to_vec()),
+                    width: *width,
+                    root_from_sensor,
+                }),
             };
-            let made_s = start.elapsed().as_secs_f64();
-            (self.unseen).observe(source, view, made_s, self.engine.links(), &poses);
+            let gpu_cells = matches!(&points, Points::Depth { view, .. }
+                if !needs_points && self.config.query.wants_gpu_for_depth(view.len()));
+            match view {
+                Ok(v) if !gpu_cells => pending = Some(v),
+                Ok(v) => observe_view(&mut self.unseen, self.engine.links(), source, v, &poses),
+                Err(e) => (self.unseen).observe(source, Err(e), 0.0, self.engine.links(), &poses),
+            }
         }
-        let name = &self.config.sources[source].name;
-        let needs_points = self.config.stray.enabled()
-            || (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));
         let (points, width) = match points {
             Points::Depth { view, points } if !needs_points => {
                 // On the GPU the same submission judges the unseen space's cells in this view.
@@ -387,7 +506,8 @@ impl Monitor {
                 if gpu_cells {
                     self.unseen.take_cells(source, &mut self.engine);
                 }
-                return self.finish_measure(result?, Vec::new(), poses, stamp_ns, now_ns);
+                let result = result?;
+                return self.finish_measure(result, Vec::new(), poses, stamp_ns, now_ns, pending);
             }
             Points::Depth { view, points } => {
                 view.unproject_into(points);
@@ -414,20 +534,73 @@ impl Monitor {
             };
             result = stray::reject_strays(&mut self.engine, &self.config.stray, input, result)?;
         }
-        self.finish_measure(result, excluded, poses, stamp_ns, now_ns)
+        self.finish_measure(result, excluded, poses, stamp_ns, now_ns, pending)
     }
 
+    /// Source `source`'s view for the unseen pass, made from `pending` (its time counted in
+    /// the pass's: `UnseenSpace::observe`).
+    fn observe(&mut self, source: usize, pending: PendingView, poses: &[Isometry3<f64>]) {
+        observe_view(
+            &mut self.unseen,
+            self.engine.links(),
+            source,
+            pending,
+            poses,
+        );
+    }
+}
+
+/// [`Monitor::observe`], on the monitor's unseen space and the engine's links.
+fn observe_view(
+    unseen: &mut UnseenSpace,
+    links: &[QueryLink],
+    source: usize,
+    pending: PendingView,
+    poses: &[Isometry3<f64>],
+) {
+    let start = Instant::now();
+    let (limits, noise) = unseen.source_limits(source);
+    let view = match &pending {
+        PendingView::Depth {
+            view,
+            camera,
+            root_from_sensor,
+        } => view_of(
+            Some((view, camera)),
+            None,
+            root_from_sensor,
+            limits,
+            noise,
+            None,
+        ),
+        PendingView::Cloud {
+            points,
+            width,
+            root_from_sensor,
+        } => {
+            let known = unseen.known_camera(source);
+            let points = points.as_deref().unwrap_or_default();
+            let cloud = Some((points, *width));
+            view_of(None, cloud, root_from_sensor, limits, noise, known.as_ref())
+        }
+    };
+    let made_s = start.elapsed().as_secs_f64();
+    unseen.observe(source, view, made_s, links, poses);
+}
+
+impl Monitor {
     /// A measured source's result with the counts of its exclusion volumes, and its motion: a
     /// cloud whose valid points all lay in exclusion volumes has nothing near; one without valid
     /// points is blind.
-    fn finish_measure(
+    fn finish_measure<'b>(
         &self,
         mut result: QueryResult,
         excluded: Vec<(String, u64)>,
         poses: Vec<Isometry3<f64>>,
         stamp_ns: i64,
         now_ns: Option<i64>,
-    ) -> Result<(QueryResult, Motion), Fault> {
+        pending: Option<PendingView<'b>>,
+    ) -> Result<(QueryResult, Motion<'b>), Fault> {
         let excluded_any = excluded.iter().any(|(_, n)| *n > 0);
         result.excluded = excluded;
         if result.outcome == Outcome::NoPoints {
@@ -444,6 +617,7 @@ impl Monitor {
             poses,
             stamp_ns,
             age_s: now_ns.map_or(0.0, |n| ((n - stamp_ns) as f64 * 1e-9).max(0.0)),
+            view: pending,
         };
         Ok((result, motion))
     }

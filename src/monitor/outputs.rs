@@ -1,7 +1,10 @@
 //! The node's outputs for one frame, as ROS 2 messages: the output table, and the one step
 //! that renders the cell's fused picture (`fusion::Fused`) into its messages. Each source's
 //! status comes from its report (`report`), the levels from `level`, the markers from
-//! `markers`.
+//! `markers`. With the unseen space on, a frame publishes twice: its seen outputs the moment its
+//! query is done (without the `~/unseen_*` topics), then after the pass its last word, of which
+//! the seen distances (`~/min_distance`, `~/distance`, `~/link_distances`) are not repeated
+//! ([`Outputs::visit_following`]; `monitor::measure`).
 //!
 //! | topic | type | content |
 //! |---|---|---|
@@ -139,22 +142,32 @@ pub trait OutputVisitor {
     ) -> Result<(), Self::Error>;
 }
 
-/// The table: every output topic, in publication order, with its type and the frame's message.
-fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V::Error> {
-    let (min, distance, links, markers, diagnostics, stop, speed, unseen, unseen_links) = match o {
-        Some(o) => (
-            o.min_distance,
-            Some(o.distance),
-            Some(o.link_distances),
-            Some(o.closest_points),
-            Some(o.diagnostics),
-            Some(o.safety_stop),
-            o.speed_scaling,
-            o.unseen_distance,
-            o.unseen_link_distances,
-        ),
-        None => (None, None, None, None, None, None, None, None, None),
-    };
+/// The table: every output topic, in publication order, with its type and the frame's message
+/// (only the topics that follow a frame's pass where `following`: see
+/// [`Outputs::visit_following`]).
+fn each_output<V: OutputVisitor>(
+    o: Option<Outputs>,
+    following: bool,
+    v: &mut V,
+) -> Result<(), V::Error> {
+    let (mut min, mut distance, mut links, markers, diagnostics, stop, speed, unseen, unseen_links) =
+        match o {
+            Some(o) => (
+                o.min_distance,
+                Some(o.distance),
+                Some(o.link_distances),
+                Some(o.closest_points),
+                Some(o.diagnostics),
+                Some(o.safety_stop),
+                o.speed_scaling,
+                o.unseen_distance,
+                o.unseen_link_distances,
+            ),
+            None => (None, None, None, None, None, None, None, None, None),
+        };
+    if following {
+        (min, distance, links) = (None, None, None);
+    }
     v.visit::<Float64>(OutputTopic::MinDistance, min)?;
     v.visit::<Range>(OutputTopic::Distance, distance)?;
     v.visit::<JointState>(OutputTopic::LinkDistances, links)?;
@@ -169,7 +182,7 @@ fn each_output<V: OutputVisitor>(o: Option<Outputs>, v: &mut V) -> Result<(), V:
 /// Walks every output topic with its type and no message (to create publishers or
 /// subscriptions for all of them).
 pub fn visit_output_topics<V: OutputVisitor>(v: &mut V) -> Result<(), V::Error> {
-    each_output(None, v)
+    each_output(None, false, v)
 }
 
 impl Outputs {
@@ -284,7 +297,16 @@ impl Outputs {
 
     /// Walks every output topic with this frame's message, handed over.
     pub fn visit<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
-        each_output(Some(self), v)
+        each_output(Some(self), false, v)
+    }
+
+    /// Walks the topics that follow a frame's unseen pass where its seen outputs went first
+    /// (`Frame::first`): the pass's own (`~/unseen_*`), the markers and `/diagnostics` with
+    /// its status, and the stop and the speed factor, which under `protect` this frame's pass
+    /// may move. The seen distances (`~/min_distance`, `~/distance`, `~/link_distances`) went
+    /// out with the first outputs and are not repeated.
+    pub fn visit_following<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
+        each_output(Some(self), true, v)
     }
 }
 

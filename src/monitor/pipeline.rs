@@ -18,7 +18,7 @@ use crate::separation::{SpeedScaler, SpeedScaling};
 use crate::tf::{JointStateBuffer, TfBuffer};
 
 use super::fault::{Fault, InputError};
-use super::fusion::{fuse, Moment};
+use super::fusion::{fuse, Moment, Step};
 use super::level::{Level, LevelTracker};
 use super::outputs::Outputs;
 use super::source::{Part, Source};
@@ -34,8 +34,16 @@ pub struct Frame {
     pub processing_s: f64,
     /// Speed and separation monitoring (`None` when `speed_scaling.enabled` is off).
     pub speed: Option<SpeedScaling>,
-    /// Fusion with the other sources' latest results and the outputs' messages, s.
+    /// Fusion with the other sources' latest results and the outputs' messages, s (both
+    /// times where the seen outputs went first).
     pub outputs_s: f64,
+    /// Where the frame's unseen pass followed its seen outputs: those outputs, made (and, in
+    /// the node, published) before the pass, and the time from receipt to them, s. `outputs`
+    /// is then the frame's last word, of which only the topics that follow the pass are
+    /// published (`Outputs::visit_following`). Under `protect` the first outputs take the
+    /// previous frame's pass and may only raise the level and lower the speed factor; a
+    /// release waits for this frame's pass.
+    pub first: Option<(Outputs, f64)>,
     /// The unseen-space pass of this frame, s (`None`: not run), and its stages' times. It is
     /// part of `processing_s`.
     pub unseen_s: Option<f64>,
@@ -48,6 +56,16 @@ pub struct Frame {
     /// distance); late passes included.
     pub unseen_fault: Option<super::unseen::UnseenFault>,
     pub outputs: Outputs,
+}
+
+impl Frame {
+    /// Whether the frame's seen outputs went first and carried its distance: then only the
+    /// topics that follow the pass are published from `outputs` (`Outputs::visit_following`).
+    /// Where the first outputs had none (a fault then, as the previous frame's pass under
+    /// `protect`, that this frame's pass cleared), `outputs` is published whole.
+    pub fn outputs_follow(&self) -> bool {
+        (self.first.as_ref()).is_some_and(|(first, _)| first.min_distance.is_some())
+    }
 }
 
 pub struct Monitor {
@@ -279,10 +297,22 @@ impl Monitor {
         received: Instant,
         now_ns: Option<i64>,
     ) -> Frame {
+        self.on_cloud_early(source, m, received, now_ns, &mut |_| {})
+    }
+
+    /// The same, handing `early` the frame's seen outputs the moment they are made where the
+    /// unseen pass follows them ([`Frame::first`]): the node publishes them then.
+    pub fn on_cloud_early(
+        &mut self,
+        source: usize,
+        m: &PointCloud2,
+        received: Instant,
+        now_ns: Option<i64>,
+        early: &mut dyn FnMut(&Outputs),
+    ) -> Frame {
         let stamp_ns = m.header.stamp.as_nanos();
-        self.finish_frame(source, received, stamp_ns, now_ns, |me| {
-            me.process(source, m, now_ns)
-        })
+        let process = |me: &mut Self| me.process(source, m, now_ns);
+        self.finish_frame(source, received, stamp_ns, now_ns, process, early)
     }
 
     /// Processes one depth image of source `source` (as [`Monitor::on_cloud`]).
@@ -293,10 +323,21 @@ impl Monitor {
         received: Instant,
         now_ns: Option<i64>,
     ) -> Frame {
+        self.on_depth_image_early(source, m, received, now_ns, &mut |_| {})
+    }
+
+    /// The same, handing `early` the seen outputs (as [`Monitor::on_cloud_early`]).
+    pub fn on_depth_image_early(
+        &mut self,
+        source: usize,
+        m: &Image,
+        received: Instant,
+        now_ns: Option<i64>,
+        early: &mut dyn FnMut(&Outputs),
+    ) -> Frame {
         let stamp_ns = m.header.stamp.as_nanos();
-        self.finish_frame(source, received, stamp_ns, now_ns, |me| {
-            me.process_depth(source, m, now_ns)
-        })
+        let process = |me: &mut Self| me.process_depth(source, m, now_ns);
+        self.finish_frame(source, received, stamp_ns, now_ns, process, early)
     }
 
     /// A message of source `source` whose payload could not be decoded (`error`): a decode
@@ -308,7 +349,8 @@ impl Monitor {
         received: Instant,
         now_ns: Option<i64>,
     ) -> Frame {
-        self.finish_frame(source, received, 0, now_ns, |_| Err(error.into()))
+        let process = |_: &mut Self| Err(error.into());
+        self.finish_frame(source, received, 0, now_ns, process, &mut |_| {})
     }
 
     /// The clock went back (a bag played again, a simulation reset) at `watch_ns` by the
@@ -339,15 +381,20 @@ impl Monitor {
             now_ns,
             over_budget: false,
             factor: self.config.ssm.enabled.then(|| self.scaler.factor()),
-            beat: true,
+            step: Step::Keep,
         };
-        self.outputs(&moment)
+        self.outputs(&moment, true)
     }
 
-    /// The fused picture at `moment`, rendered.
-    pub(super) fn outputs(&mut self, moment: &Moment) -> Outputs {
+    /// The fused picture at `moment`, rendered; the latest pass's own topics (`~/unseen_*`,
+    /// its markers and status) only where `unseen_topics` (not in the seen outputs that go
+    /// before a frame's pass: they would repeat the previous frame's).
+    pub(super) fn outputs(&mut self, moment: &Moment, unseen_topics: bool) -> Outputs {
         let unseen = self.unseen.last();
-        let fused = fuse(&self.config, &self.sources, unseen, &mut self.fused, moment);
+        let mut fused = fuse(&self.config, &self.sources, unseen, &mut self.fused, moment);
+        if !unseen_topics {
+            fused.unseen = None;
+        }
         let root = self.model.kinematics.root_link();
         Outputs::render(&self.config, root, &self.model.name, fused)
     }

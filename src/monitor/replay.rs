@@ -98,6 +98,11 @@ pub struct ReplayFrame {
     /// The unobserved-space pass, ms, and each of its stages.
     pub unseen_ms: Option<f64>,
     pub unseen_stages_ms: Vec<(&'static str, f64)>,
+    /// Where the seen outputs went before the pass (`Frame::first`): the time to them, ms, and
+    /// whether they carried the distance (then only the topics that follow the pass are
+    /// written again: `Frame::outputs_follow`).
+    pub first_ms: Option<f64>,
+    pub outputs_follow: bool,
 }
 
 #[derive(Debug, Clone, Default, Serialize)]
@@ -271,12 +276,26 @@ pub fn replay_frames(
         unseen_times.extend(row.unseen_ms);
         on_frame(&row);
         if let Some(w) = writer.as_mut() {
-            let at = m.log_time_ns + (frame.processing_s * 1e9) as u64;
-            frame.outputs.visit(&mut BagSink {
+            // As the node publishes them: the seen outputs first where the pass followed them.
+            let at = |s: f64| m.log_time_ns + (s * 1e9) as u64;
+            let following = frame.outputs_follow();
+            if let Some((first, first_s)) = frame.first {
+                first.visit(&mut BagSink {
+                    writer: w,
+                    node_path: &node_path,
+                    at: at(first_s),
+                })?;
+            }
+            let sink = &mut BagSink {
                 writer: w,
                 node_path: &node_path,
-                at,
-            })?;
+                at: at(frame.processing_s),
+            };
+            if following {
+                frame.outputs.visit_following(sink)?;
+            } else {
+                frame.outputs.visit(sink)?;
+            }
         }
     }
     if let Some(w) = writer {
@@ -485,6 +504,8 @@ impl ReplayFrame {
             unseen_stages_ms: (frame.unseen_stages_s.iter())
                 .map(|(n, s)| (*n, s * 1e3))
                 .collect(),
+            first_ms: frame.first.as_ref().map(|(_, s)| s * 1e3),
+            outputs_follow: frame.outputs_follow(),
         }
     }
 }

@@ -80,6 +80,14 @@ impl Monitor {
     /// The outputs of a fault of source `source` that is not a frame of its own (a silent
     /// source, an unusable clock) at `now_ns` by the node's clock.
     fn on_source_fault(&mut self, source: usize, fault: Fault, now_ns: i64) -> Frame {
-        self.finish_frame(source, Instant::now(), now_ns, Some(now_ns), |_| Err(fault))
+        let process = |_: &mut Self| Err(fault);
+        self.finish_frame(
+            source,
+            Instant::now(),
+            now_ns,
+            Some(now_ns),
+            process,
+            &mut |_| {},
+        )
     }
 }

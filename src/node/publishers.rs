@@ -68,12 +68,18 @@ impl Publishers {
 
     /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
     /// join the diagnostics.
-    pub(super) fn publish(&self, mut o: Outputs, dropped: u64, input_errors: u64) {
+    /// Publishes `o` with the node's counts; only the topics that follow a frame's unseen pass
+    /// where `following` (`Outputs::visit_following`).
+    pub(super) fn publish(&self, mut o: Outputs, dropped: u64, input_errors: u64, following: bool) {
         add_counts(&mut o, dropped, input_errors);
-        self.publish_outputs(o);
+        self.publish_topics(o, following);
     }
 
     pub(super) fn publish_outputs(&self, o: Outputs) {
+        self.publish_topics(o, false);
+    }
+
+    fn publish_topics(&self, o: Outputs, following: bool) {
         struct Publish<'a>(&'a Publishers);
         impl OutputVisitor for Publish<'_> {
             type Error = String;
@@ -96,7 +102,12 @@ impl Publishers {
                     .map_err(|e| format!("{}: {e}", topic.name()))
             }
         }
-        if let Err(e) = o.visit(&mut Publish(self)) {
+        let published = if following {
+            o.visit_following(&mut Publish(self))
+        } else {
+            o.visit(&mut Publish(self))
+        };
+        if let Err(e) = published {
             log::warn!("publishing: {e}");
         }
     }

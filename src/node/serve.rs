@@ -324,8 +324,13 @@ impl Serving<'_> {
 
     /// Publishes `o` with the counts.
     fn publish(&mut self, o: Outputs) {
+        self.publish_part(o, false);
+    }
+
+    /// Publishes `o`, only the topics that follow a frame's pass where `following`.
+    fn publish_part(&mut self, o: Outputs, following: bool) {
         let (d, e) = self.counts();
-        self.outputs.publish(o, d, e);
+        self.outputs.publish(o, d, e, following);
         self.last_published = Instant::now();
     }
 
@@ -570,11 +575,16 @@ impl Serving<'_> {
             }
         }
         let now_ns = Some(clock_ns);
+        // The seen outputs are published the moment they are made, before the unseen pass.
+        let mut early = |seen: &Outputs| self.publish(seen.clone());
         let frame = match message {
-            SourceMessage::Cloud(c) => monitor.on_cloud(k, c, received, now_ns),
-            SourceMessage::Depth(i) => monitor.on_depth_image(k, i, received, now_ns),
+            SourceMessage::Cloud(c) => monitor.on_cloud_early(k, c, received, now_ns, &mut early),
+            SourceMessage::Depth(i) => {
+                monitor.on_depth_image_early(k, i, received, now_ns, &mut early)
+            }
         };
-        self.publish(frame.outputs);
+        let following = frame.outputs_follow();
+        self.publish_part(frame.outputs, following);
         self.published_frames += 1;
         let published = self.published_frames;
         if self.panic_after.is_some_and(|n| published >= n) {

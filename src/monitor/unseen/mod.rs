@@ -7,19 +7,23 @@
 //! - its **config slice**: the `unobserved*` parameters, each source's range noise and limits,
 //!   the exclusion volumes that apply to every source, the query options for the hidden places;
 //! - its **per-source views** (`views`): each measured frame leaves its source's view, made and
-//!   prepared (free distances, the robot rendered at that frame's poses, pyramids) inside that
-//!   frame's processing; a source in fault, disabled or restarted leaves none;
+//!   prepared (free distances, the robot rendered at that frame's poses, pyramids) as the pass's
+//!   first stage (before the query where the GPU judges its cells in the query's submission); a source in fault, disabled or restarted leaves none;
 //! - its **steps** (`pass`): the volume placed at the frame's stamp, the robot placed at its
 //!   poses, the search with the engine's certified distance, the causes of what is nearest;
 //! - its **GPU part** (`gpu`): a depth image measured on the GPU has the lattice's cells judged in
 //!   the same submission, the verdicts kept with its view;
 //! - its **typed error** ([`UnseenFault`]) and its **messages** (`messages`).
 //!
-//! **Counted, never in the way.** The monitor runs the pass inside the frame, after the query
-//! and before the separation stage: its time is in the frame's processing, so in the speed
-//! factor's reaction time and against the latency budget, and no output waits for it
-//! uncounted. Under `protect` a frame later than the budget with the pass is a fault
-//! ([`UnseenSpace::check_late`]).
+//! **Counted, never in the way.** The seen outputs go first: the monitor publishes a frame's
+//! distances, level, stop and speed factor the moment its query is done, then runs the pass
+//! (its first stage the frame's view), then the frame's last word (`monitor::measure`). Under
+//! `report` the pass moves neither level nor factor, so nothing waits for it. Under `protect` the
+//! seen outputs take the previous frame's pass and may only raise the level and lower the
+//! factor; the release, and the factor's rise, are the last word's, whose processing (so the
+//! speed factor's reaction time, and the latency budget) includes the pass. Under `protect` a
+//! frame later than the budget with the pass is a fault ([`UnseenSpace::check_late`]); before
+//! any pass, or after one that failed, the pass runs before any output.
 //!
 //! **The robot's own shadow** (`unobserved_self_shadow`): `count` treats it as any hidden space:
 //! with one camera the unseen distance beside the arm is then 0, which a safety engineer should
