@@ -16,8 +16,10 @@
 //! **Only what the scene needs** ([`RobotImage`]): the search asks of the robot's image only
 //! where the robot's shadow is reported apart (`unobserved_self_shadow: apart`); otherwise it
 //! needs each ray's free distance alone, and the robot's image is rendered afterwards only in
-//! the rows the causes of what was found read ([`PreparedView::render_robot_for`]): on the
-//! Kinect frame, the render was half the view's cost.
+//! the windows the causes of what was found read (per band of rows, the span of columns they
+//! cover: [`PreparedView::render_robot_for`]), its pyramid rebuilt only over those bands: on the
+//! Kinect frame, the render was half the view's cost, and whole bands for the 256 markers 0.7
+//! ms where their windows take 0.3.
 //!
 //! Cost: one pass over the pixels for the free distances and their 2 × 2 maxima (bands of rows,
 //! each reading the row below it again), the two pyramids built side by side (4/3 of a pass
@@ -62,10 +64,22 @@ pub struct PreparedView {
     ray_z: Vec<f32>,
     /// The free distances and the robot's image, each the base of its pyramid.
     pyramids: Pyramids,
-    /// The padded spheres' silhouettes, front to back, and which bands of `BAND` rows of the
-    /// robot's image are rendered.
+    /// The padded spheres' silhouettes, front to back, and per band of `BAND` rows of the
+    /// robot's image the columns rendered in it (`None`: none).
     shapes: Vec<Silhouette>,
-    rendered: Vec<bool>,
+    rendered: Vec<Columns>,
+}
+
+/// A span of columns `(first, last)` of a band of rows, or none.
+type Columns = Option<(usize, usize)>;
+
+/// The smallest span holding both.
+fn union(a: Columns, b: Columns) -> Columns {
+    match (a, b) {
+        (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+        (a, None) => a,
+        (None, b) => b,
+    }
 }
 
 /// A padded sphere in the camera frame with the pixels its silhouette may cover.
@@ -124,15 +138,15 @@ impl PreparedView {
         let Pyramids { free, pairs, .. } = &mut self.pyramids;
         rayon::join(|| free.build(), || pairs.build());
         if image == RobotImage::Whole {
-            self.render_bands(&vec![true; self.rendered.len()]);
+            self.render_whole();
         }
     }
 
-    /// Renders the rows of the robot's image that the test of a ball of radius `r` at each of
+    /// Renders the pixels of the robot's image that the test of a ball of radius `r` at each of
     /// `centres` (root frame) reads (its window), where not rendered yet, and its pyramid.
     pub fn render_robot_for(&mut self, centres: &[[f32; 3]], r: f32) {
         let Some(o) = self.optics else { return };
-        let mut wanted = vec![false; self.rendered.len()];
+        let mut wanted: Vec<Columns> = vec![None; self.rendered.len()];
         for c in centres {
             let q = self.camera_from_root * Point3::from(c.map(f64::from));
             let p = [q.x as f32, q.y as f32, q.z as f32];
@@ -146,7 +160,9 @@ impl PreparedView {
             let (u, v) = o.project(p);
             // Where no window bounds the footprint, `window` gives the whole image.
             if let Some(rect) = window(&o, u, v, p[2] / l, alpha) {
-                (wanted[rect.v0 / BAND..=rect.v1 / BAND].iter_mut()).for_each(|b| *b = true);
+                let span = Some((rect.u0, rect.u1));
+                (wanted[rect.v0 / BAND..=rect.v1 / BAND].iter_mut())
+                    .for_each(|b| *b = union(*b, span));
             }
         }
         self.render_bands(&wanted);
@@ -154,7 +170,13 @@ impl PreparedView {
 
     /// Renders the robot's image whole (to draw it), where not yet.
     pub fn render_robot_whole(&mut self) {
-        self.render_bands(&vec![true; self.rendered.len()]);
+        self.render_whole();
+    }
+
+    /// Every band's every column.
+    fn render_whole(&mut self) {
+        let Some(o) = self.optics else { return };
+        self.render_bands(&vec![Some((0, o.width - 1)); self.rendered.len()]);
     }
 
     /// The view's camera, f32.
@@ -222,45 +244,57 @@ impl PreparedView {
         self.shapes.sort_by(|a, b| {
             (a.l2.sqrt() - a.rho2.sqrt()).total_cmp(&(b.l2.sqrt() - b.rho2.sqrt()))
         });
-        self.pyramids
-            .robot
-            .base_mut(o.width, o.height)
-            .fill(f32::INFINITY);
-        self.rendered = vec![false; o.height.div_ceil(BAND)];
+        // Blank, its pyramid with it: rendering bands then rebuilds only the texels over them.
+        self.pyramids.robot.fill(o.width, o.height, f32::INFINITY);
+        self.rendered = vec![None; o.height.div_ceil(BAND)];
     }
 
-    /// Renders the bands `wanted` not rendered yet, then the robot's pyramid.
-    fn render_bands(&mut self, wanted: &[bool]) {
+    /// Renders the columns `wanted` of each band where not rendered yet (the span of those
+    /// rendered and wanted, again: a pixel rendered twice is the same), then the robot's
+    /// pyramid over the bands rendered.
+    fn render_bands(&mut self, wanted: &[Columns]) {
         let Some(o) = self.optics else { return };
-        let todo: Vec<bool> = (wanted.iter().zip(&self.rendered))
-            .map(|(w, r)| *w && !*r)
+        let covered = |w: Columns, r: Columns| match (w, r) {
+            (None, _) => true,
+            (Some(w), Some(r)) => r.0 <= w.0 && w.1 <= r.1,
+            (Some(_), None) => false,
+        };
+        let todo: Vec<Columns> = (wanted.iter().zip(&self.rendered))
+            .map(|(&w, &r)| (!covered(w, r)).then(|| union(w, r)).flatten())
             .collect();
-        if !todo.contains(&true) {
+        if todo.iter().all(Option::is_none) {
             return;
         }
         let robot = self.pyramids.robot.base_mut(o.width, o.height);
         render(&o, &self.rays, &self.shapes, robot, &todo);
-        (self.rendered.iter_mut().zip(&todo)).for_each(|(r, t)| *r |= *t);
-        self.pyramids.robot.build();
+        (self.rendered.iter_mut().zip(&todo)).for_each(|(r, t)| *r = union(*r, *t));
+        let rows: Vec<bool> = (0..o.height).map(|v| todo[v / BAND].is_some()).collect();
+        self.pyramids.robot.build_rows(&rows);
     }
 }
 
-/// The robot's image: bands of rows in parallel (no two tasks write a pixel), each over the
-/// silhouettes that reach its rows, front to back; per row the silhouette's columns
+/// The robot's image over the columns `bands` gives each band of rows (the rest as it was: ∞
+/// where never rendered): bands in parallel (no two tasks write a pixel), each over the
+/// silhouettes that reach its rows and columns, front to back; per row the silhouette's columns
 /// (`cone_row`), per pixel its ray's entry into the sphere, kept where nearer (a pixel already
 /// nearer skips the root). Exact per pixel ray: a pixel is given the robot only where its own
 /// ray meets the padded spheres, the side the robot's shadow needs.
-fn render(o: &Optics, rays: &[[f32; 3]], shapes: &[Silhouette], robot: &mut [f32], bands: &[bool]) {
+fn render(
+    o: &Optics,
+    rays: &[[f32; 3]],
+    shapes: &[Silhouette],
+    robot: &mut [f32],
+    bands: &[Columns],
+) {
     let w = o.width;
     robot
         .par_chunks_mut(BAND * w)
         .enumerate()
-        .filter(|(band, _)| bands[*band])
-        .for_each(|(band, out)| {
-            out.fill(f32::INFINITY);
+        .filter_map(|(band, out)| bands[band].map(|span| (band, span, out)))
+        .for_each(|(band, (c0, c1), out)| {
             let (v_lo, v_hi) = (band * BAND, band * BAND + out.len() / w - 1);
             for s in shapes {
-                if s.rect.v1 < v_lo || s.rect.v0 > v_hi {
+                if s.rect.v1 < v_lo || s.rect.v0 > v_hi || s.rect.u1 < c0 || s.rect.u0 > c1 {
                     continue;
                 }
                 let inside = s.l2 <= s.rho2;
@@ -273,6 +307,7 @@ fn render(o: &Optics, rays: &[[f32; 3]], shapes: &[Silhouette], robot: &mut [f32
                         cone_row(o, s.c, k, v, s.rect)
                     };
                     let Some((u0, u1)) = cols else { continue };
+                    let (u0, u1) = (u0.max(c0), u1.min(c1));
                     let row = (v - v_lo) * w;
                     for u in u0..=u1 {
                         let q = &mut out[row + u];

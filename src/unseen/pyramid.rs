@@ -9,7 +9,9 @@
 //! maximum read is at least the true one and the minimum at most, which is the side each
 //! shortcut needs (`footprint`).
 //!
-//! Cost: a third of the image's pixels to build, rows in parallel; up to 25 reads a query.
+//! Cost: a third of the image's pixels to build, rows in parallel (where only some rows of an
+//! image filled with one value were written, the texels over them: `fill`, `build_rows`); up to
+//! 25 reads a query.
 
 use rayon::prelude::*;
 
@@ -70,8 +72,58 @@ impl Pyramid {
             let (done, rest) = self.levels.split_at_mut(k);
             let to = &mut rest[0];
             match done.last() {
-                None => reduce(&self.base, &self.base, self.width, self.height, to),
-                Some(from) => reduce(&from.min, &from.max, from.width, from.height, to),
+                None => reduce(&self.base, &self.base, self.width, self.height, to, None),
+                Some(from) => reduce(&from.min, &from.max, from.width, from.height, to, None),
+            }
+        }
+    }
+
+    /// The image `width × height` and every level above it filled with `value`: what
+    /// [`Pyramid::build`] would make of the filled image, without reading it.
+    pub fn fill(&mut self, width: usize, height: usize, value: f32) {
+        self.base_mut(width, height).fill(value);
+        let count = levels_for(width.max(height)) - 1;
+        self.levels.resize_with(count, Level::default);
+        let (mut w, mut h) = (width, height);
+        for level in &mut self.levels {
+            (w, h) = (w.div_ceil(2), h.div_ceil(2));
+            level.width = w;
+            level.height = h;
+            for values in [&mut level.min, &mut level.max] {
+                values.clear();
+                values.resize(w * h, value);
+            }
+        }
+    }
+
+    /// Rebuilds the levels above the image's rows where `changed` (one flag a row) is set: the
+    /// texels over them, from the level below. The rest of the image must be as it was at the
+    /// last [`Pyramid::build`] or [`Pyramid::fill`]; the result is then what `build` makes.
+    pub fn build_rows(&mut self, changed: &[bool]) {
+        let mut dirty = changed.to_vec();
+        for k in 0..self.levels.len() {
+            let (done, rest) = self.levels.split_at_mut(k);
+            let to = &mut rest[0];
+            dirty = (0..to.height)
+                .map(|j| dirty[2 * j] || dirty.get(2 * j + 1).copied().unwrap_or(false))
+                .collect();
+            match done.last() {
+                None => reduce(
+                    &self.base,
+                    &self.base,
+                    self.width,
+                    self.height,
+                    to,
+                    Some(&dirty),
+                ),
+                Some(from) => reduce(
+                    &from.min,
+                    &from.max,
+                    from.width,
+                    from.height,
+                    to,
+                    Some(&dirty),
+                ),
             }
         }
     }
@@ -120,8 +172,8 @@ fn levels_for(n: usize) -> usize {
 }
 
 /// `to`, the level above the one of extremes `min`, `max` (`fw × fh`): each texel the extremes
-/// of its (up to) four children.
-fn reduce(min: &[f32], max: &[f32], fw: usize, fh: usize, to: &mut Level) {
+/// of its (up to) four children; only the rows `rows` flags where given.
+fn reduce(min: &[f32], max: &[f32], fw: usize, fh: usize, to: &mut Level, rows: Option<&[bool]>) {
     to.width = fw.div_ceil(2);
     to.height = fh.div_ceil(2);
     let n = to.width * to.height;
@@ -132,6 +184,7 @@ fn reduce(min: &[f32], max: &[f32], fw: usize, fh: usize, to: &mut Level) {
         .par_chunks_mut(w)
         .zip(to.max.par_chunks_mut(w))
         .enumerate()
+        .filter(|(j, _)| rows.is_none_or(|r| r[*j]))
         .for_each(|(j, (lo_row, hi_row))| {
             let (r0, r1) = (2 * j * fw, (2 * j + 1).min(fh - 1) * fw);
             pairs(&min[r0..r0 + fw], &min[r1..r1 + fw], lo_row, f32::min);
@@ -158,6 +211,17 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Pixel values in [−2, 8) from `seed` (xorshift).
+    fn values(seed: u64) -> impl FnMut() -> f32 {
+        let mut s = seed | 1;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % 1000) as f32 / 100.0 - 2.0
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig { cases: 64, .. ProptestConfig::default() })]
 
@@ -170,13 +234,8 @@ mod tests {
             seed in any::<u64>(),
             corners in prop::array::uniform4(0.0f64..1.0),
         ) {
-            let mut s = seed | 1;
-            let image: Vec<f32> = (0..w * h)
-                .map(|_| {
-                    s ^= s << 13; s ^= s >> 7; s ^= s << 17;
-                    (s % 1000) as f32 / 100.0 - 2.0
-                })
-                .collect();
+            let mut next = values(seed);
+            let image: Vec<f32> = (0..w * h).map(|_| next()).collect();
             let mut p = Pyramid::default();
             p.base_mut(w, h).copy_from_slice(&image);
             p.build();
@@ -195,6 +254,36 @@ mod tests {
             let one = Rect { u0: a, u1: a, v0: c, v1: c };
             prop_assert_eq!(p.max(one), image[c * w + a]);
             prop_assert_eq!(p.min(one), image[c * w + a]);
+        }
+
+        /// A filled image with some rows rewritten, rebuilt over those rows, reads as the same
+        /// image built whole, at every level and rectangle.
+        #[test]
+        fn rows_rebuilt_equal_a_whole_build(
+            w in 1usize..40,
+            h in 1usize..40,
+            seed in any::<u64>(),
+            rows in prop::collection::vec(any::<bool>(), 40),
+        ) {
+            let mut next = values(seed);
+            let mut part = Pyramid::default();
+            part.fill(w, h, f32::INFINITY);
+            let changed = &rows[..h];
+            let base = part.base_mut(w, h);
+            for v in (0..h).filter(|&v| changed[v]) {
+                for u in 0..w {
+                    base[v * w + u] = next();
+                }
+            }
+            let mut whole = part.clone();
+            whole.build();
+            part.build_rows(changed);
+            prop_assert_eq!(part.levels.len(), whole.levels.len());
+            for (a, b) in part.levels.iter().zip(&whole.levels) {
+                prop_assert_eq!((a.width, a.height), (b.width, b.height));
+                prop_assert_eq!(&a.min, &b.min);
+                prop_assert_eq!(&a.max, &b.max);
+            }
         }
     }
 
