@@ -109,14 +109,11 @@ impl Monitor {
         process: impl FnOnce(&mut Self) -> Result<(QueryResult, Motion<'a>), Fault>,
         early: &mut dyn FnMut(&Outputs),
     ) -> Frame {
-        let (result, motion) = match process(self) {
-            Ok((r, m)) => (Ok(r), Some(m)),
-            Err(f) => {
-                self.unseen.forget(source);
-                (Err(f), None)
-            }
-        };
-        let passes = motion.is_some() && self.unseen.enabled();
+        let mut processed = process(self);
+        if processed.is_err() {
+            self.unseen.forget(source);
+        }
+        let passes = processed.is_ok() && self.unseen.enabled();
         let protects = self.unseen.protects();
         // 1. The seen picture: the source's report and its outputs.
         let seen_s = start.elapsed().as_secs_f64();
@@ -125,21 +122,13 @@ impl Monitor {
         } else {
             Step::Whole
         };
-        let speed = self.config.ssm.enabled.then(|| {
-            self.speed_scaling(
-                source,
-                stamp_ns,
-                &result,
-                motion.as_ref(),
-                seen_s,
-                first_step,
-            )
-        });
+        let mut speed = (self.config.ssm.enabled)
+            .then(|| self.speed_scaling(source, stamp_ns, &processed, seen_s, first_step));
         let name = self.config.sources[source].name.clone();
-        let fusion_start = Instant::now();
+        let report_start = Instant::now();
         let facts = FrameFacts {
             source: &name,
-            result: &result,
+            result: processed.as_ref().map(|(r, _)| r),
             processing_s: seen_s,
             speed: speed.as_ref(),
         };
@@ -153,60 +142,45 @@ impl Monitor {
             factor: speed.as_ref().map(|s| s.factor),
             step: first_step,
         };
-        let (mut processing_s, mut speed, mut first, mut pass) = (seen_s, speed, None, None);
-        let (mut outputs_s, mut unseen_fault) = (0.0, None);
-        let outputs = match motion.filter(|_| passes) {
-            None => self.outputs(&moment, true),
-            Some(mut motion) => {
-                // The seen outputs go first: nothing of them waits for the pass. Under `protect`
-                // only where the latest pass gave a distance: otherwise they could only say
-                // ERROR without one, and the frame's last word follows at once.
-                let latest_ok = (self.unseen.last()).is_some_and(|u| u.outcome.is_ok());
-                if !protects || latest_ok {
-                    let seen = self.outputs(&moment, false);
-                    outputs_s = fusion_start.elapsed().as_secs_f64();
-                    early(&seen);
-                    first = Some((seen, start.elapsed().as_secs_f64()));
-                }
-                // 2. The unseen space over every source's latest view (this frame's made
-                // now), the robot at this frame's poses.
-                if let Some(pending) = motion.view.take() {
-                    self.observe(source, pending, &motion.poses);
-                }
-                pass = Some(self.unseen_pass(stamp_ns, &motion));
-                processing_s = start.elapsed().as_secs_f64();
-                unseen_fault = (self.unseen).check_late(processing_s, self.config.latency_budget_s);
-                // 3. The frame's last word. Under `protect` the level and the speed factor take
-                // this frame's pass (a release is decided here, once); under `report` the pass
-                // moves neither.
-                if protects && self.config.ssm.enabled {
-                    let s = Step::Whole;
-                    let last = self.speed_scaling(
-                        source,
-                        stamp_ns,
-                        &result,
-                        Some(&motion),
-                        processing_s,
-                        s,
-                    );
-                    moment.factor = Some(last.factor);
-                    speed = Some(last);
-                }
-                moment.step = if protects { Step::Whole } else { Step::Keep };
-                let last_start = Instant::now();
-                let outputs = self.outputs(&moment, true);
-                outputs_s += last_start.elapsed().as_secs_f64();
-                outputs
+        let mut outputs_s = report_start.elapsed().as_secs_f64();
+        let (mut processing_s, mut first, mut pass, mut unseen_fault) = (seen_s, None, None, None);
+        if let (true, Ok((_, motion))) = (passes, processed.as_mut()) {
+            // The seen outputs go first: nothing of them waits for the pass. Under `protect`
+            // only where the latest pass gave a distance: otherwise they could only say ERROR
+            // without one, and the frame's last word follows at once.
+            let latest_ok = (self.unseen.last()).is_some_and(|u| u.outcome.is_ok());
+            if !protects || latest_ok {
+                let (seen, s) = self.timed_outputs(&moment, false);
+                outputs_s += s;
+                early(&seen);
+                first = Some((seen, start.elapsed().as_secs_f64()));
             }
-        };
-        if first.is_none() {
-            outputs_s = fusion_start.elapsed().as_secs_f64();
+            // 2. The unseen space over every source's latest view (this frame's made now),
+            // the robot at this frame's poses.
+            if let Some(pending) = motion.view.take() {
+                pending.observe(&mut self.unseen, self.engine.links(), source, &motion.poses);
+            }
+            pass = Some(self.unseen_pass(stamp_ns, motion));
+            processing_s = start.elapsed().as_secs_f64();
+            unseen_fault = (self.unseen).check_late(processing_s, self.config.latency_budget_s);
+            // 3. The frame's last word. Under `protect` the level and the speed factor take
+            // this frame's pass (a release is decided here, once); under `report` the pass
+            // moves neither.
+            if protects && self.config.ssm.enabled {
+                let last =
+                    self.speed_scaling(source, stamp_ns, &processed, processing_s, Step::Whole);
+                moment.factor = Some(last.factor);
+                speed = Some(last);
+            }
+            moment.step = if protects { Step::Whole } else { Step::Keep };
         }
+        let (outputs, s) = self.timed_outputs(&moment, true);
+        outputs_s += s;
         let pass = pass.unwrap_or_default();
         Frame {
             source: name,
             stamp_ns,
-            result,
+            result: processed.map(|(r, _)| r),
             processing_s,
             speed,
             outputs_s,
@@ -218,6 +192,13 @@ impl Monitor {
             first,
             outputs,
         }
+    }
+
+    /// [`Monitor::outputs`] and the time it took, s.
+    fn timed_outputs(&mut self, moment: &Moment, unseen_topics: bool) -> (Outputs, f64) {
+        let start = Instant::now();
+        let outputs = self.outputs(moment, unseen_topics);
+        (outputs, start.elapsed().as_secs_f64())
     }
 
     /// Runs the unseen pass after a frame's query, the robot at its poses.
@@ -247,20 +228,18 @@ impl Monitor {
         &mut self,
         source: usize,
         stamp_ns: i64,
-        result: &Result<QueryResult, Fault>,
-        motion: Option<&Motion>,
+        processed: &Result<(QueryResult, Motion), Fault>,
         processing_s: f64,
         step: Step,
     ) -> SpeedScaling {
         let start = Instant::now();
         let ssm = &self.config.ssm;
-        let separation = match (result, motion) {
-            (Err(fault), _) => Err(format!("no distance: {fault}")),
-            (Ok(r), _) if published_distance(r).is_none() => {
+        let separation = match processed {
+            Err(fault) => Err(format!("no distance: {fault}")),
+            Ok((r, _)) if published_distance(r).is_none() => {
                 Err("no distance: no valid points, or every valid point self-filtered".into())
             }
-            (Ok(_), None) => Err("no poses".to_string()),
-            (Ok(r), Some(m)) => match self
+            Ok((r, m)) => match self
                 .joints
                 .velocities_at(Some(m.stamp_ns), self.config.joint_state_tolerance_s)
             {
@@ -454,6 +433,11 @@ impl Monitor {
         let name = &self.config.sources[source].name;
         let excludes = (self.config.exclusion_volumes.iter()).any(|v| v.applies_to(name));
         let needs_points = self.config.stray.enabled() || excludes;
+        // On the GPU the query's submission judges the unseen space's cells in a depth image's
+        // view (one it measures whole).
+        let gpu_cells = self.unseen.enabled()
+            && matches!(&points, Points::Depth { view, .. }
+                if !needs_points && self.config.query.wants_gpu_for_depth(view.len()));
         // The unseen pass's view of these points: made after the seen outputs (the pass's
         // first stage), or now where the GPU judges its cells in the query's submission.
         let mut pending = None;
@@ -474,19 +458,14 @@ impl Monitor {
                     root_from_sensor,
                 }),
             };
-            let gpu_cells = matches!(&points, Points::Depth { view, .. }
-                if !needs_points && self.config.query.wants_gpu_for_depth(view.len()));
             match view {
                 Ok(v) if !gpu_cells => pending = Some(v),
-                Ok(v) => observe_view(&mut self.unseen, self.engine.links(), source, v, &poses),
+                Ok(v) => v.observe(&mut self.unseen, self.engine.links(), source, &poses),
                 Err(e) => (self.unseen).observe(source, Err(e), 0.0, self.engine.links(), &poses),
             }
         }
         let (points, width) = match points {
             Points::Depth { view, points } if !needs_points => {
-                // On the GPU the same submission judges the unseen space's cells in this view.
-                let gpu_cells =
-                    self.unseen.enabled() && self.config.query.wants_gpu_for_depth(view.len());
                 if gpu_cells {
                     let at = At {
                         stamp_ns,
@@ -536,56 +515,47 @@ impl Monitor {
         }
         self.finish_measure(result, excluded, poses, stamp_ns, now_ns, pending)
     }
-
-    /// Source `source`'s view for the unseen pass, made from `pending` (its time counted in
-    /// the pass's: `UnseenSpace::observe`).
-    fn observe(&mut self, source: usize, pending: PendingView, poses: &[Isometry3<f64>]) {
-        observe_view(
-            &mut self.unseen,
-            self.engine.links(),
-            source,
-            pending,
-            poses,
-        );
-    }
 }
 
-/// [`Monitor::observe`], on the monitor's unseen space and the engine's links.
-fn observe_view(
-    unseen: &mut UnseenSpace,
-    links: &[QueryLink],
-    source: usize,
-    pending: PendingView,
-    poses: &[Isometry3<f64>],
-) {
-    let start = Instant::now();
-    let (limits, noise) = unseen.source_limits(source);
-    let view = match &pending {
-        PendingView::Depth {
-            view,
-            camera,
-            root_from_sensor,
-        } => view_of(
-            Some((view, camera)),
-            None,
-            root_from_sensor,
-            limits,
-            noise,
-            None,
-        ),
-        PendingView::Cloud {
-            points,
-            width,
-            root_from_sensor,
-        } => {
-            let known = unseen.known_camera(source);
-            let points = points.as_deref().unwrap_or_default();
-            let cloud = Some((points, *width));
-            view_of(None, cloud, root_from_sensor, limits, noise, known.as_ref())
-        }
-    };
-    let made_s = start.elapsed().as_secs_f64();
-    unseen.observe(source, view, made_s, links, poses);
+impl PendingView<'_> {
+    /// Source `source`'s view for the unseen pass, made from these points, into `unseen` (its
+    /// time counted in the pass's: `UnseenSpace::observe`).
+    fn observe(
+        self,
+        unseen: &mut UnseenSpace,
+        links: &[QueryLink],
+        source: usize,
+        poses: &[Isometry3<f64>],
+    ) {
+        let start = Instant::now();
+        let (limits, noise) = unseen.source_limits(source);
+        let view = match &self {
+            PendingView::Depth {
+                view,
+                camera,
+                root_from_sensor,
+            } => view_of(
+                Some((view, camera)),
+                None,
+                root_from_sensor,
+                limits,
+                noise,
+                None,
+            ),
+            PendingView::Cloud {
+                points,
+                width,
+                root_from_sensor,
+            } => {
+                let known = unseen.known_camera(source);
+                let points = points.as_deref().unwrap_or_default();
+                let cloud = Some((points, *width));
+                view_of(None, cloud, root_from_sensor, limits, noise, known.as_ref())
+            }
+        };
+        let made_s = start.elapsed().as_secs_f64();
+        unseen.observe(source, view, made_s, links, poses);
+    }
 }
 
 impl Monitor {

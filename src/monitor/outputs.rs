@@ -4,7 +4,7 @@
 //! `markers`. With the unseen space on, a frame publishes twice: its seen outputs the moment its
 //! query is done (without the `~/unseen_*` topics), then after the pass its last word, of which
 //! the seen distances (`~/min_distance`, `~/distance`, `~/link_distances`) are not repeated
-//! ([`Outputs::visit_following`]; `monitor::measure`).
+//! ([`Outputs::visit_part`]; `monitor::measure`).
 //!
 //! | topic | type | content |
 //! |---|---|---|
@@ -144,7 +144,7 @@ pub trait OutputVisitor {
 
 /// The table: every output topic, in publication order, with its type and the frame's message
 /// (only the topics that follow a frame's pass where `following`: see
-/// [`Outputs::visit_following`]).
+/// [`Outputs::visit_part`]).
 fn each_output<V: OutputVisitor>(
     o: Option<Outputs>,
     following: bool,
@@ -300,13 +300,13 @@ impl Outputs {
         each_output(Some(self), false, v)
     }
 
-    /// Walks the topics that follow a frame's unseen pass where its seen outputs went first
-    /// (`Frame::first`): the pass's own (`~/unseen_*`), the markers and `/diagnostics` with
-    /// its status, and the stop and the speed factor, which under `protect` this frame's pass
-    /// may move. The seen distances (`~/min_distance`, `~/distance`, `~/link_distances`) went
-    /// out with the first outputs and are not repeated.
-    pub fn visit_following<V: OutputVisitor>(self, v: &mut V) -> Result<(), V::Error> {
-        each_output(Some(self), true, v)
+    /// The same; where `following`, only the topics that follow a frame's unseen pass where its
+    /// seen outputs went first (`Frame::outputs_follow`): the pass's own (`~/unseen_*`), the
+    /// markers and `/diagnostics` with its status, and the stop and the speed factor, which
+    /// under `protect` this frame's pass may move. The seen distances (`~/min_distance`,
+    /// `~/distance`, `~/link_distances`) went out with the first outputs and are not repeated.
+    pub fn visit_part<V: OutputVisitor>(self, following: bool, v: &mut V) -> Result<(), V::Error> {
+        each_output(Some(self), following, v)
     }
 }
 

@@ -40,7 +40,7 @@ pub struct Frame {
     /// Where the frame's unseen pass followed its seen outputs: those outputs, made (and, in
     /// the node, published) before the pass, and the time from receipt to them, s. `outputs`
     /// is then the frame's last word, of which only the topics that follow the pass are
-    /// published (`Outputs::visit_following`). Under `protect` the first outputs take the
+    /// published (`Outputs::visit_part`). Under `protect` the first outputs take the
     /// previous frame's pass and may only raise the level and lower the speed factor; a
     /// release waits for this frame's pass.
     pub first: Option<(Outputs, f64)>,
@@ -60,7 +60,7 @@ pub struct Frame {
 
 impl Frame {
     /// Whether the frame's seen outputs went first and carried its distance: then only the
-    /// topics that follow the pass are published from `outputs` (`Outputs::visit_following`).
+    /// topics that follow the pass are published from `outputs` (`Outputs::visit_part`).
     /// Where the first outputs had none (a fault then, as the previous frame's pass under
     /// `protect`, that this frame's pass cleared), `outputs` is published whole.
     pub fn outputs_follow(&self) -> bool {

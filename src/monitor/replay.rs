@@ -286,16 +286,14 @@ pub fn replay_frames(
                     at: at(first_s),
                 })?;
             }
-            let sink = &mut BagSink {
-                writer: w,
-                node_path: &node_path,
-                at: at(frame.processing_s),
-            };
-            if following {
-                frame.outputs.visit_following(sink)?;
-            } else {
-                frame.outputs.visit(sink)?;
-            }
+            frame.outputs.visit_part(
+                following,
+                &mut BagSink {
+                    writer: w,
+                    node_path: &node_path,
+                    at: at(frame.processing_s),
+                },
+            )?;
         }
     }
     if let Some(w) = writer {

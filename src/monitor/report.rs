@@ -53,7 +53,7 @@ pub struct SourceReport {
 pub struct FrameFacts<'a> {
     /// The source's name.
     pub source: &'a str,
-    pub result: &'a Result<QueryResult, Fault>,
+    pub result: Result<&'a QueryResult, &'a Fault>,
     /// Decode, poses and query, s.
     pub processing_s: f64,
     /// The separation stage (`None` with the separation monitor off).
@@ -85,7 +85,7 @@ impl SourceReport {
         let over_budget = processing_s > config.latency_budget_s;
         // Every valid point self-filtered: no distance, WARN at least, and the level held (a
         // stop is never released by this).
-        let all_self = result.as_ref().is_ok_and(all_self_filtered);
+        let all_self = result.is_ok_and(all_self_filtered);
         let (distance, mut message) = match result {
             Err(fault) => {
                 values.push(kv("fault", fault.kind().into()));

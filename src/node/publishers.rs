@@ -69,7 +69,7 @@ impl Publishers {
     /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
     /// join the diagnostics.
     /// Publishes `o` with the node's counts; only the topics that follow a frame's unseen pass
-    /// where `following` (`Outputs::visit_following`).
+    /// where `following` (`Outputs::visit_part`).
     pub(super) fn publish(&self, mut o: Outputs, dropped: u64, input_errors: u64, following: bool) {
         add_counts(&mut o, dropped, input_errors);
         self.publish_topics(o, following);
@@ -102,12 +102,7 @@ impl Publishers {
                     .map_err(|e| format!("{}: {e}", topic.name()))
             }
         }
-        let published = if following {
-            o.visit_following(&mut Publish(self))
-        } else {
-            o.visit(&mut Publish(self))
-        };
-        if let Err(e) = published {
+        if let Err(e) = o.visit_part(following, &mut Publish(self)) {
             log::warn!("publishing: {e}");
         }
     }

@@ -254,13 +254,9 @@ impl PreparedView {
     /// pyramid over the bands rendered.
     fn render_bands(&mut self, wanted: &[Columns]) {
         let Some(o) = self.optics else { return };
-        let covered = |w: Columns, r: Columns| match (w, r) {
-            (None, _) => true,
-            (Some(w), Some(r)) => r.0 <= w.0 && w.1 <= r.1,
-            (Some(_), None) => false,
-        };
+        // Where the span wanted lies within the one rendered, their union is the latter.
         let todo: Vec<Columns> = (wanted.iter().zip(&self.rendered))
-            .map(|(&w, &r)| (!covered(w, r)).then(|| union(w, r)).flatten())
+            .map(|(&w, &r)| Some(union(w, r)).filter(|&u| u != r).flatten())
             .collect();
         if todo.iter().all(Option::is_none) {
             return;
