@@ -8,9 +8,8 @@
 //! centred sums. The fit is taken only when it is a camera: at least [`MIN_FIT_POINTS`]
 //! valid points, positive finite focal lengths, and every valid point re-projected within
 //! [`MAX_RESIDUAL_PX`] of its own pixel (a cloud moved into another frame, or one from a
-//! lidar's rings, fails that and observes nothing free). Two passes over the points.
-
-use rayon::prelude::*;
+//! lidar's rings, fails that and observes nothing free). Two passes over the points; a camera
+//! fitted before is checked (`FitCheck`) in the view's own pass.
 
 use crate::cloud::depth::PinholeCamera;
 
@@ -95,45 +94,94 @@ pub fn fit_pinhole(
     })
 }
 
-/// Whether `camera` puts every valid point of the organized cloud `points` (row-major, the
-/// camera's pixel grid) within [`MAX_RESIDUAL_PX`] of its own pixel: the check that lets a
-/// source keep the intrinsics fitted from an earlier frame (one parallel pass, no fit).
-pub fn fits(camera: &PinholeCamera, points: &[[f32; 3]]) -> bool {
-    let w = camera.width as usize;
-    if w == 0 || points.len() as u64 != u64::from(camera.width) * u64::from(camera.height) {
-        return false;
+/// Whether a camera puts every valid point of an organized cloud (row-major, the camera's pixel
+/// grid) within [`MAX_RESIDUAL_PX`] of its own pixel: the check that lets a source keep the
+/// intrinsics fitted from an earlier frame, no fit, made a row at a time in the view's own pass
+/// over the points. f32 is exact to 1e-4 px here; the half-pixel test has room for it.
+#[derive(Debug, Clone, Copy)]
+pub struct FitCheck {
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+}
+
+/// What a check found over some rows: whether every valid point fits, and how many are valid.
+#[derive(Debug, Clone, Copy)]
+pub struct RowFit {
+    ok: bool,
+    valid: usize,
+}
+
+impl Default for RowFit {
+    fn default() -> Self {
+        Self { ok: true, valid: 0 }
     }
-    // f32 is exact to 1e-4 px here; the half-pixel test has room for it.
-    let (fx, fy, cx, cy) = (
-        camera.fx as f32,
-        camera.fy as f32,
-        camera.cx as f32,
-        camera.cy as f32,
-    );
-    let limit = MAX_RESIDUAL_PX as f32;
-    let (ok, valid) = points
-        .par_chunks(w)
-        .enumerate()
-        .map(|(v, row)| {
-            let (mut ok, mut valid) = (true, 0usize);
-            for (u, p) in row.iter().enumerate() {
-                if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite() && p[2] > 0.0) {
-                    continue;
-                }
-                valid += 1;
-                let du = (fx * p[0] / p[2] + cx - u as f32).abs();
-                let dv = (fy * p[1] / p[2] + cy - v as f32).abs();
-                ok &= du <= limit && dv <= limit;
-            }
-            (ok, valid)
+}
+
+impl RowFit {
+    /// Both together.
+    pub fn and(self, other: Self) -> Self {
+        Self {
+            ok: self.ok && other.ok,
+            valid: self.valid + other.valid,
+        }
+    }
+}
+
+impl FitCheck {
+    /// The check of `camera` over `points` points (`None` when they are not its pixel grid).
+    pub fn new(camera: &PinholeCamera, points: usize) -> Option<Self> {
+        let pixels = u64::from(camera.width) * u64::from(camera.height);
+        (camera.width > 0 && points as u64 == pixels).then_some(Self {
+            fx: camera.fx as f32,
+            fy: camera.fy as f32,
+            cx: camera.cx as f32,
+            cy: camera.cy as f32,
         })
-        .reduce(|| (true, 0), |a, b| (a.0 && b.0, a.1 + b.1));
-    ok && valid >= MIN_FIT_POINTS
+    }
+
+    /// Row `v`'s points (branch-free, so that it runs as vectors).
+    #[inline]
+    pub fn row(&self, v: usize, row: &[[f32; 3]]) -> RowFit {
+        let limit = MAX_RESIDUAL_PX as f32;
+        let v = v as f32;
+        let (mut bad, mut valid) = (0u32, 0u32);
+        for (u, &[x, y, z]) in row.iter().enumerate() {
+            let returned = x.is_finite() & y.is_finite() & z.is_finite() & (z > 0.0);
+            let inv = 1.0 / z;
+            let du = (self.fx * x * inv + self.cx - u as f32).abs();
+            let dv = (self.fy * y * inv + self.cy - v).abs();
+            valid += u32::from(returned);
+            bad += u32::from(returned & !((du <= limit) & (dv <= limit)));
+        }
+        RowFit {
+            ok: bad == 0,
+            valid: valid as usize,
+        }
+    }
+
+    /// Whether the camera fits, from every row's [`FitCheck::row`].
+    pub fn holds(&self, rows: RowFit) -> bool {
+        rows.ok && rows.valid >= MIN_FIT_POINTS
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rayon::prelude::*;
+
+    /// [`FitCheck`] over a whole cloud.
+    fn fits(camera: &PinholeCamera, points: &[[f32; 3]]) -> bool {
+        let Some(check) = FitCheck::new(camera, points.len()) else {
+            return false;
+        };
+        let rows = (points.par_chunks(camera.width as usize).enumerate())
+            .map(|(v, row)| check.row(v, row))
+            .reduce(RowFit::default, RowFit::and);
+        check.holds(rows)
+    }
 
     /// The organized cloud a pinhole camera makes of a tilted plane, with holes.
     fn plane_cloud(c: &PinholeCamera) -> Vec<[f32; 3]> {

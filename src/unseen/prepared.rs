@@ -60,8 +60,8 @@ pub struct PreparedView {
     /// The range noise its free distances were taken short by (m).
     range_noise_m: f32,
     rays: Vec<[f32; 3]>,
-    /// Each unit ray's z, apart, for the free distances' pass.
-    ray_z: Vec<f32>,
+    /// Each pixel's `|d̃| = 1 / d_z` (its unit ray `d`), apart, for the free distances' pass.
+    ray_length: Vec<f32>,
     /// The free distances and the robot's image, each the base of its pyramid.
     pyramids: Pyramids,
     /// The padded spheres' silhouettes, front to back, and per band of `BAND` rows of the
@@ -99,7 +99,7 @@ impl PreparedView {
         let optics = Optics::new(&camera, view.min_range2().sqrt(), view.max_range_m());
         if self.camera != Some(camera) {
             self.rays = unit_rays(&camera);
-            self.ray_z = self.rays.iter().map(|d| d[2]).collect();
+            self.ray_length = self.rays.iter().map(|d| 1.0 / d[2]).collect();
             self.camera = Some(camera);
         }
         self.optics = Some(optics);
@@ -107,7 +107,7 @@ impl PreparedView {
         let noise = view.range_noise_m();
         self.range_noise_m = noise;
         let (w, h) = (optics.width, optics.height);
-        let (ranges, ray_z) = (view.ranges(), &self.ray_z[..]);
+        let (ranges, length) = (view.ranges(), &self.ray_length[..]);
         // The free distances, and the largest of each 2 × 2 pixels (by the top-left one,
         // clipped at the edges), in one pass: bands of rows, each with the row below it.
         let Pyramids { free, pairs, .. } = &mut self.pyramids;
@@ -118,10 +118,15 @@ impl PreparedView {
             .for_each(|(band, (f, p))| {
                 let (start, n) = (band * BAND * w, f.len());
                 let end = start + n;
-                free_distances(f, &ranges[start..end], &ray_z[start..end], noise);
+                free_distances(f, &ranges[start..end], &length[start..end], noise);
                 let below = if end < w * h {
                     let mut row = vec![0.0; w];
-                    free_distances(&mut row, &ranges[end..end + w], &ray_z[end..end + w], noise);
+                    free_distances(
+                        &mut row,
+                        &ranges[end..end + w],
+                        &length[end..end + w],
+                        noise,
+                    );
                     row
                 } else {
                     f[n - w..].to_vec()
@@ -322,17 +327,15 @@ fn render(
         });
 }
 
-/// Each pixel's free distance along its ray: its depth `z` less the range `noise`, over its unit
-/// ray's z (|d̃| = 1 / d_z for the unit ray d of d̃ = (x/z, y/z, 1)), less [`ROUNDING_M`]; −1
-/// for no return.
+/// Each pixel's free distance along its ray: its depth `z` less the range `noise`, times its
+/// ray's `|d̃| = 1 / d_z` (`d̃ = (x/z, y/z, 1)`, `d` its unit ray; a product, not a quotient: a
+/// few ulps, far within [`ROUNDING_M`]), less [`ROUNDING_M`]; −1 for no return. Branch-free, so
+/// that it runs as vectors.
 #[inline]
-fn free_distances(out: &mut [f32], z: &[f32], ray_z: &[f32], noise: f32) {
-    for ((g, &z), &dz) in out.iter_mut().zip(z).zip(ray_z) {
-        *g = if z.is_finite() {
-            ((z - noise) / dz - ROUNDING_M).max(0.0)
-        } else {
-            -1.0
-        };
+fn free_distances(out: &mut [f32], z: &[f32], length: &[f32], noise: f32) {
+    for ((g, &z), &k) in out.iter_mut().zip(z).zip(length) {
+        let free = ((z - noise) * k - ROUNDING_M).max(0.0);
+        *g = if z.is_finite() { free } else { -1.0 };
     }
 }
 

@@ -25,7 +25,7 @@ use crate::cloud::depth::{DepthView, PinholeCamera};
 use crate::cloud::RangeLimits;
 
 use super::error::UnseenError;
-use super::fit::{fit_pinhole, fits};
+use super::fit::{fit_pinhole, FitCheck, RowFit};
 
 /// Default range noise (m): a return at `r` is taken to show free space up to `r − 0.02`.
 /// A Kinect-class structured-light camera's depth noise is about 1.5 cm (1σ) at 3 m and grows
@@ -58,6 +58,7 @@ impl RangeView {
         let w = camera.width as usize;
         check_count("depths", depths.len(), &camera)?;
         let (kx, ky) = (1.0 / camera.fx as f32, 1.0 / camera.fy as f32);
+        let bounds = squared(range);
         let (cx, cy) = (camera.cx as f32, camera.cy as f32);
         let ranges = depths
             .par_iter()
@@ -68,7 +69,7 @@ impl RangeView {
                     ((i / w) as f32 - cy) * ky * z,
                     z,
                 ];
-                keep(p, range)
+                keep(p, bounds)
             })
             .collect();
         Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
@@ -86,7 +87,7 @@ impl RangeView {
         // `point` is NaN for no return and outside the limits; a 32FC1 depth of 0 is (0, 0, 0).
         let ranges = (0..depth.len())
             .into_par_iter()
-            .map(|i| keep(depth.point(i), None))
+            .map(|i| keep(depth.point(i), squared(None)))
             .collect();
         Self::with_ranges(
             *camera,
@@ -100,7 +101,8 @@ impl RangeView {
     /// The view of an organized cloud: `points` (row-major `width × height`, in the cloud's
     /// optical frame, which `root_from_camera` places), the intrinsics fitted from them
     /// ([`super::fit::fit_pinhole`]), or `known` where it still fits every point
-    /// ([`super::fit::fits`]: a source's camera does not change from frame to frame). An
+    /// ([`super::fit::FitCheck`], in the same pass as the depths: a source's camera does not
+    /// change from frame to frame). An
     /// unorganized cloud, or one no pinhole camera fits, is an error: that source observes
     /// nothing free.
     pub fn from_organized_cloud(
@@ -123,11 +125,28 @@ impl RangeView {
                 height,
             });
         }
-        let camera = match known {
-            Some(c) if c.width == width && c.height == height && fits(c, points) => *c,
+        // The depths, and where a camera is known whether it still fits, in one pass.
+        let w = width as usize;
+        let check = known
+            .filter(|c| c.width == width && c.height == height)
+            .and_then(|c| Some((c, FitCheck::new(c, points.len())?)));
+        let bounds = squared(range);
+        let mut ranges = vec![0.0f32; points.len()];
+        let rows = (ranges
+            .par_chunks_mut(w)
+            .zip(points.par_chunks(w))
+            .enumerate())
+        .map(|(v, (out, row))| {
+            for (o, &p) in out.iter_mut().zip(row) {
+                *o = keep(p, bounds);
+            }
+            check.map_or(RowFit::default(), |(_, c)| c.row(v, row))
+        })
+        .reduce(RowFit::default, RowFit::and);
+        let camera = match check {
+            Some((c, check)) if check.holds(rows) => *c,
             _ => fit_pinhole(points, width, height)?,
         };
-        let ranges = points.par_iter().map(|&p| keep(p, range)).collect();
         Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
     }
 
@@ -184,12 +203,19 @@ impl RangeView {
     }
 }
 
-/// The depth of camera-frame point `p` if it is a return within `range`, else NaN.
+/// The squared range limits `(min², max²)` (m²; `(0, ∞)` without limits).
+fn squared(range: Option<RangeLimits>) -> (f32, f32) {
+    range.map_or((0.0, f32::INFINITY), |r| r.squared())
+}
+
+/// The depth of camera-frame point `p` if it is a return within the squared range limits
+/// `(min², max²)`, else NaN (branch-free, so that a pass over the pixels runs as vectors).
 #[inline]
-fn keep(p: [f32; 3], range: Option<RangeLimits>) -> f32 {
-    let z = p[2];
-    let returned = z.is_finite() && z > 0.0 && p[0].is_finite() && p[1].is_finite();
-    if returned && range.is_none_or(|r| r.keeps(p)) {
+fn keep(p: [f32; 3], (min2, max2): (f32, f32)) -> f32 {
+    let [x, y, z] = p;
+    let r2 = x * x + y * y + z * z;
+    let returned = x.is_finite() & y.is_finite() & z.is_finite() & (z > 0.0);
+    if returned & (r2 >= min2) & (r2 <= max2) {
         z
     } else {
         f32::NAN
