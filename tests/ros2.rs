@@ -151,6 +151,60 @@ fn rclpy_lists_describes_and_sets_the_nodes_parameters() {
         .contains(&serde_json::json!("patch.size")));
 }
 
+/// A secured cell's default (issue 57): with `ROS_SECURITY_ENABLE=true` and nothing else
+/// (Permissive, no keystore: the node runs unsecured and says so), `parameter_changes` is
+/// `strengthen_only`: rclpy's `set_parameters` lowering `stop_distance` is refused while the
+/// stop is released, raising it is taken. With `parameter_changes:=open` given, the lowering
+/// is taken and the node warns of the risk.
+#[test]
+fn rclpy_cannot_lower_a_secured_cells_stop_distance() {
+    if !common::in_private_network("rclpy_cannot_lower_a_secured_cells_stop_distance") {
+        return;
+    }
+    let Some(python) = common::rclpy_python() else {
+        return;
+    };
+    for open in [false, true] {
+        let mut args = common::at_rest_args();
+        if open {
+            args.extend(["-p".into(), "parameter_changes:=open".into()]);
+        }
+        let mut node = ist_monitor();
+        node.args(&args)
+            .env("ROS_SECURITY_ENABLE", "true")
+            .env_remove("ROS_SECURITY_STRATEGY")
+            .env_remove("ROS_SECURITY_KEYSTORE")
+            .env_remove("ROS_SECURITY_ENCLAVE_OVERRIDE");
+        let (out, log) = beside_node(
+            &mut node,
+            &python,
+            &["rule".as_ref(), "/ist_monitor".as_ref()],
+        );
+        assert_eq!(out["released"], true, "{out}");
+        assert!(
+            log.contains("UNSECURED"),
+            "the node says it runs unsecured: {log}"
+        );
+        let warned = log.contains("parameter_changes: open with ROS_SECURITY_ENABLE=true");
+        if open {
+            assert_eq!(out["rule"], "open", "{out}");
+            assert_eq!(out["lower"]["successful"], true, "{out}");
+            assert!(warned, "{log}");
+        } else {
+            assert_eq!(out["rule"], "strengthen_only", "{out}");
+            assert_eq!(out["lower"]["successful"], false, "{out}");
+            let reason = out["lower"]["reason"].as_str().unwrap();
+            assert!(
+                reason.contains("strengthen_only") && reason.contains("stop_distance"),
+                "{out}"
+            );
+            assert!(!warned, "{log}");
+        }
+        assert_eq!(out["raise"]["successful"], true, "{out}");
+        assert_eq!(out["stop_distance"], 0.2, "{out}");
+    }
+}
+
 /// The node started as a launch file starts it, with simulated time: launch_ros's argument list
 /// for `Node(package='ist_monitor', executable='ist_monitor', name='cell_monitor',
 /// namespace='cell1', parameters=[package_file, {...}], remappings=[(cloud, realsense)],

@@ -23,6 +23,11 @@
 //! - **Who may change what** (`parameter_changes`, [`Config::admits`]): `open` applies the rule
 //!   above; `strengthen_only` applies it at any time, stop raised or not, so that nobody on the
 //!   network can lower a running cell's thresholds; `none` refuses every change.
+//! - **A secured cell's default** ([`Config::secure_parameter_changes`]): with security asked
+//!   for (`ROS_SECURITY_ENABLE=true`), `parameter_changes` not given is `strengthen_only`: TLS
+//!   or SROS2 without an access list that grants `set_parameters` to the operator alone lets
+//!   any holder of a certificate call the services, and where the transport ends up unsecured
+//!   (Permissive) anyone can. A given `open` is kept, with a warning that names the risk.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -34,6 +39,7 @@ use super::entries::LISTS;
 use super::error::ConfigError;
 use super::params::{scalar_yaml, ParamDecl, PARAMETERS};
 use super::values::Values;
+use crate::choice::Choice;
 
 /// One parameter of a config: its name, its declaration and its value (given, or the declared
 /// default; `Yaml::Null` for none).
@@ -131,6 +137,31 @@ impl Config {
             }
         }
         Ok(new)
+    }
+
+    /// The secure default of `parameter_changes` (see the module doc), applied at start: with
+    /// `security_asked` and the parameter not given, `strengthen_only` (set as if given, so that
+    /// the parameter services report it); the warning to log where `open` was given.
+    pub fn secure_parameter_changes(&mut self, security_asked: bool) -> Option<String> {
+        const NAME: &str = "parameter_changes";
+        if !security_asked {
+            return None;
+        }
+        if !self.values.contains_key(NAME) {
+            let rule = ParameterChanges::StrengthenOnly;
+            self.values
+                .insert(NAME.into(), Yaml::String(rule.name().into()));
+            self.parameter_changes = rule;
+            return None;
+        }
+        (self.parameter_changes == ParameterChanges::Open).then(|| {
+            "parameter_changes: open with ROS_SECURITY_ENABLE=true (given; a secured cell's \
+             default is strengthen_only): anyone whose certificate the cell trusts, or anyone on \
+             the network where the transport runs unsecured, may lower stop_distance, disable a \
+             source or add an exclusion volume while the stop is released, unless the access \
+             list grants set_parameters to the operator alone"
+                .to_owned()
+        })
     }
 
     /// Whether the running node takes `new` (a change of this config, valid on its own) while
@@ -383,5 +414,43 @@ mod tests {
         let c = rule("none");
         assert!(change(&c, &[("parameter_changes", "open")]).is_err());
         assert!(Config::from_overrides(&[("parameter_changes".into(), "some".into())]).is_err());
+    }
+
+    #[test]
+    fn a_secured_cell_is_strengthen_only_unless_told_otherwise() {
+        let given = |r: &[(&str, &str)]| {
+            let o: Vec<(String, String)> = (r.iter())
+                .map(|(n, v)| (n.to_string(), v.to_string()))
+                .collect();
+            Config::from_overrides(&o).unwrap()
+        };
+        let lower = |c: &Config| change(c, &[("stop_distance", "0.05")]).unwrap();
+        // Security not asked for: the default stays open.
+        let mut c = given(&[]);
+        assert_eq!(c.secure_parameter_changes(false), None);
+        assert_eq!(c.parameter_changes, ParameterChanges::Open);
+        assert!(c.admits(&lower(&c), false, &[]).is_ok());
+        // Asked for, not given: strengthen_only, and reported so.
+        let mut c = given(&[]);
+        assert_eq!(c.secure_parameter_changes(true), None);
+        let e = c.admits(&lower(&c), false, &[]).unwrap_err();
+        assert!(e.contains("strengthen_only"), "{e}");
+        let listed = c.parameters();
+        let p = listed
+            .iter()
+            .find(|p| p.name == "parameter_changes")
+            .unwrap();
+        assert_eq!(p.value, Yaml::String("strengthen_only".into()));
+        // Given: kept; open with a warning that names the risk, none without.
+        let mut c = given(&[("parameter_changes", "open")]);
+        let w = c.secure_parameter_changes(true).unwrap();
+        assert!(
+            w.contains("stop_distance") && w.contains("strengthen_only"),
+            "{w}"
+        );
+        assert!(c.admits(&lower(&c), false, &[]).is_ok());
+        let mut c = given(&[("parameter_changes", "none")]);
+        assert_eq!(c.secure_parameter_changes(true), None);
+        assert_eq!(c.parameter_changes, ParameterChanges::None);
     }
 }

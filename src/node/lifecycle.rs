@@ -16,6 +16,7 @@ use super::publishers::Publishers;
 use super::qos::{CLOCK_QOS, OUTPUT_QOS, ROBOT_DESCRIPTION_QOS, ROSOUT_QOS};
 use super::ros_args::input_topic;
 use super::rosout;
+use super::security::SecurityEnv;
 use super::serve;
 use super::transport::{RosNode, Transport};
 use crate::config::{Config, RobotSource};
@@ -25,7 +26,11 @@ use crate::msg::{Clock, Log, StringMessage};
 /// Runs the node until `stop` is set. The node is on the network from the start: while `build`
 /// makes the monitor (loads the robot, builds or loads its trees) it reports "not monitoring"
 /// (ERROR with the reason, the safety stop), and a stop during the build ends it at once.
-pub fn run(config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Result<()> {
+pub fn run(mut config: Config, stop: Arc<AtomicBool>, transport: Transport) -> Result<()> {
+    // A secured cell's default: nobody on the network lowers its thresholds.
+    if let Some(warning) = config.secure_parameter_changes(SecurityEnv::from_process().enabled()) {
+        log::warn!("{warning}");
+    }
     let Started {
         executor,
         mut node,

@@ -17,6 +17,11 @@ any ROS 2 node would.
         every /parameter_events message of NODE. Prints one JSON object with
         every answer.
 
+    rclpy_interop.py rule NODE
+        Publishes the plane as `params` does until NODE's fused status is OK (the stop
+        released); then gets parameter_changes, sets stop_distance to 0.05 (lower) and to 0.2
+        (higher) and gets it. Prints one JSON object.
+
     rclpy_interop.py sim NODE TOPIC
         NODE started as a launch file starts it, with use_sim_time and its cloud source remapped
         to TOPIC. Gets stop_distance, use_sim_time and backend; waits for the fused status to
@@ -177,6 +182,55 @@ def watch_fused(node, lock):
     return fused
 
 
+def services(node, node_name):
+    """(call, set_, get) on NODE's rcl_interfaces services: call(srv, service, **fields) the
+    response; set_(service, **values) each result's successful and reason (`a__b` names `a.b`);
+    get(*names) the values."""
+    def call(srv, service, **fields):
+        client = node.create_client(srv, f"{node_name}/{service}")
+        if not client.wait_for_service(timeout_sec=30):
+            raise SystemExit(f"{node_name}/{service}: no service after 30 s")
+        request = srv.Request()
+        for k, v in fields.items():
+            setattr(request, k, v)
+        response = client.call(request, timeout_sec=10)
+        if response is None:
+            raise SystemExit(f"{node_name}/{service}: no answer in 10 s")
+        return response
+
+    def set_(service, **values):
+        ps = [Parameter(name=k.replace("__", "."), value=value(v)) for k, v in values.items()]
+        if service == "set_parameters_atomically":
+            r = call(SetParametersAtomically, service, parameters=ps).result
+            return {"successful": r.successful, "reason": r.reason}
+        return [{"successful": r.successful, "reason": r.reason}
+                for r in call(SetParameters, service, parameters=ps).results]
+
+    def get(*names):
+        return [plain(v) for v in call(GetParameters, "get_parameters", names=list(names)).values]
+
+    return call, set_, get
+
+
+def rule(node_name):
+    """`rule NODE`: publishes the plane as `params` does until the fused status is OK (the stop
+    released), then reads parameter_changes and asks NODE to lower stop_distance to 0.05 and
+    to raise it to 0.2. Prints one JSON object."""
+    node, executor = spin("rclpy_rule")
+    lock = threading.Lock()
+    fused = watch_fused(node, lock)
+    _, set_, get = services(node, node_name)
+    publisher = node.create_publisher(PointCloud2, "/camera/depth/points", qos_profile_sensor_data)
+    node.create_timer(0.1, lambda: publisher.publish(cloud(node.get_clock().now().to_msg())))
+    out = {"released": waiter(lock)(lambda: fused["level"] == 0, 20)}
+    out["rule"] = get("parameter_changes")[0]
+    out["lower"] = set_("set_parameters", stop_distance=0.05)[0]
+    out["raise"] = set_("set_parameters", stop_distance=0.2)[0]
+    out["stop_distance"] = get("stop_distance")[0]
+    print(json.dumps(out))
+    shut(node, executor)
+
+
 def params(node_name):
     node, executor = spin("rclpy_interop")
     out = {"events": []}
@@ -208,28 +262,7 @@ def params(node_name):
     node.create_subscription(ParameterEvent, "/parameter_events", on_event, 1000)
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
 
-    def call(srv, service, **fields):
-        client = node.create_client(srv, f"{node_name}/{service}")
-        if not client.wait_for_service(timeout_sec=30):
-            raise SystemExit(f"{node_name}/{service}: no service after 30 s")
-        request = srv.Request()
-        for k, v in fields.items():
-            setattr(request, k, v)
-        response = client.call(request, timeout_sec=10)
-        if response is None:
-            raise SystemExit(f"{node_name}/{service}: no answer in 10 s")
-        return response
-
-    def set_(service, **values):
-        ps = [Parameter(name=k.replace("__", "."), value=value(v)) for k, v in values.items()]
-        if service == "set_parameters_atomically":
-            r = call(SetParametersAtomically, service, parameters=ps).result
-            return {"successful": r.successful, "reason": r.reason}
-        return [{"successful": r.successful, "reason": r.reason}
-                for r in call(SetParameters, service, parameters=ps).results]
-
-    def get(*names):
-        return [plain(v) for v in call(GetParameters, "get_parameters", names=list(names)).values]
+    call, set_, get = services(node, node_name)
 
     wait_for = waiter(lock)
 
@@ -564,6 +597,8 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "params":
         params(sys.argv[2])
+    elif len(sys.argv) == 3 and sys.argv[1] == "rule":
+        rule(sys.argv[2])
     elif len(sys.argv) == 4 and sys.argv[1] == "sim":
         sim(sys.argv[2], sys.argv[3])
     elif len(sys.argv) in (7, 8) and sys.argv[1] == "voices":
