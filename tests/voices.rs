@@ -257,6 +257,122 @@ fn two_camera_info_writers_are_a_fault_of_the_depth_source() {
         }
     }
     assert_eq!(kinds, ["", "", "second_publisher", "second_publisher"]);
+    // By discovery: the second CameraInfo writer falls silent (its messages lost) but stays
+    // matched: still the fault, naming the CameraInfo topic, beyond the window (1 s) after its
+    // newest stamp (0.3 s), where its messages alone no longer make one; once it has left the
+    // graph, the images are measured again.
+    let both = Some(vec![CAMERA.to_string(), INTRUDER.to_string()]);
+    let mut kinds = Vec::new();
+    for k in 4..20 {
+        let t = T0 + k * 100 * MS;
+        camera_pose(&mut m, t, 0.0, CAMERA);
+        joints(&mut m, &names, t, 0.0, CAMERA);
+        m.on_camera_info_from(0, &info(t, f), CAMERA).unwrap();
+        let matched = if k < 16 {
+            both.clone()
+        } else {
+            Some(vec![CAMERA.to_string()])
+        };
+        m.matched_camera_writers(0, matched);
+        m.hear_writer(0, CAMERA, t);
+        let frame = m.on_depth_image(0, &image(t), std::time::Instant::now(), Some(t));
+        if k < 16 {
+            let message = &frame.outputs.diagnostics.status[0].message;
+            assert!(
+                message.contains("by discovery") && message.contains("camera_info"),
+                "{message}"
+            );
+        }
+        kinds.push(fault_kind(&frame));
+    }
+    assert_eq!(kinds[..12], ["second_publisher"; 12], "{kinds:?}");
+    assert_eq!(kinds[12..], [""; 4], "{kinds:?}");
+}
+
+/// Discovery on the joint states and TF (DDS gives their writers by GID): the controller's joint
+/// states, or the camera frame's transforms, are all lost for 2 s while a second writer's get
+/// through. By the messages that writer is alone once the first one's newest stamp is a window
+/// old, and its values are taken (the control, without discovery); with discovery matching
+/// both, the first writer is still the joint's or the frame's voice, and every frame is the
+/// fault `second_publisher` naming both, until the second writer leaves the graph.
+#[test]
+fn a_joint_or_frame_writer_whose_messages_are_lost_still_holds_by_discovery() {
+    for input in ["joint_states", "tf"] {
+        for discovery in [true, false] {
+            let (mut m, names, top) = monitor();
+            let far_z = top + 3.05;
+            let matched = |m: &mut Monitor, writers: &[Writer]| {
+                let writers = if discovery {
+                    writers.to_vec()
+                } else {
+                    Vec::new()
+                };
+                match input {
+                    "joint_states" => m.matched_joint_state_writers(writers),
+                    _ => m.matched_tf_writers(writers),
+                }
+            };
+            for k in 0..5 {
+                let t = T0 + k * 100 * MS;
+                camera_pose(&mut m, t, 0.0, CAMERA);
+                joints(&mut m, &names, t, 0.0, CAMERA);
+                matched(&mut m, &[CAMERA, INTRUDER]);
+                let f = cloud(&mut m, t, far_z, CAMERA);
+                assert_eq!(fault_kind(&f), "", "{input} frame {k}");
+            }
+            // The first writer's messages on the input lost; the second one's get through.
+            let mut kinds = Vec::new();
+            for k in 5..25 {
+                let t = T0 + k * 100 * MS;
+                if input == "joint_states" {
+                    camera_pose(&mut m, t, 0.0, CAMERA);
+                    joints(&mut m, &names, t, 1.0, INTRUDER);
+                } else {
+                    camera_pose(&mut m, t, 3.0, INTRUDER);
+                    joints(&mut m, &names, t, 0.0, CAMERA);
+                }
+                matched(&mut m, &[CAMERA, INTRUDER]);
+                let f = cloud(&mut m, t, far_z, CAMERA);
+                if discovery {
+                    let message = &f.outputs.diagnostics.status[0].message;
+                    for w in [CAMERA, INTRUDER] {
+                        assert!(message.contains(&w.to_string()), "{input}: {message}");
+                    }
+                }
+                kinds.push(fault_kind(&f));
+            }
+            if !discovery {
+                // The first writer's newest stamp (0.4 s) a window old from 0.9 s on (frame 9).
+                assert!(
+                    kinds[5..].iter().all(|k| k.is_empty()),
+                    "{input}: {kinds:?}"
+                );
+                continue;
+            }
+            assert!(
+                kinds.iter().all(|k| k == "second_publisher"),
+                "{input}: {kinds:?}"
+            );
+            // The second writer leaves the graph, the first one speaks again: measured once the
+            // second one's newest stamp (2.4 s) is a window old.
+            let mut kinds = Vec::new();
+            for k in 25..35 {
+                let t = T0 + k * 100 * MS;
+                camera_pose(&mut m, t, 0.0, CAMERA);
+                joints(&mut m, &names, t, 0.0, CAMERA);
+                matched(&mut m, &[CAMERA]);
+                kinds.push(fault_kind(&cloud(&mut m, t, far_z, CAMERA)));
+            }
+            assert!(
+                kinds[..4].iter().all(|k| k == "second_publisher"),
+                "{input}: {kinds:?}"
+            );
+            assert!(
+                kinds[5..].iter().all(|k| k.is_empty()),
+                "{input}: {kinds:?}"
+            );
+        }
+    }
 }
 
 /// The hole that messages alone leave (issue 46's flaky rclpy check): the camera's clouds are

@@ -373,6 +373,13 @@ impl Monitor {
         self.check_stamp(source, stamp_ns, now_ns)?;
         let frame = Some(image.header.frame_id.clone()).filter(|f| !f.is_empty());
         let frame = frame.ok_or(Fault::NoFrame)?;
+        if let Some(writers) = self.sources[source].matched_camera_conflict() {
+            return Err(Fault::MatchedWriters {
+                topic: self.camera_info_topic(source),
+                count: writers.len(),
+                writers: writers.join(", "),
+            });
+        }
         let window_s = self.config.second_publisher_window_s;
         if let Err(writers) = self.sources[source].one_camera(stamp_ns, window_s) {
             return Err(Fault::SecondPublisher {

@@ -240,6 +240,25 @@ impl Monitor {
         self.sources[source].set_matched(writers);
     }
 
+    /// The writers that discovery matches on the joint states' topic now, by GID (empty: no
+    /// discovery, or one that does not give GIDs): a joint's writer stays its voice while it is
+    /// matched ([`JointStateBuffer::set_matched`]).
+    pub fn matched_joint_state_writers(&mut self, writers: Vec<Writer>) {
+        self.joints.set_matched(writers);
+    }
+
+    /// The same on `/tf` and `/tf_static` ([`TfBuffer::set_matched`]).
+    pub fn matched_tf_writers(&mut self, writers: Vec<Writer>) {
+        self.tf.set_matched(writers);
+    }
+
+    /// The writers that discovery matches on depth image source `source`'s CameraInfo topic
+    /// now: two or more is the fault `second_publisher` of its images
+    /// ([`Source::set_matched_camera`]).
+    pub fn matched_camera_writers(&mut self, source: usize, writers: Option<Vec<String>>) {
+        self.sources[source].set_matched_camera(writers);
+    }
+
     /// Which source, if any, publishes on `topic`.
     pub fn source_of(&self, topic: &str) -> Option<usize> {
         self.config

@@ -20,7 +20,8 @@
 //! would be measured. So the node also tells a source which writers **discovery** matches on its
 //! topic now (DDS SEDP, rmw_zenoh's liveliness tokens: `Source::set_matched`); two or more
 //! matched is the fault `second_publisher` for as long as they are matched, whatever reaches the
-//! node (`Source::matched_conflict`). A replay has no discovery (`None`): its messages decide.
+//! node (`Source::matched_conflict`); the same on a depth image source's CameraInfo topic
+//! (`Source::matched_camera_conflict`). A replay has no discovery (`None`): its messages decide.
 
 use crate::cloud::depth::PinholeCamera;
 use crate::config::{Config, SourceConfig};
@@ -47,6 +48,8 @@ pub struct Source {
     camera_voices: Voices,
     /// The writers discovery matches on its topic now, by name (`None`: no discovery).
     matched: Option<Vec<String>>,
+    /// The same on a depth image source's CameraInfo topic.
+    matched_camera: Option<Vec<String>>,
 }
 
 /// A source's latest frame.
@@ -113,6 +116,7 @@ impl Source {
             voices: Voices::default(),
             camera_voices: Voices::default(),
             matched: None,
+            matched_camera: None,
         }
     }
 
@@ -122,12 +126,22 @@ impl Source {
         self.matched = writers;
     }
 
+    /// The writers that discovery matches on its CameraInfo topic now (a depth image source;
+    /// `None` as for [`Source::set_matched`]).
+    pub fn set_matched_camera(&mut self, writers: Option<Vec<String>>) {
+        self.matched_camera = writers;
+    }
+
     /// The writers discovery matches on its topic, when there are two or more (see the module
     /// doc), sorted so that a report is stable.
     pub fn matched_conflict(&self) -> Option<Vec<String>> {
-        let mut writers = self.matched.clone().filter(|w| w.len() > 1)?;
-        writers.sort();
-        Some(writers)
+        two_or_more(&self.matched)
+    }
+
+    /// The same on its CameraInfo topic: a second writer of the camera model would move every
+    /// point of its images.
+    pub fn matched_camera_conflict(&self) -> Option<Vec<String>> {
+        two_or_more(&self.matched_camera)
     }
 
     /// `writer` sent a message stamped `stamp_ns` (each one received, also those the node's
@@ -138,7 +152,7 @@ impl Source {
 
     /// The writers heard at `stamp_ns` when there are two or more (see the module doc).
     pub fn one_voice(&self, stamp_ns: i64, window_s: f64) -> Result<(), Vec<Writer>> {
-        match self.voices.conflict(stamp_ns, (window_s * 1e9) as i64) {
+        match self.voices.conflict(stamp_ns, (window_s * 1e9) as i64, &[]) {
             None => Ok(()),
             Some(writers) => Err(writers),
         }
@@ -149,7 +163,7 @@ impl Source {
     pub fn one_camera(&self, stamp_ns: i64, window_s: f64) -> Result<(), Vec<Writer>> {
         match self
             .camera_voices
-            .conflict(stamp_ns, (window_s * 1e9) as i64)
+            .conflict(stamp_ns, (window_s * 1e9) as i64, &[])
         {
             None => Ok(()),
             Some(writers) => Err(writers),
@@ -258,6 +272,7 @@ impl Source {
         std::mem::swap(&mut self.voices, &mut old.voices);
         std::mem::swap(&mut self.camera_voices, &mut old.camera_voices);
         std::mem::swap(&mut self.matched, &mut old.matched);
+        std::mem::swap(&mut self.matched_camera, &mut old.matched_camera);
     }
 
     /// Enabled at `now_ns`: not heard from yet, its silence counted from now.
@@ -319,4 +334,11 @@ impl Source {
             first,
         })
     }
+}
+
+/// `writers` sorted, when there are two or more.
+fn two_or_more(writers: &Option<Vec<String>>) -> Option<Vec<String>> {
+    let mut writers = writers.clone().filter(|w| w.len() > 1)?;
+    writers.sort();
+    Some(writers)
 }

@@ -77,12 +77,19 @@ impl Voices {
         self.heard.push((writer, stamp_ns));
     }
 
-    /// The writers heard at `stamp_ns` (newest stamp at or after `stamp_ns − window_ns`), when
-    /// there are two or more: the conflict, sorted by GID so that a report is stable.
-    pub fn conflict(&self, stamp_ns: i64, window_ns: i64) -> Option<Vec<Writer>> {
+    /// The writers heard at `stamp_ns` (newest stamp at or after `stamp_ns − window_ns`), or
+    /// remembered and still `matched` by discovery (a writer whose messages are all lost still
+    /// speaks for the input while the graph has it), when there are two or more: the conflict,
+    /// sorted by GID so that a report is stable.
+    pub fn conflict(
+        &self,
+        stamp_ns: i64,
+        window_ns: i64,
+        matched: &[Writer],
+    ) -> Option<Vec<Writer>> {
         let since = stamp_ns.saturating_sub(window_ns);
         let mut heard: Vec<Writer> = (self.heard.iter())
-            .filter(|(_, newest)| *newest >= since)
+            .filter(|(w, newest)| *newest >= since || matched.contains(w))
             .map(|(w, _)| *w)
             .collect();
         (heard.len() > 1).then(|| {
@@ -115,20 +122,36 @@ mod tests {
         let mut v = Voices::default();
         let s = 1_000_000_000;
         v.hear(w(1), s);
-        assert_eq!(v.conflict(s, 500), None, "one writer is one voice");
+        assert_eq!(v.conflict(s, 500, &[]), None, "one writer is one voice");
         v.hear(w(2), s + 50);
-        assert_eq!(v.conflict(s + 50, 1_000), Some(vec![w(1), w(2)]));
+        assert_eq!(v.conflict(s + 50, 1_000, &[]), Some(vec![w(1), w(2)]));
         // Writer 2 falls silent; writer 1 goes on: heard alone once 2's newest is older than
         // the window.
         v.hear(w(1), s + 900);
-        assert!(v.conflict(s + 900, 1_000).is_some());
+        assert!(v.conflict(s + 900, 1_000, &[]).is_some());
         v.hear(w(1), s + 1_051);
-        assert_eq!(v.conflict(s + 1_051, 1_000), None);
+        assert_eq!(v.conflict(s + 1_051, 1_000, &[]), None);
         // A writer stamping ahead of the clock stays heard.
         v.hear(w(3), s + 10_000_000);
-        assert_eq!(v.conflict(s + 1_100, 1_000), Some(vec![w(1), w(3)]));
+        assert_eq!(v.conflict(s + 1_100, 1_000, &[]), Some(vec![w(1), w(3)]));
         v.forget();
-        assert_eq!(v.conflict(s, 1_000), None);
+        assert_eq!(v.conflict(s, 1_000, &[]), None);
+    }
+
+    #[test]
+    fn a_writer_still_matched_by_discovery_is_heard_however_old_its_stamp() {
+        let mut v = Voices::default();
+        let s = 1_000_000_000;
+        v.hear(w(1), s);
+        v.hear(w(2), s + 5_000);
+        // Writer 1's newest is 4 windows old: alone by the messages, not while it is matched.
+        assert_eq!(v.conflict(s + 5_000, 1_000, &[]), None);
+        assert_eq!(
+            v.conflict(s + 5_000, 1_000, &[w(1), w(2)]),
+            Some(vec![w(1), w(2)])
+        );
+        // Matched but never heard on this input (another joint's writer): no voice of it.
+        assert_eq!(v.conflict(s + 5_000, 1_000, &[w(2), w(3)]), None);
     }
 
     #[test]
@@ -138,7 +161,7 @@ mod tests {
             v.hear(w(b), i64::from(b));
         }
         assert_eq!(v.heard.len(), MAX_WRITERS);
-        let c = v.conflict(39, 1).unwrap();
+        let c = v.conflict(39, 1, &[]).unwrap();
         assert_eq!(c, vec![w(38), w(39)]);
         assert_eq!(w(171).to_string(), ["ab"; 16].join("."));
     }

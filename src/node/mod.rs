@@ -48,6 +48,7 @@ mod serve;
 mod socket;
 pub mod transport;
 mod up;
+mod wiring;
 
 pub use clock::NodeClock;
 pub use error::NodeError;

@@ -16,28 +16,27 @@
 //! nothing: whether a silence or an untrusted clock is a fault, and what "not monitoring"
 //! publishes, the monitor says (`monitor::watch`, each source's state in `monitor::Source`).
 //! The loop reads the node's start-up config only; what a run-time change alters, the monitor
-//! holds.
+//! holds. The subscriptions, and who writes each input by discovery, are `wiring`'s.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, Sender};
+use std::sync::mpsc::Receiver;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use super::clock::NodeClock;
 use super::error::{lock, Result};
-use super::inputs::{forward, source_task, Shared, Slot, SourceMessage};
+use super::inputs::{Shared, Slot, SourceMessage};
 use super::parameters::Safety;
 use super::publishers::Publishers;
 use super::publishers::PANIC_AFTER_ENV;
-use super::qos::{RELIABLE_QOS, SENSOR_QOS, TF_STATIC_QOS};
 use super::ros_args::input_topic;
 use super::socket::{mib, warn_burst};
-use super::transport::{RosNode, TopicWriters, Transport};
+use super::transport::{RosNode, Transport};
 use super::up::log_up;
+use super::wiring::{Inputs, SourceInput, Wiring};
 use crate::config::{Config, SourceConfig, SourceKind};
 use crate::monitor::{Heard, Monitor, Outputs};
-use crate::msg::{CameraInfo, Image, JointState, PointCloud2, TfMessage, Writer};
-use ros2_client::qos::{History, QosProfile};
+use crate::msg::{CameraInfo, Writer};
 
 /// Subscribes to the inputs and serves them until `stop` is set: each source's newest message
 /// through the monitor, the fused outputs published, silent sources reported, and the fused
@@ -109,173 +108,6 @@ pub(super) fn serve(
         serving.runtime.safety.set(raised, in_fault);
     }
     Ok(())
-}
-
-/// The subscriptions' side: what the node's inputs are subscribed with.
-struct Wiring<'a> {
-    config: &'a Config,
-    executor: &'a Arc<smol::Executor<'static>>,
-    /// Each source's slot, the wake-up, the counts.
-    shared: Arc<Shared>,
-    /// Where depth sources' CameraInfo goes.
-    info: Sender<(usize, CameraInfo, Writer)>,
-}
-
-/// TF, joint states and depth sources' CameraInfo, in queues the processing thread drains
-/// (they are small; the monitor is owned by that thread).
-struct Inputs {
-    tf: Receiver<(TfMessage, bool, Writer)>,
-    joints: Receiver<(JointState, Writer)>,
-    camera_info: Receiver<(usize, CameraInfo, Writer)>,
-}
-
-impl Wiring<'_> {
-    /// Subscribes to every input: each enabled source's messages into its slot, TF and joint
-    /// states (their tasks into `tasks`); the queues (`camera_info`: where `info` goes), and
-    /// the sources' subscriptions, per source.
-    fn subscribe(
-        &self,
-        node: &mut RosNode,
-        tasks: &mut Vec<smol::Task<()>>,
-        camera_info: Receiver<(usize, CameraInfo, Writer)>,
-    ) -> Result<(Inputs, Vec<SourceInput>)> {
-        let config = self.config;
-        let (tf_tx, tf) = std::sync::mpsc::channel::<(TfMessage, bool, Writer)>();
-        let (js_tx, joints) = std::sync::mpsc::channel::<(JointState, Writer)>();
-        // Each source's subscriptions, made while it is enabled (also when it is enabled at run
-        // time), dropped when it is disabled.
-        let mut source_inputs: Vec<SourceInput> = Vec::new();
-        for (k, s) in config.sources.iter().enumerate() {
-            source_inputs.push(if s.enabled {
-                self.subscribe_source(node, k, s)?
-            } else {
-                SourceInput::default()
-            });
-        }
-        for (name, is_static) in [("/tf", false), ("/tf_static", true)] {
-            let topic = input_topic(config, name);
-            let qos = if is_static {
-                TF_STATIC_QOS
-            } else {
-                RELIABLE_QOS.history(History::KeepLast { depth: 100 })
-            };
-            tasks.push(forward(
-                node,
-                &topic,
-                qos,
-                self.executor,
-                name,
-                tf_tx.clone(),
-                move |m: TfMessage, w| (m, is_static, w),
-                &self.shared,
-            )?);
-        }
-        let joint_qos = QosProfile::subscription_default()
-            .reliability_best_effort()
-            .history(History::KeepLast { depth: 100 });
-        tasks.push(forward(
-            node,
-            &input_topic(config, &config.joint_states_topic),
-            joint_qos,
-            self.executor,
-            "joint states",
-            js_tx,
-            |m: JointState, w| (m, w),
-            &self.shared,
-        )?);
-        let inputs = Inputs {
-            tf,
-            joints,
-            camera_info,
-        };
-        Ok((inputs, source_inputs))
-    }
-
-    /// Subscribes to source `k`'s messages (and a depth source's camera info), and watches who
-    /// publishes them (`writers_from_discovery`).
-    fn subscribe_source(
-        &self,
-        node: &mut RosNode,
-        k: usize,
-        s: &SourceConfig,
-    ) -> Result<SourceInput> {
-        let (executor, shared) = (self.executor, &self.shared);
-        let mut tasks = Vec::new();
-        let topic = input_topic(self.config, &s.topic);
-        let qos = if s.reliable {
-            RELIABLE_QOS.history(History::KeepLast { depth: 1 })
-        } else {
-            SENSOR_QOS
-        };
-        let writers = match (self.config.writers_from_discovery, s.kind) {
-            (false, _) => None,
-            (true, SourceKind::PointCloud) => Some(node.publishers::<PointCloud2>(&topic)?),
-            (true, SourceKind::DepthImage) => Some(node.publishers::<Image>(&topic)?),
-        };
-        match s.kind {
-            SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
-                node,
-                &topic,
-                qos,
-                executor,
-                k,
-                shared,
-                SourceMessage::Cloud,
-            )?),
-            SourceKind::DepthImage => {
-                tasks.push(source_task::<Image<'static>>(
-                    node,
-                    &topic,
-                    qos.clone(),
-                    executor,
-                    k,
-                    shared,
-                    SourceMessage::Depth,
-                )?);
-                // The camera model, with the image's QoS as image_transport's CameraSubscriber
-                // gives both; a latched (transient local) publisher is matched too.
-                let info_topic = s.camera_info_topic.as_deref().unwrap_or_default();
-                tasks.push(forward(
-                    node,
-                    &input_topic(self.config, info_topic),
-                    qos,
-                    executor,
-                    "camera info",
-                    self.info.clone(),
-                    move |m: CameraInfo, w| (k, m, w),
-                    shared,
-                )?);
-            }
-        }
-        Ok(SourceInput {
-            _tasks: tasks,
-            writers,
-            last_writers: Vec::new(),
-        })
-    }
-
-    /// Empties every source's slot (`whole`: also forgets when it last received).
-    fn clear_slots(&self, whole: bool) {
-        for slot in &self.shared.slots {
-            let mut slot = lock(slot);
-            if whole {
-                *slot = Slot::default();
-            } else {
-                slot.cloud = None;
-            }
-        }
-    }
-}
-
-/// An enabled source's subscriptions, and who publishes its topic by discovery (`None` with
-/// `writers_from_discovery` false); dropped when the source is disabled.
-#[derive(Default)]
-struct SourceInput {
-    /// Its subscriptions' tasks, held for as long as it is enabled.
-    _tasks: Vec<smol::Task<()>>,
-    writers: Option<TopicWriters>,
-    /// The writers discovery gave last, for the log.
-    last_writers: Vec<String>,
 }
 
 /// The serving loop's state between its phases.
@@ -355,6 +187,7 @@ impl Serving<'_> {
         while let Ok((m, w)) = self.inputs.joints.try_recv() {
             (monitor.on_joint_state_from(topic, &m, w)).unwrap_or_else(refused);
         }
+        self.inputs.tell_writers(monitor);
     }
 
     /// Parameters set at run time (`parameters`), applied before the next frame; a change of
@@ -511,35 +344,11 @@ impl Serving<'_> {
         }
     }
 
-    /// Tells the monitor who writes source `k`'s topic now, by discovery; says so in the log
-    /// when that changes (a second writer: WARN, with the names).
+    /// Tells the monitor who writes source `k`'s topics now, by discovery
+    /// ([`SourceInput::tell_writers`]).
     fn matched_writers(&mut self, monitor: &mut Monitor, k: usize, s: &SourceConfig) {
-        let input = &mut self.source_inputs[k];
-        let Some(writers) = input.writers.as_ref().map(TopicWriters::writers) else {
-            return;
-        };
-        if writers != input.last_writers {
-            let topic = input_topic(self.wiring.config, &s.topic);
-            match writers.len() {
-                0 | 1 => log::info!(
-                    "source {}: {} writer(s) on {topic} by discovery{}",
-                    s.name,
-                    writers.len(),
-                    writers
-                        .first()
-                        .map(|w| format!(": {w}"))
-                        .unwrap_or_default()
-                ),
-                n => log::warn!(
-                    "source {}: {n} writers on {topic} by discovery ({}): second_publisher, \
-                     ERROR until only one is left",
-                    s.name,
-                    writers.join(", ")
-                ),
-            }
-            input.last_writers = writers.clone();
-        }
-        monitor.matched_writers(k, Some(writers));
+        let config = self.wiring.config;
+        self.source_inputs[k].tell_writers(config, monitor, k, s);
     }
 
     /// Source `k`'s message, received at `received` (the node's clock then: `clock_ns`),

@@ -287,22 +287,37 @@ pub enum TopicWriters {
 impl TopicWriters {
     /// The writers of the topic now, by name.
     pub fn writers(&self) -> Vec<String> {
+        match self.gids() {
+            Some(gids) => gids.iter().map(Writer::to_string).collect(),
+            None => match self {
+                TopicWriters::Zenoh(z) => z.writers(),
+                TopicWriters::Dds { .. } => Vec::new(),
+            },
+        }
+    }
+
+    /// The writers of the topic now by GID, as its messages name their writer: on DDS their
+    /// GUIDs; `None` on zenoh, whose liveliness tokens name a node and a session, not the GID
+    /// its messages carry.
+    pub fn gids(&self) -> Option<Vec<Writer>> {
         match self {
             TopicWriters::Dds {
                 participant,
                 topic,
                 type_name,
-            } => (participant.discovered_writers().iter())
-                .filter(|w| {
-                    let t = &w.publication_topic_data;
-                    t.topic_name == *topic && t.type_name == *type_name
-                })
-                .map(|w| {
-                    let gid = ros2_client::Gid::from(w.writer_proxy.remote_writer_guid);
-                    Writer(gid.to_bytes16()).to_string()
-                })
-                .collect(),
-            TopicWriters::Zenoh(z) => z.writers(),
+            } => Some(
+                (participant.discovered_writers().iter())
+                    .filter(|w| {
+                        let t = &w.publication_topic_data;
+                        t.topic_name == *topic && t.type_name == *type_name
+                    })
+                    .map(|w| {
+                        let gid = ros2_client::Gid::from(w.writer_proxy.remote_writer_guid);
+                        Writer(gid.to_bytes16())
+                    })
+                    .collect(),
+            ),
+            TopicWriters::Zenoh(_) => None,
         }
     }
 }

@@ -11,7 +11,9 @@
 //! dynamic conflict until one writer has been alone for the window, the static one for as long as
 //! the buffer lives (a static value, once contested, cannot be trusted again without a restart).
 //! A static frame restated with the same value by a new writer (a restarted
-//! robot_state_publisher) is no conflict.
+//! robot_state_publisher) is no conflict. Where the node's discovery gives the writers of `/tf`
+//! and `/tf_static` by GID (DDS: [`TfBuffer::set_matched`]), a dynamic frame's writer stays its
+//! voice for as long as it is matched, however long its messages are lost.
 
 use std::collections::HashMap;
 
@@ -83,6 +85,8 @@ pub struct TfBuffer {
     cache_ns: i64,
     /// Two writers of one dynamic frame within this of a lookup's stamp are a conflict.
     voice_window_ns: i64,
+    /// The writers discovery matches on `/tf` and `/tf_static` now (empty: none known).
+    matched: Vec<Writer>,
 }
 
 /// The default voice window, s (the config's `second_publisher_window`).
@@ -138,6 +142,7 @@ impl Edge {
         &self,
         stamp_ns: Option<i64>,
         window_ns: i64,
+        matched: &[Writer],
     ) -> Option<(&'static str, Vec<Writer>)> {
         if let Some(c) = &self.contested {
             return Some(c.clone());
@@ -146,7 +151,7 @@ impl Edge {
             return None;
         }
         let at = stamp_ns.or_else(|| self.samples.newest_stamp())?;
-        (self.voices.conflict(at, window_ns)).map(|w| ("two dynamic writers", w))
+        (self.voices.conflict(at, window_ns, matched)).map(|w| ("two dynamic writers", w))
     }
 }
 
@@ -157,12 +162,20 @@ impl TfBuffer {
             edges: HashMap::new(),
             cache_ns: (cache_s * 1e9) as i64,
             voice_window_ns: (VOICE_WINDOW_S * 1e9) as i64,
+            matched: Vec::new(),
         }
     }
 
     /// Two writers of one dynamic frame within `window_s` of a stamp are a conflict.
     pub fn set_voice_window(&mut self, window_s: f64) {
         self.voice_window_ns = (window_s * 1e9) as i64;
+    }
+
+    /// The writers that discovery matches on `/tf` and `/tf_static` now (empty: no discovery):
+    /// a dynamic frame's writer stays its voice while it is matched, however long its messages
+    /// are lost.
+    pub fn set_matched(&mut self, writers: Vec<Writer>) {
+        self.matched = writers;
     }
 
     /// Forgets the dynamic transforms (`/tf`) and who wrote them, keeping the static ones.
@@ -230,7 +243,8 @@ impl TfBuffer {
     ) -> Result<Isometry3<f64>, TfError> {
         let edge = &self.edges[child];
         let names = || (edge.parent.clone(), child.to_owned());
-        if let Some((what, writers)) = edge.conflict(stamp_ns, self.voice_window_ns) {
+        if let Some((what, writers)) = edge.conflict(stamp_ns, self.voice_window_ns, &self.matched)
+        {
             return Err(TfError::SecondPublisher {
                 child: child.to_owned(),
                 what,

@@ -21,7 +21,10 @@
 //! writers of one joint within the voice window of the stamp looked up (a second
 //! `joint_state_publisher`, a simulator left running beside the driver) is
 //! [`JointError::SecondPublisher`] naming the joint and the writers, until one of them has been
-//! alone for the window. Joints only one writer publishes may come from several messages.
+//! alone for the window. Joints only one writer publishes may come from several messages. Where
+//! the node's discovery gives the topic's writers by GID (DDS: [`JointStateBuffer::set_matched`]),
+//! a joint's writer stays its voice for as long as it is matched, however long its messages are
+//! lost: a second writer of that joint is then the conflict too.
 
 use crate::msg::{JointState, Voices, Writer};
 
@@ -96,6 +99,8 @@ pub struct JointStateBuffer {
     voices: Vec<Voices>,
     /// Two writers of one joint within this of a stamp are a conflict.
     voice_window_ns: i64,
+    /// The writers discovery matches on the topic now (empty: none known).
+    matched: Vec<Writer>,
 }
 
 impl JointStateBuffer {
@@ -108,7 +113,15 @@ impl JointStateBuffer {
             fixed: vec![None; variables.len()],
             voices: vec![Voices::default(); variables.len()],
             voice_window_ns: (crate::tf::VOICE_WINDOW_S * 1e9) as i64,
+            matched: Vec::new(),
         }
+    }
+
+    /// The writers that discovery matches on the joint states' topic now (empty: no
+    /// discovery): a joint's writer stays its voice while it is matched, however long its
+    /// messages are lost.
+    pub fn set_matched(&mut self, writers: Vec<Writer>) {
+        self.matched = writers;
     }
 
     /// Two writers of one joint within `window_s` of a stamp are a conflict.
@@ -122,7 +135,7 @@ impl JointStateBuffer {
         let Some(at) = stamp_ns.or_else(|| self.samples[i].newest_stamp()) else {
             return Ok(());
         };
-        match self.voices[i].conflict(at, self.voice_window_ns) {
+        match self.voices[i].conflict(at, self.voice_window_ns, &self.matched) {
             None => Ok(()),
             Some(writers) => Err(JointError::SecondPublisher {
                 joint: self.variables[i].clone(),

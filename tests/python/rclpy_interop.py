@@ -53,10 +53,11 @@ any ROS 2 node would.
         clouds all lost). With JOINTS_JSON ({"names": [...], "positions": [...], "intruder":
         [...]}) the controller (the camera's participant) also publishes /joint_states at 50 Hz,
         and the second participant publishes the intruder's positions on /joint_states instead
-        of the far cloud. Records every NODE/safety_stop with the phase it came in, and the
+        of the far cloud (camera_lost: the controller's joint states are the ones lost). Records every NODE/safety_stop with the phase it came in, and the
         /diagnostics messages. Prints one JSON object: "raised" (the stop was raised before the
         intruder), "during" and "after" (the stops received while the intruder spoke and after
-        it), "messages" (the messages of the statuses above OK seen while it spoke),
+        it), "messages" (the messages of the statuses above OK seen while it spoke;
+        "late_messages" those from 2 s after it began, twice the voice window),
         "measured_after" (the obstacle measured again, within 20 s, once it was gone).
 """
 import json
@@ -490,8 +491,9 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
     """A second writer on the camera's topic (or on /joint_states with `joints_json`), in its
     own participant, from the moment the node has measured the obstacle and raised the stop
     until it is destroyed 4 s later. `mode` interleaved: the camera publishes the near cloud at
-    10 Hz and the intruder the far one 50 ms after each; camera_lost: the camera's clouds are all
-    lost while the intruder speaks (it publishes none). Prints the stops before, during and
+    10 Hz and the intruder the far one 50 ms after each; camera_lost: the first writer's messages
+    on the contested topic (the camera's clouds, or with `joints_json` the controller's joint
+    states) are all lost while the intruder speaks (it publishes none). Prints the stops before, during and
     after, the diagnostics' messages during, and whether the camera alone was measured again."""
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -508,7 +510,7 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
     lock = threading.Lock()
     fused = watch_fused(node, lock)
     state = {"phase": "before", "stops": {"before": [], "during": [], "after": []},
-             "messages": set()}
+             "messages": set(), "late": set(), "since": None}
 
     def on_stop(m):
         with lock:
@@ -517,7 +519,11 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
     def on_diagnostics(m):
         with lock:
             if state["phase"] == "during":
-                state["messages"].update(s.message for s in m.status if s.level != b"\x00")
+                said = [s.message for s in m.status if s.level != b"\x00"]
+                state["messages"].update(said)
+                # Past twice the voice window (1 s): what the messages alone no longer say.
+                if time.monotonic() - state["since"] > 2.0:
+                    state["late"].update(said)
 
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
     node.create_subscription(Bool, f"{node_name}/safety_stop", on_stop,
@@ -542,9 +548,11 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
         while running["on"]:
             now = time.time_ns()
             second = running["intruder"]
-            if k % 5 == 0 and not (second and mode == "camera_lost"):
+            # camera_lost: the first writer's messages on the contested topic are all lost.
+            lost = bool(second) and mode == "camera_lost"
+            if k % 5 == 0 and not (lost and not joints):
                 camera.publish(stamped(near, now))
-            if joints:
+            if joints and not lost:
                 joint_state(js_pub, joints["positions"])
             time.sleep(0.01)
             if second:
@@ -566,6 +574,7 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
            "distance_m": fused["distance_m"]}
     with lock:
         state["phase"] = "during"
+        state["since"] = time.monotonic()
     second = (intruder.create_publisher(JointState, "/joint_states", qos_profile_sensor_data)
               if joints else
               intruder.create_publisher(PointCloud2, topic, qos_profile_sensor_data))
@@ -586,7 +595,7 @@ def voices(node_name, topic, near_file, far_file, mode, joints_json):
     thread.join()
     with lock:
         out.update(during=state["stops"]["during"], after=state["stops"]["after"],
-                   messages=sorted(state["messages"]))
+                   messages=sorted(state["messages"]), late_messages=sorted(state["late"]))
     print(json.dumps(out))
     intruder_exec.shutdown()
     intruder.destroy_node()
