@@ -27,6 +27,14 @@ const SEEDS: usize = 3;
 /// measured 1.27 against 1.22 ms (the parallel step there is followed by the seeds' blocks).
 const SERIAL_SEEDS: usize = 48;
 
+/// Queries of at most this many points seed on their own thread, per-link minima included: a
+/// parallel step costs more than their few seeds and blocks (the unseen-space pass's small
+/// batches of hidden places: one point with per-link minima took 37 µs with parallel seeds, 8 µs
+/// without, against 6 µs for the nearest alone; Kinect scene, 2 cores). At 1024 the pass's
+/// 466-point batch lost more than the small ones gained (search 3.52–3.65 against 3.40–3.43 ms
+/// at 0; 3.27–3.30 ms at 64, the three alternated).
+const SERIAL_POINTS: usize = 64;
+
 impl Pass<'_> {
     /// Whether `p` is the robot (within the padding of a link; false when the self-filter is
     /// off).
@@ -242,7 +250,8 @@ pub(super) fn seeds(pass: &Pass, per_link: bool) -> Tally {
             }
         }
     };
-    let mut tally = if seeds.len() <= SERIAL_SEEDS && !per_link {
+    let small = points.len() <= SERIAL_POINTS;
+    let mut tally = if small || (seeds.len() <= SERIAL_SEEDS && !per_link) {
         work::counted(|| seeds.iter().for_each(seed_point)).1
     } else {
         seeds
@@ -255,13 +264,18 @@ pub(super) fn seeds(pass: &Pass, per_link: bool) -> Tally {
     // for per-link minima (on the Kinect scene, global: 20 µs more for the blocks, 2–5 µs less
     // in the main pass).
     if per_link {
-        let blocks = seeds
-            .into_par_iter()
-            .map(|(l, (_, _, b))| {
-                let b = b as usize;
-                work::counted(|| pass.seed(l, b, &bound_block(points, tiling.subs(b)).sphere())).1
-            })
-            .reduce(Tally::default, work::sum);
+        let seed_block = |&(l, (_, _, b)): &(usize, Seed)| {
+            let b = b as usize;
+            work::counted(|| pass.seed(l, b, &bound_block(points, tiling.subs(b)).sphere())).1
+        };
+        let blocks = if small {
+            seeds
+                .iter()
+                .map(seed_block)
+                .fold(Tally::default(), work::sum)
+        } else {
+            (seeds.par_iter().map(seed_block)).reduce(Tally::default, work::sum)
+        };
         tally = work::sum(tally, blocks);
     }
     tally
