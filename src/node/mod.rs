@@ -25,8 +25,8 @@
 //! QoS. `inputs`: the sources' slots and the forwarded TF, joint states and camera info.
 //! `publishers`: the output table's publishers. `parameters`: the parameter services; a change
 //! they take reaches the processing thread through a channel and is applied before its next
-//! frame (a source enabled then is subscribed to then). `transport` and `rmw_zenoh`: DDS or
-//! zenoh underneath; `socket`: the DDS sockets' buffers; `security`: SROS2 (the environment, the
+//! frame (a source enabled then is subscribed to then). `wiring`: the subscriptions, and who
+//! writes each input by discovery. `transport` and `rmw_zenoh`: DDS or zenoh underneath; `socket`: the DDS sockets' buffers; `security`: SROS2 (the environment, the
 //! enclave's files, what the node starts with). `clock`: the node's time. `error`:
 //! what stops it.
 
@@ -50,19 +50,8 @@ pub mod transport;
 mod up;
 mod wiring;
 
-pub use clock::NodeClock;
 pub use error::NodeError;
 pub use lifecycle::run;
 pub use publishers::PANIC_AFTER_ENV;
-pub use qos::{
-    source_topic_qos, CLOCK_QOS, OUTPUT_LIVELINESS_LEASE, RELIABLE_QOS, ROBOT_DESCRIPTION_QOS,
-    ROSOUT_QOS, SENSOR_QOS, SOURCE_SAMPLES, TF_STATIC_QOS,
-};
-pub use ros_args::{
-    expand_topic, input_topic, parse_ros_args, remap_topic, resolve_topic, topic_name, type_name,
-    RosArgs,
-};
-pub use socket::{granted_receive_buffer, SOCKET_BUFFER};
-pub use transport::{context, domain_id, source_subscription, Pub, RosNode, Transport};
-
-pub use ros2_client::qos::{Durability, History, QosProfile, Reliability, WhenFull};
+pub use ros_args::{parse_ros_args, RosArgs};
+pub use transport::Transport;
