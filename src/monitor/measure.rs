@@ -41,7 +41,7 @@ use super::outputs::Outputs;
 use super::pipeline::{Frame, Monitor};
 use super::report::{published_distance, FrameFacts};
 use super::stray;
-use super::unseen::{view_of, At, PassInputs, UnseenSpace};
+use super::unseen::{cloud_view, depth_view, At, PassInputs, UnseenSpace};
 
 /// What a processed cloud leaves for the separation stage and the unseen pass.
 pub(super) struct Motion<'a> {
@@ -541,14 +541,7 @@ impl PendingView<'_> {
                 view,
                 camera,
                 root_from_sensor,
-            } => view_of(
-                Some((view, camera)),
-                None,
-                root_from_sensor,
-                limits,
-                noise,
-                None,
-            ),
+            } => depth_view(view, camera, root_from_sensor, noise),
             PendingView::Cloud {
                 points,
                 width,
@@ -556,8 +549,14 @@ impl PendingView<'_> {
             } => {
                 let known = unseen.known_camera(source);
                 let points = points.as_deref().unwrap_or_default();
-                let cloud = Some((points, *width));
-                view_of(None, cloud, root_from_sensor, limits, noise, known.as_ref())
+                cloud_view(
+                    points,
+                    *width,
+                    root_from_sensor,
+                    limits,
+                    noise,
+                    known.as_ref(),
+                )
             }
         };
         let made_s = start.elapsed().as_secs_f64();

@@ -67,9 +67,8 @@ impl Publishers {
     }
 
     /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
-    /// join the diagnostics.
-    /// Publishes `o` with the node's counts; only the topics that follow a frame's unseen pass
-    /// where `following` (`Outputs::visit_part`).
+    /// join the diagnostics. Where `following`, only the topics that follow a frame's unseen
+    /// pass (`Outputs::visit_part`).
     pub(super) fn publish(&self, mut o: Outputs, dropped: u64, input_errors: u64, following: bool) {
         add_counts(&mut o, dropped, input_errors);
         self.publish_topics(o, following);

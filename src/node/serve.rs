@@ -187,7 +187,6 @@ impl Serving<'_> {
         while let Ok((m, w)) = self.inputs.joints.try_recv() {
             (monitor.on_joint_state_from(topic, &m, w)).unwrap_or_else(refused);
         }
-        self.inputs.tell_writers(monitor);
     }
 
     /// Parameters set at run time (`parameters`), applied before the next frame; a change of
@@ -323,8 +322,10 @@ impl Serving<'_> {
             for (writer, stamp_ns) in writers {
                 monitor.hear_writer(k, writer, stamp_ns);
             }
-            self.matched_writers(monitor, k, s);
+            self.source_inputs[k].tell_writers(monitor, k, &s.name);
             if let Some((message, received, clock_ns)) = message {
+                // Who writes the joint states and TF matters to the frame's lookups alone.
+                self.inputs.tell_writers(monitor);
                 self.frame(monitor, k, s, &message, received, clock_ns);
                 continue;
             }
@@ -342,13 +343,6 @@ impl Serving<'_> {
                 self.publish(frame.outputs);
             }
         }
-    }
-
-    /// Tells the monitor who writes source `k`'s topics now, by discovery
-    /// ([`SourceInput::tell_writers`]).
-    fn matched_writers(&mut self, monitor: &mut Monitor, k: usize, s: &SourceConfig) {
-        let config = self.wiring.config;
-        self.source_inputs[k].tell_writers(config, monitor, k, s);
     }
 
     /// Source `k`'s message, received at `received` (the node's clock then: `clock_ns`),

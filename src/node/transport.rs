@@ -287,12 +287,11 @@ pub enum TopicWriters {
 impl TopicWriters {
     /// The writers of the topic now, by name.
     pub fn writers(&self) -> Vec<String> {
-        match self.gids() {
-            Some(gids) => gids.iter().map(Writer::to_string).collect(),
-            None => match self {
-                TopicWriters::Zenoh(z) => z.writers(),
-                TopicWriters::Dds { .. } => Vec::new(),
-            },
+        match self {
+            TopicWriters::Zenoh(z) => z.writers(),
+            TopicWriters::Dds { .. } => (self.gids().unwrap_or_default().iter())
+                .map(Writer::to_string)
+                .collect(),
         }
     }
 

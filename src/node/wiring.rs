@@ -130,11 +130,13 @@ impl Wiring<'_> {
         } else {
             SENSOR_QOS
         };
-        let writers = match (self.config.writers_from_discovery, s.kind) {
+        let discovery = self.config.writers_from_discovery;
+        let writers = match (discovery, s.kind) {
             (false, _) => None,
             (true, SourceKind::PointCloud) => Some(node.publishers::<PointCloud2>(&topic)?),
             (true, SourceKind::DepthImage) => Some(node.publishers::<Image>(&topic)?),
         };
+        let writers = writers.map(|w| WatchedTopic::new(w, &topic));
         let mut camera_writers = None;
         match s.kind {
             SourceKind::PointCloud => tasks.push(source_task::<PointCloud2<'static>>(
@@ -160,8 +162,9 @@ impl Wiring<'_> {
                 // gives both; a latched (transient local) publisher is matched too.
                 let info_topic = s.camera_info_topic.as_deref().unwrap_or_default();
                 let info_topic = input_topic(self.config, info_topic);
-                if self.config.writers_from_discovery {
-                    camera_writers = Some(node.publishers::<CameraInfo>(&info_topic)?);
+                if discovery {
+                    let w = node.publishers::<CameraInfo>(&info_topic)?;
+                    camera_writers = Some(WatchedTopic::new(w, &info_topic));
                 }
                 tasks.push(forward(
                     node,
@@ -179,8 +182,6 @@ impl Wiring<'_> {
             _tasks: tasks,
             writers,
             camera_writers,
-            last_writers: Vec::new(),
-            last_camera_writers: Vec::new(),
         })
     }
 
@@ -203,12 +204,17 @@ impl Wiring<'_> {
 pub(super) struct SourceInput {
     /// Its subscriptions' tasks, held for as long as it is enabled.
     _tasks: Vec<smol::Task<()>>,
-    writers: Option<TopicWriters>,
+    writers: Option<WatchedTopic>,
     /// The same on a depth image source's CameraInfo topic.
-    camera_writers: Option<TopicWriters>,
-    /// The writers discovery gave last on each, for the log.
-    last_writers: Vec<String>,
-    last_camera_writers: Vec<String>,
+    camera_writers: Option<WatchedTopic>,
+}
+
+/// Who writes one of a source's topics by discovery, and who did at the last look (for the
+/// log).
+struct WatchedTopic {
+    writers: TopicWriters,
+    topic: String,
+    last: Vec<String>,
 }
 
 impl Inputs {
@@ -224,49 +230,51 @@ impl Inputs {
 }
 
 impl SourceInput {
-    /// Tells the monitor who writes source `k`'s topic (and a depth source's CameraInfo topic)
-    /// now, by discovery; says so in the log when that changes (a second writer: WARN, with
-    /// the names).
-    pub(super) fn tell_writers(
-        &mut self,
-        config: &Config,
-        monitor: &mut Monitor,
-        k: usize,
-        s: &SourceConfig,
-    ) {
-        if let Some(writers) = self.writers.as_ref().map(TopicWriters::writers) {
-            let topic = input_topic(config, &s.topic);
-            say_writers(&s.name, &topic, &writers, &mut self.last_writers);
-            monitor.matched_writers(k, Some(writers));
+    /// Tells the monitor who writes source `k` (named `name`)'s topic, and a depth source's
+    /// CameraInfo topic, now by discovery.
+    pub(super) fn tell_writers(&mut self, monitor: &mut Monitor, k: usize, name: &str) {
+        if let Some(w) = &mut self.writers {
+            monitor.matched_writers(k, Some(w.now(name)));
         }
-        if let Some(writers) = self.camera_writers.as_ref().map(TopicWriters::writers) {
-            let topic = input_topic(config, s.camera_info_topic.as_deref().unwrap_or_default());
-            say_writers(&s.name, &topic, &writers, &mut self.last_camera_writers);
-            monitor.matched_camera_writers(k, Some(writers));
+        if let Some(w) = &mut self.camera_writers {
+            monitor.matched_camera_writers(k, Some(w.now(name)));
         }
     }
 }
 
-/// Says in the log who writes source `source`'s `topic` by discovery when that differs from
-/// `last` (kept): one writer or none at INFO, a second one at WARN with the names.
-fn say_writers(source: &str, topic: &str, writers: &[String], last: &mut Vec<String>) {
-    if writers == last.as_slice() {
-        return;
+impl WatchedTopic {
+    fn new(writers: TopicWriters, topic: &str) -> Self {
+        Self {
+            writers,
+            topic: topic.to_owned(),
+            last: Vec::new(),
+        }
     }
-    match writers.len() {
-        0 | 1 => log::info!(
-            "source {source}: {} writer(s) on {topic} by discovery{}",
-            writers.len(),
-            writers
-                .first()
-                .map(|w| format!(": {w}"))
-                .unwrap_or_default()
-        ),
-        n => log::warn!(
-            "source {source}: {n} writers on {topic} by discovery ({}): second_publisher, \
-             ERROR until only one is left",
-            writers.join(", ")
-        ),
+
+    /// Its writers now; says so in the log when they differ from the last look's: one writer
+    /// or none at INFO, a second one at WARN with the names (source `source`'s).
+    fn now(&mut self, source: &str) -> Vec<String> {
+        let writers = self.writers.writers();
+        if writers == self.last {
+            return writers;
+        }
+        let topic = &self.topic;
+        match writers.len() {
+            0 | 1 => log::info!(
+                "source {source}: {} writer(s) on {topic} by discovery{}",
+                writers.len(),
+                writers
+                    .first()
+                    .map(|w| format!(": {w}"))
+                    .unwrap_or_default()
+            ),
+            n => log::warn!(
+                "source {source}: {n} writers on {topic} by discovery ({}): second_publisher, \
+                 ERROR until only one is left",
+                writers.join(", ")
+            ),
+        }
+        self.last.clone_from(&writers);
+        writers
     }
-    *last = writers.to_vec();
 }

@@ -100,6 +100,7 @@ pub fn fit_pinhole(
 /// over the points. f32 is exact to 1e-4 px here; the half-pixel test has room for it.
 #[derive(Debug, Clone, Copy)]
 pub struct FitCheck {
+    camera: PinholeCamera,
     fx: f32,
     fy: f32,
     cx: f32,
@@ -130,10 +131,11 @@ impl RowFit {
 }
 
 impl FitCheck {
-    /// The check of `camera` over `points` points (`None` when they are not its pixel grid).
-    pub fn new(camera: &PinholeCamera, points: usize) -> Option<Self> {
-        let pixels = u64::from(camera.width) * u64::from(camera.height);
-        (camera.width > 0 && points as u64 == pixels).then_some(Self {
+    /// The check of `camera` over a cloud of `width × height` points (`None` when that is not
+    /// its pixel grid).
+    pub fn new(camera: &PinholeCamera, width: u32, height: u32) -> Option<Self> {
+        (camera.width > 0 && (camera.width, camera.height) == (width, height)).then_some(Self {
+            camera: *camera,
             fx: camera.fx as f32,
             fy: camera.fy as f32,
             cx: camera.cx as f32,
@@ -161,9 +163,9 @@ impl FitCheck {
         }
     }
 
-    /// Whether the camera fits, from every row's [`FitCheck::row`].
-    pub fn holds(&self, rows: RowFit) -> bool {
-        rows.ok && rows.valid >= MIN_FIT_POINTS
+    /// The camera, where it fits by every row's [`FitCheck::row`].
+    pub fn kept(&self, rows: RowFit) -> Option<PinholeCamera> {
+        (rows.ok && rows.valid >= MIN_FIT_POINTS).then_some(self.camera)
     }
 }
 
@@ -174,13 +176,15 @@ mod tests {
 
     /// [`FitCheck`] over a whole cloud.
     fn fits(camera: &PinholeCamera, points: &[[f32; 3]]) -> bool {
-        let Some(check) = FitCheck::new(camera, points.len()) else {
+        let pixels = camera.width as usize * camera.height as usize;
+        let check = FitCheck::new(camera, camera.width, camera.height);
+        let Some(check) = check.filter(|_| points.len() == pixels) else {
             return false;
         };
         let rows = (points.par_chunks(camera.width as usize).enumerate())
             .map(|(v, row)| check.row(v, row))
             .reduce(RowFit::default, RowFit::and);
-        check.holds(rows)
+        check.kept(rows).is_some()
     }
 
     /// The organized cloud a pinhole camera makes of a tilted plane, with holes.

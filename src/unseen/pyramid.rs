@@ -66,16 +66,7 @@ impl Pyramid {
 
     /// Builds the levels above the image as it now is.
     pub fn build(&mut self) {
-        let count = levels_for(self.width.max(self.height)) - 1;
-        self.levels.resize_with(count, Level::default);
-        for k in 0..count {
-            let (done, rest) = self.levels.split_at_mut(k);
-            let to = &mut rest[0];
-            match done.last() {
-                None => reduce(&self.base, &self.base, self.width, self.height, to, None),
-                Some(from) => reduce(&from.min, &from.max, from.width, from.height, to, None),
-            }
-        }
+        self.reduce_levels(None);
     }
 
     /// The image `width × height` and every level above it filled with `value`: what
@@ -100,31 +91,28 @@ impl Pyramid {
     /// texels over them, from the level below. The rest of the image must be as it was at the
     /// last [`Pyramid::build`] or [`Pyramid::fill`]; the result is then what `build` makes.
     pub fn build_rows(&mut self, changed: &[bool]) {
-        let mut dirty = changed.to_vec();
-        for k in 0..self.levels.len() {
+        self.reduce_levels(Some(changed));
+    }
+
+    /// Each level from the one below: whole, or (`changed`: the image's rows) only the texels
+    /// over the rows flagged.
+    fn reduce_levels(&mut self, changed: Option<&[bool]>) {
+        let count = levels_for(self.width.max(self.height)) - 1;
+        self.levels.resize_with(count, Level::default);
+        let mut dirty = changed.map(<[bool]>::to_vec);
+        for k in 0..count {
             let (done, rest) = self.levels.split_at_mut(k);
-            let to = &mut rest[0];
-            dirty = (0..to.height)
-                .map(|j| dirty[2 * j] || dirty.get(2 * j + 1).copied().unwrap_or(false))
-                .collect();
-            match done.last() {
-                None => reduce(
-                    &self.base,
-                    &self.base,
-                    self.width,
-                    self.height,
-                    to,
-                    Some(&dirty),
-                ),
-                Some(from) => reduce(
-                    &from.min,
-                    &from.max,
-                    from.width,
-                    from.height,
-                    to,
-                    Some(&dirty),
-                ),
-            }
+            let (min, max, w, h) = match done.last() {
+                None => (&self.base[..], &self.base[..], self.width, self.height),
+                Some(from) => (&from.min[..], &from.max[..], from.width, from.height),
+            };
+            // A texel row is over two rows of the level below.
+            dirty = dirty.map(|d| {
+                (0..h.div_ceil(2))
+                    .map(|j| d[2 * j] || d.get(2 * j + 1).copied().unwrap_or(false))
+                    .collect()
+            });
+            reduce(min, max, w, h, &mut rest[0], dirty.as_deref());
         }
     }
 

@@ -102,9 +102,8 @@ impl RangeView {
     /// optical frame, which `root_from_camera` places), the intrinsics fitted from them
     /// ([`super::fit::fit_pinhole`]), or `known` where it still fits every point
     /// ([`super::fit::FitCheck`], in the same pass as the depths: a source's camera does not
-    /// change from frame to frame). An
-    /// unorganized cloud, or one no pinhole camera fits, is an error: that source observes
-    /// nothing free.
+    /// change from frame to frame). An unorganized cloud, or one no pinhole camera fits, is an
+    /// error: that source observes nothing free.
     pub fn from_organized_cloud(
         points: &[[f32; 3]],
         width: u32,
@@ -127,9 +126,7 @@ impl RangeView {
         }
         // The depths, and where a camera is known whether it still fits, in one pass.
         let w = width as usize;
-        let check = known
-            .filter(|c| c.width == width && c.height == height)
-            .and_then(|c| Some((c, FitCheck::new(c, points.len())?)));
+        let check = known.and_then(|c| FitCheck::new(c, width, height));
         let bounds = squared(range);
         let mut ranges = vec![0.0f32; points.len()];
         let rows = (ranges
@@ -140,12 +137,12 @@ impl RangeView {
             for (o, &p) in out.iter_mut().zip(row) {
                 *o = keep(p, bounds);
             }
-            check.map_or(RowFit::default(), |(_, c)| c.row(v, row))
+            check.map_or(RowFit::default(), |c| c.row(v, row))
         })
         .reduce(RowFit::default, RowFit::and);
-        let camera = match check {
-            Some((c, check)) if check.holds(rows) => *c,
-            _ => fit_pinhole(points, width, height)?,
+        let camera = match check.and_then(|c| c.kept(rows)) {
+            Some(kept) => kept,
+            None => fit_pinhole(points, width, height)?,
         };
         Self::with_ranges(camera, root_from_camera, ranges, range, range_noise_m)
     }

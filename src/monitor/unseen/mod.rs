@@ -44,4 +44,4 @@ pub use facts::{Unseen, UnseenFacts};
 pub use messages::{cause_colour, unseen_messages, UnseenMessages};
 pub use pass::{At, PassInputs};
 pub use space::UnseenSpace;
-pub use views::view_of;
+pub use views::{cloud_view, depth_view};

@@ -11,38 +11,43 @@ use crate::cloud::depth::{DepthView, PinholeCamera};
 use crate::cloud::RangeLimits;
 use crate::unseen::RangeView;
 
-/// The view of a depth image `depth` of `camera`, or of an organized cloud `points` of `width`
-/// per row, placed by `root_from_sensor`, with the source's `limits` and `range_noise_m`; why it
-/// observes nothing free otherwise. `known`: the camera of the source's previous view, kept
-/// where it still fits the cloud.
-pub fn view_of(
-    depth: Option<(&DepthView, &PinholeCamera)>,
-    cloud: Option<(&[[f32; 3]], Option<usize>)>,
+/// The view of a depth image `depth` of `camera`, placed by `root_from_sensor`, with the
+/// source's `range_noise_m` (its range limits are the image's); why it observes nothing free
+/// otherwise.
+pub fn depth_view(
+    depth: &DepthView,
+    camera: &PinholeCamera,
+    root_from_sensor: &Isometry3<f64>,
+    range_noise_m: f64,
+) -> Result<RangeView, String> {
+    RangeView::from_depth(depth, camera, *root_from_sensor, range_noise_m)
+        .map_err(|e| e.to_string())
+}
+
+/// The view of an organized cloud `points` of `width` per row (`None`: one row), placed by
+/// `root_from_sensor`, with the source's `limits` and `range_noise_m`; why it observes nothing
+/// free otherwise. `known`: the camera of the source's previous view, kept where it still fits
+/// the cloud.
+pub fn cloud_view(
+    points: &[[f32; 3]],
+    width: Option<usize>,
     root_from_sensor: &Isometry3<f64>,
     limits: Option<RangeLimits>,
     range_noise_m: f64,
     known: Option<&PinholeCamera>,
 ) -> Result<RangeView, String> {
-    let made = match (depth, cloud) {
-        (Some((d, camera)), _) => {
-            RangeView::from_depth(d, camera, *root_from_sensor, range_noise_m)
-        }
-        (None, Some((points, width))) => {
-            let w = width.unwrap_or(points.len());
-            let h = points.len().checked_div(w).unwrap_or(0);
-            // Its points outside the range limits are NaN already (`measure`); the limits go
-            // with the view, so that a ball nearer than the minimum range is not judged.
-            RangeView::from_organized_cloud(
-                points,
-                w as u32,
-                h as u32,
-                *root_from_sensor,
-                limits,
-                range_noise_m,
-                known,
-            )
-        }
-        (None, None) => return Err("no points".into()),
-    };
-    made.map_err(|e| e.to_string())
+    let w = width.unwrap_or(points.len());
+    let h = points.len().checked_div(w).unwrap_or(0);
+    // Its points outside the range limits are NaN already (`measure`); the limits go with the
+    // view, so that a ball nearer than the minimum range is not judged.
+    RangeView::from_organized_cloud(
+        points,
+        w as u32,
+        h as u32,
+        *root_from_sensor,
+        limits,
+        range_noise_m,
+        known,
+    )
+    .map_err(|e| e.to_string())
 }
