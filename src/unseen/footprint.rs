@@ -38,16 +38,24 @@
 //! pixel's ray is outside the view), the window's largest free distance against `l − r` (a ball
 //! behind a surface is hidden whatever the pixels, with [`ROUNDING_M`] to spare for the f32
 //! sums) and the robot's; then the scan of the window, every pixel tested exactly, which stops at the
-//! first ray that rules the ball out.
+//! first ray that rules the ball out. Where only the verdict is asked (the search, the shadow
+//! counted), the scan goes by **tiles**, the free pyramid's texels about a quarter of the
+//! window's side: a tile whose largest free distance is at most `l − r` is skipped whole, and
+//! one wholly inside the footprint (its corners' rays in the cone: the cone's trace on the
+//! image is convex) whose largest free distance reaches `l` rules the ball out at once (that
+//! pixel passes `l ≥ d·p`); only the other tiles' pixels are tested
+//! (`the_shortcuts_agree_with_the_scan`: every need, with and without the pyramids).
 //!
 //! The window is the footprint's bounding box, and each of its rows is scanned only over the
 //! columns the footprint's cone meets (`camera`).
 //!
-//! Cost: one read for free space; `O(footprint)` reads for a ball at a surface or a shadow's
-//! rim. `shaders/unseen.wgsl` runs the same scan per lattice centre on the GPU.
+//! Cost: one read for free space; for a ball at a surface, a few dozen texel reads and the
+//! pixels of the tiles a surface crosses (the Kinect frame's search: 3.1–3.3 → 2.4–2.5 ms,
+//! docs/unobserved.md); `O(footprint)` reads where the cause is asked.
+//! `shaders/unseen.wgsl` runs the same scan per lattice centre on the GPU.
 
 use super::camera::{cone_row, window, Optics, Rect};
-use super::pyramid::Pyramids;
+use super::pyramid::{Pyramid, Pyramids};
 
 /// What the f32 sums may lose (m): a free distance is taken this much shorter, and the
 /// shortcuts keep this much to spare, so that they agree with the full scan.
@@ -248,13 +256,150 @@ pub fn judge(
             }
         }
     }
-    // 3. The scan.
-    scan(o, px, &ball, rect, need)
+    // 3. The scan: for the verdict alone, by tiles where the pyramids are given and the
+    // footprint is known to hold a ray; else pixel by pixel.
+    let tiles = pyramids.filter(|_| need == Need::Verdict && central != Ray::Outside);
+    let counts = match tiles.and_then(|pyr| scan_tiles(px, &pyr.free, &ball, rect)) {
+        Some(counts) => counts,
+        None => scan(o, px, &ball, rect),
+    };
+    match counts {
+        Some(counts) => hidden(counts, need),
+        None => Seen::Free,
+    }
 }
 
-/// Every pixel of `rect` tested against `ball` (see [`judge`]).
-fn scan(o: &Optics, px: &Pixels, ball: &Ball, rect: Rect, need: Need) -> Seen {
-    let mut counts = [0u32; 3];
+/// A hidden ball's rays that met the robot first, returned a surface in front, returned
+/// nothing.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Counts {
+    robot: u32,
+    returned: u32,
+    dark: u32,
+}
+
+impl Counts {
+    fn add(&mut self, ray: Ray, n: u32) {
+        match ray {
+            Ray::Robot => self.robot += n,
+            Ray::Returned => self.returned += n,
+            Ray::Dark => self.dark += n,
+            Ray::Outside | Ray::Free => {}
+        }
+    }
+}
+
+/// The verdict on a ball no ray rules out, from its footprint's `counts`.
+fn hidden(counts: Counts, need: Need) -> Seen {
+    let Counts {
+        robot,
+        returned,
+        dark,
+    } = counts;
+    let why = if robot + returned + dark == 0 {
+        // The footprint holds no pixel centre in f32 (a sliver at the image's border).
+        Why::Known(Cause::OutsideView)
+    } else if need == Need::Verdict {
+        Why::Unknown
+    } else if 2 * robot > robot + returned + dark {
+        Why::Known(Cause::RobotShadow)
+    } else if need == Need::Shadow {
+        Why::NotShadow
+    } else if dark >= returned {
+        Why::Known(Cause::NoReturn)
+    } else {
+        Why::Known(Cause::Occluded)
+    };
+    Seen::Hidden(why)
+}
+
+/// Tiles per window side, about: the tiles are the texels of the pyramids' level whose side
+/// is at most a quarter of the window's longer side.
+const TILES: usize = 4;
+
+/// Most tiles a window spans (under `2·TILES + 1` a side: 81), one bit each.
+const MOST_TILES: usize = 128;
+
+/// The verdict alone (`Need::Verdict`), by the tiles of the free pyramid: `None` where a ray
+/// rules the ball out, else `Some` (the footprint holds the central pixel's ray, which does
+/// not). `None` from the function itself: the window is too small for tiles.
+///
+/// A tile is **inside** the footprint when its corner pixels' rays are, with room for the f32
+/// sums: the cone's trace on the image plane is convex, so every pixel of it is then. A tile
+/// whose largest free distance is at most the ball's least entry `l − r` holds no ray that
+/// rules the ball out: skipped. One inside whose largest free distance reaches `l`: the pixel
+/// that holds it passes the ball's centre (`g ≥ l ≥ d·p`): free. Each pixel of the other
+/// tiles is tested as [`scan`] tests it.
+fn scan_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<Option<Counts>> {
+    let side = (rect.u1 - rect.u0 + 1).max(rect.v1 - rect.v0 + 1);
+    let k = (usize::BITS - 1).checked_sub((side / TILES).leading_zeros())? as usize;
+    if k == 0 {
+        return None;
+    }
+    let texels = free.level(k)?;
+    let (width, height) = (free.width(), free.height());
+    let (j0, j1) = (rect.v0 >> k, rect.v1 >> k);
+    let (i0, i1) = (rect.u0 >> k, rect.u1 >> k);
+    let across = i1 - i0 + 1;
+    if across * (j1 - j0 + 1) > MOST_TILES {
+        return None;
+    }
+    let entry = ball.l - ball.r - ROUNDING_M;
+    let beyond = ball.l + ROUNDING_M;
+    let inner = ball.min_proj + 1e-4 * ball.l;
+    let within = |u: usize, v: usize| {
+        let d = px.rays[v * width + u];
+        d[0] * ball.p[0] + d[1] * ball.p[1] + d[2] * ball.p[2] >= inner
+    };
+    let mut each = 0u128;
+    for j in j0..=j1 {
+        for i in i0..=i1 {
+            let (_, most) = texels.at(i, j);
+            if most <= entry {
+                continue;
+            }
+            // The pixels the texel covers.
+            let (u0, v0) = (i << k, j << k);
+            let (u1, v1) = (
+                (u0 + (1 << k)).min(width) - 1,
+                (v0 + (1 << k)).min(height) - 1,
+            );
+            let inside = within(u0, v0) && within(u1, v0) && within(u0, v1) && within(u1, v1);
+            if most >= beyond && inside {
+                return Some(None);
+            }
+            each |= 1 << ((j - j0) * across + (i - i0));
+        }
+    }
+    while each != 0 {
+        let t = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let (i, j) = (i0 + t % across, j0 + t / across);
+        // The tile's pixels in the window.
+        let (u0, v0) = ((i << k).max(rect.u0), (j << k).max(rect.v0));
+        let (u1, v1) = (
+            (((i + 1) << k) - 1).min(rect.u1),
+            (((j + 1) << k) - 1).min(rect.v1),
+        );
+        for v in v0..=v1 {
+            let row = v * width;
+            for u in u0..=u1 {
+                if ball.ray(px, row + u) == Ray::Free {
+                    return Some(None);
+                }
+            }
+        }
+    }
+    Some(Some(Counts {
+        returned: 1,
+        ..Counts::default()
+    }))
+}
+
+/// Every pixel of `rect` tested against `ball` (see [`judge`]): `None` at the first ray that
+/// rules it out, else the footprint's counts.
+fn scan(o: &Optics, px: &Pixels, ball: &Ball, rect: Rect) -> Option<Counts> {
+    let mut counts = Counts::default();
     let k = ball.min_proj * ball.min_proj;
     // Rows from the centre's outward: the rays through the middle enter the ball first, and
     // rule it out first where anything does.
@@ -278,31 +423,12 @@ fn scan(o: &Optics, px: &Pixels, ball: &Ball, rect: Rect, need: Need) -> Seen {
         let row = v * o.width;
         for u in u0..=u1 {
             match ball.ray(px, row + u) {
-                Ray::Free => return Seen::Free,
-                Ray::Outside => {}
-                Ray::Robot => counts[0] += 1,
-                Ray::Returned => counts[1] += 1,
-                Ray::Dark => counts[2] += 1,
+                Ray::Free => return None,
+                ray => counts.add(ray, 1),
             }
         }
     }
-    let [robot, returned, dark] = counts;
-    if robot + returned + dark == 0 {
-        // The footprint holds no pixel centre in f32 (a sliver at the image's border).
-        return Seen::Hidden(Why::Known(Cause::OutsideView));
-    }
-    let why = if need == Need::Verdict {
-        Why::Unknown
-    } else if 2 * robot > robot + returned + dark {
-        Why::Known(Cause::RobotShadow)
-    } else if need == Need::Shadow {
-        Why::NotShadow
-    } else if dark >= returned {
-        Why::Known(Cause::NoReturn)
-    } else {
-        Why::Known(Cause::Occluded)
-    };
-    Seen::Hidden(why)
+    Some(counts)
 }
 
 #[cfg(test)]
@@ -365,6 +491,107 @@ mod tests {
             }
         }
         image
+    }
+
+    /// The image's pyramids, as `prepared` builds them.
+    fn pyramids(o: &Optics, image: &Image) -> Pyramids {
+        let (w, h) = (o.width, o.height);
+        let mut p = Pyramids::default();
+        p.free.base_mut(w, h).copy_from_slice(&image.free);
+        p.robot.base_mut(w, h).copy_from_slice(&image.robot);
+        let pairs = p.pairs.base_mut(w, h);
+        for v in 0..h {
+            for u in 0..w {
+                let at = |du: usize, dv: usize| {
+                    image.free[(v + dv).min(h - 1) * w + (u + du).min(w - 1)]
+                };
+                pairs[v * w + u] = at(0, 0).max(at(1, 0)).max(at(0, 1)).max(at(1, 1));
+            }
+        }
+        for pyramid in [&mut p.free, &mut p.pairs, &mut p.robot] {
+            pyramid.build();
+        }
+        p
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig { cases: 64, .. proptest::prelude::ProptestConfig::default() })]
+
+        /// The shortcuts (the pyramids, the tiles) never change a verdict: over scenes of
+        /// boxes at random depths in front of a wall, the robot in front of some, clusters of
+        /// dropped pixels, and balls anywhere in view from a pixel across to a third of the
+        /// image, every need gets what the scan of every pixel gives.
+        #[test]
+        fn the_shortcuts_agree_with_the_scan(seed in proptest::prelude::any::<u64>()) {
+            let mut state = seed | 1;
+            let mut next = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 11) as f32 / (1u64 << 53) as f32
+            };
+            let camera = PinholeCamera {
+                width: 64 + (next() * 96.0) as u32,
+                height: 48 + (next() * 64.0) as u32,
+                fx: f64::from(40.0 + next() * 80.0),
+                fy: f64::from(40.0 + next() * 80.0),
+                cx: 40.0,
+                cy: 30.0,
+            };
+            let o = Optics::new(&camera, 0.0, f32::INFINITY);
+            let wall = 1.0 + 2.0 * next();
+            // Boxes: (u0, v0, u1, v1, depth, robot).
+            let boxes: Vec<[f32; 6]> = (0..6)
+                .map(|_| {
+                    let (u, v) = (next() * o.width as f32, next() * o.height as f32);
+                    let (a, b) = (4.0 + next() * 30.0, 4.0 + next() * 30.0);
+                    [u, v, u + a, v + b, 0.3 + next() * wall, next()]
+                })
+                .collect();
+            let holes: Vec<[f32; 3]> = (0..12)
+                .map(|_| [next() * o.width as f32, next() * o.height as f32, 1.0 + next() * 6.0])
+                .collect();
+            let depth = |u: usize, v: usize| {
+                let (x, y) = (u as f32, v as f32);
+                if holes.iter().any(|h| (x - h[0]).powi(2) + (y - h[1]).powi(2) < h[2] * h[2]) {
+                    return f32::NAN;
+                }
+                (boxes.iter())
+                    .filter(|b| x >= b[0] && x <= b[2] && y >= b[1] && y <= b[3])
+                    .map(|b| b[4])
+                    .fold(wall, f32::min)
+            };
+            let robot = |u: usize, v: usize| {
+                let (x, y) = (u as f32, v as f32);
+                (boxes.iter())
+                    .filter(|b| b[5] < 0.3 && x >= b[0] && x <= b[2] && y >= b[1] && y <= b[3])
+                    .map(|b| b[4] - 0.01)
+                    .fold(f32::INFINITY, f32::min)
+            };
+            let image = pixels(&o, depth, robot);
+            let pyr = pyramids(&o, &image);
+            let px = image.px();
+            for k in 0..300 {
+                let across = 0.5 + next() * 40.0;
+                let (u, v, z) = if k % 2 == 0 {
+                    let z = 0.2 + next() * (wall + 0.5);
+                    (next() * o.width as f32, next() * o.height as f32, z)
+                } else {
+                    // About a box's edge, its surface through the ball.
+                    let b = boxes[k % boxes.len()];
+                    let (u, v) = (b[0] + (b[2] - b[0]) * (1.4 * next() - 0.2), b[1] + (b[3] - b[1]) * (1.4 * next() - 0.2));
+                    let r = b[4] * across / o.fx;
+                    (u, v, b[4] + (2.0 * next() - 1.0) * 1.2 * r)
+                };
+                let p = [(u - o.cx) / o.fx * z, (v - o.cy) / o.fy * z, z];
+                let r = z * across / o.fx;
+                for need in [Need::Verdict, Need::Shadow, Need::Cause] {
+                    let fast = judge(&o, &px, Some(&pyr), p, r, need);
+                    let full = judge(&o, &px, None, p, r, need);
+                    proptest::prop_assert_eq!(fast, full, "ball {:?} r {} {:?}", p, r, need);
+                }
+            }
+        }
     }
 
     #[test]

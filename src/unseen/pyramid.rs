@@ -26,6 +26,23 @@ pub struct Pyramids {
     pub robot: Pyramid,
 }
 
+/// One level's extremes as a reader takes them, row-major, `width` texels a row.
+#[derive(Debug, Clone, Copy)]
+pub struct Texels<'a> {
+    pub min: &'a [f32],
+    pub max: &'a [f32],
+    pub width: usize,
+}
+
+impl Texels<'_> {
+    /// The extremes of texel `(i, j)`.
+    #[inline]
+    pub fn at(&self, i: usize, j: usize) -> (f32, f32) {
+        let t = j * self.width + i;
+        (self.min[t], self.max[t])
+    }
+}
+
 /// One level above the image: `width × height` texels.
 #[derive(Debug, Clone, Default)]
 struct Level {
@@ -56,6 +73,15 @@ impl Pyramid {
     /// The image.
     pub fn base(&self) -> &[f32] {
         &self.base
+    }
+
+    /// The image's width and height in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.height
     }
 
     /// The image's value at pixel `(u, v)`.
@@ -113,6 +139,26 @@ impl Pyramid {
                     .collect()
             });
             reduce(min, max, w, h, &mut rest[0], dirty.as_deref());
+        }
+    }
+
+    /// Level `k` (`k = 0`: the image): its minima and maxima and its width in texels; `None`
+    /// above the top.
+    pub fn level(&self, k: usize) -> Option<Texels<'_>> {
+        match k {
+            0 => Some(Texels {
+                min: &self.base,
+                max: &self.base,
+                width: self.width,
+            }),
+            k => {
+                let level = self.levels.get(k - 1)?;
+                Some(Texels {
+                    min: &level.min,
+                    max: &level.max,
+                    width: level.width,
+                })
+            }
         }
     }
 
