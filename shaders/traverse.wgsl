@@ -77,7 +77,8 @@ struct Link {
     gap: f32,
     node_base: u32,
     sphere_base: u32,
-    pad: u32,
+    // With per-link minima, how far this link's own minimum is measured.
+    range: f32,
 }
 
 // layout.rs RobotBox: root_from_sensor rows, the robot's box in its root frame, the region of
@@ -104,7 +105,7 @@ struct Params {
     n_winners: u32,
     pad0: u32,
     capacity: u32,
-    per_link_range: f32,
+    pad3: u32,
     // An organized cloud's width and height (tiles); width 0: runs of consecutive points.
     width: u32,
     height: u32,
@@ -512,9 +513,9 @@ fn threshold(l: u32) -> f32 {
     }
     let own = link_best(l);
     if params.mode == MODE_EXACT {
-        return max(needed, min(own, params.per_link_range));
+        return max(needed, min(own, links[l].range));
     }
-    return min(own, max(needed, params.per_link_range));
+    return min(own, max(needed, links[l].range));
 }
 
 fn record(l: u32, point: u32, d: f32) {

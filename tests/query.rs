@@ -387,19 +387,25 @@ proptest! {
     /// brute-force minimum of its inner-sphere distance, or reported as farther than a bound
     /// that the brute-force minimum does exceed, with a lower bound that holds for the exact
     /// distance; the nearest link is always measured, and the global answer is the one without
-    /// per-link minima.
+    /// per-link minima. The same with a range of each link's own (`link_ranges_m`) below it.
     #[test]
     fn per_link_range_against_brute_force(
         seed in 1u64..,
         links in 2usize..5,
         range in prop::sample::select(vec![0.0f32, 0.05, 0.2, f32::INFINITY]),
         mode in prop::sample::select(vec![Mode::Fast, Mode::Certified, Mode::Exact]),
+        own in any::<bool>(),
     ) {
         let mut rng = Rng(seed);
         let scene = Scene::random(&mut rng, links, 96);
         let mut engine = scene.engine();
         let points = cloud(&mut rng, 600, &Isometry3::identity());
-        let options = QueryOptions { mode, per_link: true, per_link_range_m: range, ..all_points() };
+        let ranges = [0.0f32, 0.02, 0.05, 0.2, f32::INFINITY];
+        let link_ranges_m = (0..links)
+            .filter(|_| own)
+            .map(|_| ranges[(rng.next() * ranges.len() as f64) as usize % ranges.len()])
+            .collect();
+        let options = QueryOptions { mode, per_link: true, per_link_range_m: range, link_ranges_m, ..all_points() };
         let r = scene.run(&mut engine, &points, &options);
         let global = scene.run(&mut engine, &points, &QueryOptions { per_link: false, ..options.clone() });
         prop_assert!((distance(&r) - distance(&global)).abs() < 1e-6);
@@ -417,6 +423,7 @@ proptest! {
                 (None, Some(t)) => {
                     prop_assert!(&got.link != nearest, "the nearest link {nearest} was not measured");
                     prop_assert!(t <= spheres + 1e-5, "{}: farther than {t}, brute force {spheres}", got.link);
+                    let range = options.link_range(l);
                     if range.is_finite() {
                         prop_assert!(spheres + 1e-5 >= f64::from(range).min(distance(&global)),
                             "{}: not measured at {spheres} m, below the range {range}", got.link);

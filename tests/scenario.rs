@@ -135,7 +135,7 @@ fn kinect_panda_reference_distances() {
     // The global-only query (one shared bound) gives the same exact answer.
     let global = QueryOptions {
         per_link: false,
-        ..exact
+        ..exact.clone()
     };
     let g = engine.query(&points, &sensor, &reach, &global).unwrap();
     assert_eq!(g.nearest.as_ref().unwrap().distance_m, n.distance_m);

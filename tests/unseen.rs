@@ -277,7 +277,7 @@ fn search(
     apart: bool,
 ) -> ist_monitor::unseen::Found {
     searching(lattice, robot, views, ball, apart, &mut |s| {
-        s.run::<()>(|c, _| Ok(robot.batch(c))).unwrap()
+        s.run::<()>(|c, _, _| Ok(robot.batch(c))).unwrap()
     })
 }
 

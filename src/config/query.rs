@@ -41,6 +41,7 @@ pub(super) fn query_options(v: &Values) -> Result<(QueryOptions, Thresholds), Co
             Yaml::Real(s) if s == ".inf" => f32::INFINITY,
             _ => v.distance("per_link_range", "per_link_range")? as f32,
         },
+        link_ranges_m: Vec::new(),
         backend: v.choice::<Backend>("backend", "backend")?,
         gpu_min_points: v.whole("gpu_min_points")?,
         gpu_min_depth_pixels: v.whole("gpu_min_depth_pixels")?,

@@ -46,7 +46,7 @@ pub fn reject_strays(
         mode: Mode::Fast,
         per_link: false,
         backend: Backend::Cpu,
-        ..*options
+        ..options.clone()
     };
     let needed = u64::from(stray.min_points) - 1;
     let mut neighbours = Vec::new();

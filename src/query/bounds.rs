@@ -168,6 +168,9 @@ impl Bounds {
         options: &QueryOptions,
     ) -> RobotBox {
         pose::pose_links(links, &mut self.posed, root_from_sensor, link_poses);
+        for (l, p) in self.posed.iter_mut().enumerate() {
+            p.range = options.link_range(l);
+        }
         for b in &self.best {
             b.store(EMPTY, Relaxed);
         }

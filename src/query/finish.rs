@@ -192,15 +192,7 @@ impl Assembly<'_> {
             .map(|(l, ((&(d, p), link), posed))| {
                 // The final threshold: a link whose minimum lies above it was not measured, and
                 // every point lies farther than it (the threshold only decreased).
-                let t = threshold(
-                    options.mode,
-                    true,
-                    options.per_link_range_m,
-                    global,
-                    lower,
-                    d,
-                    posed.gap,
-                );
+                let t = threshold(options.mode, true, posed.range, global, lower, d, posed.gap);
                 let measured = d <= t && self.within(d);
                 let farther = (!measured).then(|| t.min(options.max_distance_m));
                 LinkDistance {

@@ -183,7 +183,9 @@ pub struct PosedLink {
     /// Where the link's nodes and spheres start in the concatenated arrays (GPU).
     pub node_base: u32,
     pub sphere_base: u32,
-    pub pad: u32,
+    /// With per-link minima, the distance up to which this link's own minimum is measured
+    /// (`QueryOptions::link_range`).
+    pub range: f32,
 }
 const _: () = assert!(size_of::<PosedLink>() == 80);
 
@@ -273,8 +275,7 @@ pub struct QueryParams {
     pub pad0: u32,
     /// Room for exact-mode candidates.
     pub capacity: u32,
-    /// `QueryOptions::per_link_range_m`.
-    pub per_link_range: f32,
+    pub pad3: u32,
     /// An organized cloud's width and height (blocks are tiles); width 0: runs.
     pub width: u32,
     pub height: u32,
@@ -514,7 +515,7 @@ pub const MIRRORS: &[Mirror] = &[
     mirror!(
         "Link",
         PosedLink,
-        [rows, center, radius, gap, node_base, sphere_base, pad]
+        [rows, center, radius, gap, node_base, sphere_base, range]
     ),
     mirror!("RobotBox", RobotBox, [rows, lo, max_distance, hi, padding]),
     mirror!(
@@ -531,7 +532,7 @@ pub const MIRRORS: &[Mirror] = &[
             n_winners,
             pad0,
             capacity,
-            per_link_range,
+            pad3,
             width,
             height,
             n_blocks,

@@ -54,10 +54,11 @@
 //!    8 × 4 pixels, whose small spheres prune more ([`Engine::query_image`]);
 //! 5. per-link minima (`QueryOptions::per_link`) only where they can change a decision: a
 //!    link's own minimum is measured up to `per_link_range_m` (the node's warn distance plus
-//!    hysteresis) and for the nearest link; a link farther away is pruned with the global
-//!    bound and reported as farther than the final threshold (`bounds::threshold`), with the
-//!    certified lower bound that follows. Switching per-link minima off leaves one shared
-//!    bound;
+//!    hysteresis), or up to a range of the link's own below it (`link_ranges_m`: the unseen
+//!    space asks only what can still lower each link's best), and for the nearest link; a link
+//!    farther away is pruned with the global bound and reported as farther than the final
+//!    threshold (`bounds::threshold`), with the certified lower bound that follows. Switching
+//!    per-link minima off leaves one shared bound;
 //! 6. self-filtering: points whose inner-sphere distance is within `self_filter_padding_m` of a
 //!    link are the robot seen by its own sensor; they are counted, not taken as obstacles.
 //!    Because the inner-sphere distance is an upper bound, every point filtered is truly within

@@ -57,6 +57,11 @@ pub struct QueryOptions {
     /// the nearest link); a link farther away is reported as farther than a certified bound
     /// ([`crate::query::LinkDistance::farther_than_m`]), which costs far less. Infinity measures every link.
     pub per_link_range_m: f32,
+    /// Per link (the engine's order), a range of its own, taken where below
+    /// `per_link_range_m` (empty: `per_link_range_m` for every link): a caller that needs only
+    /// some links' minima, each below its own bound, asks for no more (both backends read it
+    /// from the posed link, `layout::PosedLink::range`).
+    pub link_ranges_m: Vec<f32>,
     pub backend: Backend,
     /// `Backend::Auto` uses the GPU for a cloud from this many points on.
     pub gpu_min_points: usize,
@@ -95,7 +100,14 @@ impl QueryOptions {
         }
     }
 
-    /// Refuses a NaN or negative `max_distance_m` and a negative or non-finite padding.
+    /// Link `l`'s range: its own where given and below `per_link_range_m`.
+    #[inline]
+    pub fn link_range(&self, l: usize) -> f32 {
+        (self.link_ranges_m.get(l)).map_or(self.per_link_range_m, |r| r.min(self.per_link_range_m))
+    }
+
+    /// Refuses a NaN or negative `max_distance_m`, range or link range, and a negative or
+    /// non-finite padding.
     pub fn validate(&self) -> Result<(), QueryError> {
         if self.max_distance_m.is_nan() || self.max_distance_m < 0.0 {
             return Err(QueryError::BadOption(
@@ -105,6 +117,11 @@ impl QueryOptions {
         if self.per_link_range_m.is_nan() || self.per_link_range_m < 0.0 {
             return Err(QueryError::BadOption(
                 "per_link_range_m must be ≥ 0 (infinity allowed)",
+            ));
+        }
+        if self.link_ranges_m.iter().any(|r| r.is_nan() || *r < 0.0) {
+            return Err(QueryError::BadOption(
+                "link_ranges_m must each be ≥ 0 (infinity allowed)",
             ));
         }
         if self
@@ -130,6 +147,7 @@ impl Default for QueryOptions {
             per_link: true,
             // The node's warn_distance + hysteresis (0.3 + 0.02 m).
             per_link_range_m: 0.32,
+            link_ranges_m: Vec::new(),
             backend: Backend::Auto,
             gpu_min_points: DEFAULT_GPU_MIN_POINTS,
             gpu_min_depth_pixels: DEFAULT_GPU_MIN_DEPTH_PIXELS,

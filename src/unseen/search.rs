@@ -37,7 +37,8 @@
 //!
 //! Cost: per block examined a projection of its corners and a few pyramid reads per view; per
 //! centre judged one read for free space, a footprint's pixels at a surface or a shadow's rim;
-//! per wave one distance query over the hidden centres that can lower a best still open.
+//! per wave one distance query over the hidden centres that can lower a best still open, each
+//! link measured only below its own best still open (a link whose best is final, not at all).
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -236,10 +237,12 @@ struct BlockOut {
 
 impl Search<'_> {
     /// The search (see the module doc); `measure` is the caller's distance over a batch, given
-    /// the largest distance still worth measuring exactly.
+    /// the largest distance still worth measuring exactly and, per link (empty: every link
+    /// alike), the distance below which that link's minimum is still worth measuring (−∞: it
+    /// is final).
     pub fn run<E>(
         &self,
-        mut measure: impl FnMut(&[[f32; 3]], f64) -> Result<Batch, E>,
+        mut measure: impl FnMut(&[[f32; 3]], f64, &[f64]) -> Result<Batch, E>,
     ) -> Result<Found, E> {
         let placed: Vec<PlacedView> = (self.views.iter().enumerate())
             .map(|(i, v)| {
@@ -343,7 +346,7 @@ impl Search<'_> {
             if !counted.is_empty() {
                 let centres: Vec<[f32; 3]> = counted.iter().map(|h| h.centre).collect();
                 let measured = needs.links.iter().copied().fold(needs.counted, f64::max);
-                let batch = measure(&centres, measured)?;
+                let batch = measure(&centres, measured, &needs.links)?;
                 found.counts.batches += 1;
                 if let Some(lower) = batch.lower_m.filter(|&l| l < best) {
                     best = lower;
@@ -359,7 +362,7 @@ impl Search<'_> {
                 keep_nearest(&mut near, self.markers);
             }
             if !shadow.is_empty() {
-                let batch = measure(&shadow, needs.shadow)?;
+                let batch = measure(&shadow, needs.shadow, &[])?;
                 found.counts.batches += 1;
                 best_shadow = best_shadow.min(batch.lower_m.unwrap_or(f64::INFINITY));
             }

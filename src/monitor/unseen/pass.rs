@@ -117,11 +117,20 @@ impl UnseenSpace {
         let excluded = |c: [f32; 3]| volumes.iter().any(|v| v.contains(c));
         let max = f64::from(query.max_distance_m);
         let mut options = query.clone();
+        let gaps: Vec<f32> = links.iter().map(|l| l.gap_m).collect();
         let (views, verdicts) = self.live_views(&lattice);
         let mut found = (self.search(&lattice, &views, &verdicts, &robot, &excluded, ball)).run(
-            |centres, need| {
-                // Per link, only what may still lower a link's best is measured exactly.
+            |centres, need, needs| {
+                // Only what may still lower a best is measured exactly: per link, its
+                // inner-sphere distance below the link's need plus its h (−∞: final, 0).
                 options.per_link_range_m = query.per_link_range_m.min(need.max(0.0) as f32);
+                options.link_ranges_m.clear();
+                (options.link_ranges_m).extend(
+                    needs
+                        .iter()
+                        .zip(&gaps)
+                        .map(|(&n, &h)| (n as f32 + h).max(0.0)),
+                );
                 engine
                     .query(centres, &Isometry3::identity(), poses, &options)
                     .map(|r| batch(&r, max))

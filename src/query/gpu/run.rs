@@ -178,7 +178,7 @@ impl GpuEngine {
             n_sample: (n as u32).div_ceil(SEED_STRIDE),
             n_winners: winners.len() as u32,
             capacity: GPU_CANDIDATES,
-            per_link_range: options.per_link_range_m,
+            pad3: 0,
             width: width as u32,
             height: height as u32,
             n_blocks: n_blocks as u32,
@@ -459,7 +459,7 @@ fn split_minima(
             let t = threshold(
                 options.mode,
                 options.per_link,
-                options.per_link_range_m,
+                bounds.posed[k].range,
                 global,
                 global_lower,
                 f32::from_bits(d),
