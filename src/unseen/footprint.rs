@@ -54,7 +54,7 @@
 //! docs/unobserved.md); `O(footprint)` reads where the cause is asked.
 //! `shaders/unseen.wgsl` runs the same scan per lattice centre on the GPU.
 
-use super::camera::{cone_row, window, Optics, Rect};
+use super::camera::{cone_row, window, Cone, Optics, Rect};
 use super::pyramid::{Pyramid, Pyramids};
 
 /// What the f32 sums may lose (m): a free distance is taken this much shorter, and the
@@ -187,6 +187,43 @@ impl Ball {
     }
 }
 
+/// A ball the view may see: its centre's distance (and square), its footprint's half angle,
+/// its centre's projection and the pixel nearest it.
+pub struct InView {
+    pub l2: f32,
+    pub l: f32,
+    pub alpha: Cone,
+    pub u: f32,
+    pub v: f32,
+    pub centre: usize,
+}
+
+/// The ball of radius `r` at camera-frame `p` where the view may see it; `None` where it is
+/// outside the view whatever the pixels: behind the camera, nearer than the minimum range or
+/// beyond the maximum, too far for a whole pixel, its centre projecting outside the image.
+#[inline]
+pub fn in_view(o: &Optics, p: [f32; 3], r: f32) -> Option<InView> {
+    let l2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    let l = l2.sqrt();
+    if p[2].is_nan() || p[2] <= r || l - r < o.min_range_m || l - r > o.max_range_m {
+        return None;
+    }
+    let alpha = o.footprint(r, l)?;
+    let (u, v) = o.project(p);
+    let (uc, vc) = ((u + 0.5).floor(), (v + 0.5).floor());
+    if !(uc >= 0.0 && vc >= 0.0 && uc < o.width as f32 && vc < o.height as f32) {
+        return None;
+    }
+    Some(InView {
+        l2,
+        l,
+        alpha,
+        u,
+        v,
+        centre: vc as usize * o.width + uc as usize,
+    })
+}
+
 /// Whether the view (`o`, `px`, with its `pyramids` where given) rules out the ball of radius
 /// `r` at camera-frame `p`, and why not, to the depth `need` asks (see the module doc).
 pub fn judge(
@@ -198,19 +235,17 @@ pub fn judge(
     need: Need,
 ) -> Seen {
     const OUTSIDE: Seen = Seen::Hidden(Why::Known(Cause::OutsideView));
-    let l2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
-    let l = l2.sqrt();
-    if p[2].is_nan() || p[2] <= r || l - r < o.min_range_m || l - r > o.max_range_m {
-        return OUTSIDE;
-    }
-    let Some(alpha) = o.footprint(r, l) else {
+    let Some(InView {
+        l2,
+        l,
+        alpha,
+        u,
+        v,
+        centre,
+    }) = in_view(o, p, r)
+    else {
         return OUTSIDE;
     };
-    let (u, v) = o.project(p);
-    let (uc, vc) = ((u + 0.5).floor(), (v + 0.5).floor());
-    if !(uc >= 0.0 && vc >= 0.0 && uc < o.width as f32 && vc < o.height as f32) {
-        return OUTSIDE;
-    }
     let ball = Ball {
         p,
         r,
@@ -220,7 +255,6 @@ pub fn judge(
         s2_max: r * r,
     };
     // 1. The pixel nearest the centre's projection.
-    let centre = vc as usize * o.width + uc as usize;
     let central = ball.ray(px, centre);
     if central == Ray::Free {
         return Seen::Free;

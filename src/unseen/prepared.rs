@@ -19,7 +19,9 @@
 //! the windows the causes of what was found read (per band of rows, the span of columns they
 //! cover: [`PreparedView::render_robot_for`]), its pyramid rebuilt only over those bands: on the
 //! Kinect frame, the render was half the view's cost, and whole bands for the 256 markers 0.7
-//! ms where their windows take 0.3.
+//! ms where their windows take 0.3; a place outside the view (`footprint::in_view`: behind,
+//! out of range, projecting outside the image), judged without its pixels, asks for none (the
+//! causes 0.48 -> 0.41 ms there, 0.52 -> 0.29 ms on the 2 m cube).
 //!
 //! Cost: one pass over the pixels for the free distances and their 2 × 2 maxima (bands of rows,
 //! each reading the row below it again), the two pyramids built side by side (4/3 of a pass
@@ -32,7 +34,7 @@ use rayon::prelude::*;
 use crate::cloud::depth::PinholeCamera;
 
 use super::camera::{cone_row, window, Cone, Optics, Rect};
-use super::footprint::{Pixels, ROUNDING_M};
+use super::footprint::{in_view, InView, Pixels, ROUNDING_M};
 use super::pyramid::Pyramids;
 use super::robot::{PaddedSphere, Rigid32};
 use super::view::RangeView;
@@ -148,21 +150,18 @@ impl PreparedView {
     }
 
     /// Renders the pixels of the robot's image that the test of a ball of radius `r` at each of
-    /// `centres` (root frame) reads (its window), where not rendered yet, and its pyramid.
+    /// `centres` (root frame) reads (its window; none for a ball outside the view), where not
+    /// rendered yet, and its pyramid.
     pub fn render_robot_for(&mut self, centres: &[[f32; 3]], r: f32) {
         let Some(o) = self.optics else { return };
         let mut wanted: Vec<Columns> = vec![None; self.rendered.len()];
         for c in centres {
             let q = self.camera_from_root * Point3::from(c.map(f64::from));
             let p = [q.x as f32, q.y as f32, q.z as f32];
-            let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-            if p[2].is_nan() || p[2] <= r {
-                continue;
-            }
-            let Some(alpha) = o.footprint(r, l) else {
+            // A ball outside the view is judged without its pixels.
+            let Some(InView { l, alpha, u, v, .. }) = in_view(&o, p, r) else {
                 continue;
             };
-            let (u, v) = o.project(p);
             // Where no window bounds the footprint, `window` gives the whole image.
             if let Some(rect) = window(&o, u, v, p[2] / l, alpha) {
                 let span = Some((rect.u0, rect.u1));
