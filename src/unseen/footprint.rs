@@ -39,8 +39,8 @@
 //! behind a surface is hidden whatever the pixels, with [`ROUNDING_M`] to spare for the f32
 //! sums) and the robot's; then the scan of the window, every pixel tested exactly, which stops at the
 //! first ray that rules the ball out. Where only the verdict is asked (the search, the shadow
-//! counted), the scan goes by **tiles**, the free pyramid's texels about a quarter of the
-//! window's side: a tile whose largest free distance is at most `l − r` is skipped whole, and
+//! counted), the scan goes by **tiles** (`tiles`), the free pyramid's texels about a quarter
+//! of the window's side: a tile whose largest free distance is at most `l − r` is skipped whole, and
 //! one wholly inside the footprint (its corners' rays in the cone: the cone's trace on the
 //! image is convex) whose largest free distance reaches `l` rules the ball out at once (that
 //! pixel passes `l ≥ d·p`); only the other tiles' pixels are tested
@@ -56,6 +56,7 @@
 
 use super::camera::{cone_row, window, Cone, Optics, Rect};
 use super::pyramid::{Pyramid, Pyramids};
+use super::tiles::Tiles;
 
 /// What the f32 sums may lose (m): a free distance is taken this much shorter, and the
 /// shortcuts keep this much to spare, so that they agree with the full scan.
@@ -293,7 +294,7 @@ pub fn judge(
     // 3. The scan: for the verdict alone, by tiles where the pyramids are given and the
     // footprint is known to hold a ray; else pixel by pixel.
     let tiles = pyramids.filter(|_| need == Need::Verdict && central != Ray::Outside);
-    let counts = match tiles.and_then(|pyr| scan_tiles(px, &pyr.free, &ball, rect)) {
+    let counts = match tiles.and_then(|pyr| by_tiles(px, &pyr.free, &ball, rect)) {
         Some(counts) => counts,
         None => scan(o, px, &ball, rect),
     };
@@ -347,84 +348,26 @@ fn hidden(counts: Counts, need: Need) -> Seen {
     Seen::Hidden(why)
 }
 
-/// Tiles per window side, about: the tiles are the texels of the pyramids' level whose side
-/// is at most a quarter of the window's longer side.
-const TILES: usize = 4;
-
-/// Most tiles a window spans (under `2·TILES + 1` a side: 81), one bit each.
-const MOST_TILES: usize = 128;
-
-/// The verdict alone (`Need::Verdict`), by the tiles of the free pyramid: `None` where a ray
-/// rules the ball out, else `Some` (the footprint holds the central pixel's ray, which does
-/// not). `None` from the function itself: the window is too small for tiles.
-///
-/// A tile is **inside** the footprint when its corner pixels' rays are, with room for the f32
-/// sums: the cone's trace on the image plane is convex, so every pixel of it is then. A tile
-/// whose largest free distance is at most the ball's least entry `l − r` holds no ray that
-/// rules the ball out: skipped. One inside whose largest free distance reaches `l`: the pixel
-/// that holds it passes the ball's centre (`g ≥ l ≥ d·p`): free. Each pixel of the other
-/// tiles is tested as [`scan`] tests it.
-fn scan_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<Option<Counts>> {
-    let side = (rect.u1 - rect.u0 + 1).max(rect.v1 - rect.v0 + 1);
-    let k = (usize::BITS - 1).checked_sub((side / TILES).leading_zeros())? as usize;
-    if k == 0 {
-        return None;
-    }
-    let texels = free.level(k)?;
-    let (width, height) = (free.width(), free.height());
-    let (j0, j1) = (rect.v0 >> k, rect.v1 >> k);
-    let (i0, i1) = (rect.u0 >> k, rect.u1 >> k);
-    let across = i1 - i0 + 1;
-    if across * (j1 - j0 + 1) > MOST_TILES {
-        return None;
-    }
-    let entry = ball.l - ball.r - ROUNDING_M;
-    let beyond = ball.l + ROUNDING_M;
+/// The verdict alone by the tiles of the `free` pyramid (`tiles`): `None` where a ray rules
+/// the ball out, else `Some` (the footprint holds the central pixel's ray, which does not);
+/// `None` from the function itself where the window is too small for tiles.
+fn by_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<Option<Counts>> {
     let inner = ball.min_proj + 1e-4 * ball.l;
-    let within = |u: usize, v: usize| {
-        let d = px.rays[v * width + u];
-        d[0] * ball.p[0] + d[1] * ball.p[1] + d[2] * ball.p[2] >= inner
+    let p = ball.p;
+    let tiles = Tiles {
+        free,
+        rect,
+        entry: ball.l - ball.r - ROUNDING_M,
+        beyond: ball.l + ROUNDING_M,
     };
-    let mut each = 0u128;
-    for j in j0..=j1 {
-        for i in i0..=i1 {
-            let (_, most) = texels.at(i, j);
-            if most <= entry {
-                continue;
-            }
-            // The pixels the texel covers.
-            let (u0, v0) = (i << k, j << k);
-            let (u1, v1) = (
-                (u0 + (1 << k)).min(width) - 1,
-                (v0 + (1 << k)).min(height) - 1,
-            );
-            let inside = within(u0, v0) && within(u1, v0) && within(u0, v1) && within(u1, v1);
-            if most >= beyond && inside {
-                return Some(None);
-            }
-            each |= 1 << ((j - j0) * across + (i - i0));
-        }
-    }
-    while each != 0 {
-        let t = each.trailing_zeros() as usize;
-        each &= each - 1;
-        let (i, j) = (i0 + t % across, j0 + t / across);
-        // The tile's pixels in the window.
-        let (u0, v0) = ((i << k).max(rect.u0), (j << k).max(rect.v0));
-        let (u1, v1) = (
-            (((i + 1) << k) - 1).min(rect.u1),
-            (((j + 1) << k) - 1).min(rect.v1),
-        );
-        for v in v0..=v1 {
-            let row = v * width;
-            for u in u0..=u1 {
-                if ball.ray(px, row + u) == Ray::Free {
-                    return Some(None);
-                }
-            }
-        }
-    }
-    Some(Some(Counts {
+    let ruled_out = tiles.rule_out(
+        |q| {
+            let d = px.rays[q];
+            d[0] * p[0] + d[1] * p[1] + d[2] * p[2] >= inner
+        },
+        |q| ball.ray(px, q) == Ray::Free,
+    )?;
+    Some((!ruled_out).then_some(Counts {
         returned: 1,
         ..Counts::default()
     }))

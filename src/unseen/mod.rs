@@ -58,7 +58,7 @@
 //! pixels at a surface; measured by `ist_monitor bench monitor` (docs/unobserved.md).
 //!
 //! Files: `error`, `lattice`, `ball`, `view` and `fit`, `camera`, `prepared` and `pyramid`,
-//! `robot`, `footprint`, `cell`, `search`.
+//! `robot`, `footprint` and `tiles`, `cell`, `search`.
 
 mod ball;
 mod camera;
@@ -71,6 +71,7 @@ mod prepared;
 mod pyramid;
 mod robot;
 mod search;
+mod tiles;
 mod view;
 
 pub use ball::{BallSize, DEFAULT_DETECTION_CAPABILITY_M};
