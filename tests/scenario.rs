@@ -9,9 +9,68 @@ mod scenes;
 
 use ist_monitor::cloud;
 use ist_monitor::ist::{build_robot, cache::TreeCache, BuildOptions};
-use ist_monitor::query::{Backend, Engine, LinkSelection, Mode, Outcome, QueryOptions};
+use ist_monitor::query::layout::Minima;
+use ist_monitor::query::{
+    Backend, Engine, LinkSelection, Mode, Outcome, QueryOptions, QueryResult,
+};
 use ist_monitor::robot::RobotModel;
+use nalgebra::Isometry3;
 use scenes::{kinect_poses, kinect_root_from_sensor};
+
+/// The Panda's engine (a small sphere budget), the bag's first Kinect cloud, the camera's pose
+/// and the link poses of SCENARIO.md's named joint values.
+struct Kinect {
+    model: RobotModel,
+    engine: Engine,
+    points: Vec<[f32; 3]>,
+    sensor: Isometry3<f64>,
+}
+
+impl Kinect {
+    fn load(shared: &std::path::Path) -> Self {
+        let model = RobotModel::load(
+            &shared.join("robots/panda/robot.urdf"),
+            &[],
+            &Default::default(),
+        )
+        .unwrap();
+        let cache_dir = tempfile::tempdir().unwrap();
+        let mut options = BuildOptions::default();
+        options.packing.max_spheres = 1024;
+        let trees: Vec<_> = build_robot(
+            &model,
+            &options,
+            Some(&TreeCache::new(cache_dir.path().to_owned())),
+            &|_| {},
+        )
+        .unwrap()
+        .into_iter()
+        .map(|(t, _)| t)
+        .collect();
+        let engine = Engine::new(&model, &trees, &LinkSelection::default()).unwrap();
+        let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
+        let points = cloud::load(&bag, 0).unwrap().points;
+        Self {
+            model,
+            engine,
+            points,
+            sensor: kinect_root_from_sensor(),
+        }
+    }
+
+    /// The link poses of SCENARIO.md's pose `name`.
+    fn pose(&self, name: &str) -> Vec<Isometry3<f64>> {
+        let k = &self.model.kinematics;
+        let (_, joints) = kinect_poses().into_iter().find(|(n, _)| n == name).unwrap();
+        k.link_poses(&k.values_from_names(&joints, Some(0.0)).unwrap())
+    }
+
+    fn query(&mut self, poses: &[Isometry3<f64>], options: &QueryOptions) -> QueryResult {
+        (self.engine)
+            .query(&self.points, &self.sensor, poses, options)
+            .unwrap()
+    }
+}
 
 /// Exact mode within 1 mm of the reference distances, on the reference links and points; the
 /// certified per-link intervals hold the reference per-link minima. Exact mode does not depend
@@ -21,34 +80,7 @@ fn kinect_panda_reference_distances() {
     let Some(shared) = common::shared() else {
         return;
     };
-    let model = RobotModel::load(
-        &shared.join("robots/panda/robot.urdf"),
-        &[],
-        &Default::default(),
-    )
-    .unwrap();
-    let cache_dir = tempfile::tempdir().unwrap();
-    let mut options = BuildOptions::default();
-    options.packing.max_spheres = 1024;
-    let trees: Vec<_> = build_robot(
-        &model,
-        &options,
-        Some(&TreeCache::new(cache_dir.path().to_owned())),
-        &|_| {},
-    )
-    .unwrap()
-    .into_iter()
-    .map(|(t, _)| t)
-    .collect();
-    let mut engine = Engine::new(&model, &trees, &LinkSelection::default()).unwrap();
-    let bag = shared.join("bags/moveit_perception_tutorial/perception_tutorial_mcap");
-    let points = cloud::load(&bag, 0).unwrap().points;
-    let sensor = kinect_root_from_sensor();
-    let k = &model.kinematics;
-    let pose = |name: &str| {
-        let (_, joints) = kinect_poses().into_iter().find(|(n, _)| n == name).unwrap();
-        k.link_poses(&k.values_from_names(&joints, Some(0.0)).unwrap())
-    };
+    let mut kinect = Kinect::load(&shared);
     let exact = QueryOptions {
         mode: Mode::Exact,
         ..QueryOptions::default()
@@ -59,9 +91,26 @@ fn kinect_panda_reference_distances() {
         per_link_range_m: f32::INFINITY,
         ..QueryOptions::default()
     };
+    let ready = kinect.pose("ready");
+    let nearest = ready_nearest_is_the_reference(&mut kinect, &ready, &exact);
+    ready_per_link_minima_in_their_intervals(&mut kinect, &ready, &certified, &nearest);
+    let reach = kinect.pose("reach_table");
+    let global = reach_table_nearest_is_the_reference(&mut kinect, &reach, &exact);
+    // The GPU backend on the real scene (lavapipe in CI).
+    if !common::has_gpu(&mut kinect.engine) {
+        return;
+    }
+    let cases = [(&ready, &certified), (&reach, &exact), (&reach, &global)];
+    gpu_agrees_on_the_real_scene(&mut kinect, &cases);
+}
 
-    let ready = pose("ready");
-    let r = engine.query(&points, &sensor, &ready, &exact).unwrap();
+/// `ready`, exact: the nearest point is SCENARIO.md's on panda_link0; its link's name.
+fn ready_nearest_is_the_reference(
+    kinect: &mut Kinect,
+    ready: &[Isometry3<f64>],
+    exact: &QueryOptions,
+) -> String {
+    let r = kinect.query(ready, exact);
     let n = r.nearest.as_ref().unwrap();
     assert_eq!(r.outcome, Outcome::Nearest);
     assert_eq!(n.link, "panda_link0");
@@ -79,10 +128,20 @@ fn kinect_panda_reference_distances() {
     assert_eq!(r.counts.total, 307_200);
     assert_eq!(r.counts.invalid, 73_899);
     assert_eq!(r.counts.inside, 0);
+    n.link.clone()
+}
 
-    // SCENARIO.md's per-link minima for `ready` lie in the certified intervals (1 mm for the
-    // reference's own rounding and tessellation).
-    let c = engine.query(&points, &sensor, &ready, &certified).unwrap();
+/// SCENARIO.md's per-link minima for `ready` lie in the certified intervals (1 mm for the
+/// reference's own rounding and tessellation); with the default range, a link farther than it
+/// is bounded from below, correctly.
+fn ready_per_link_minima_in_their_intervals(
+    kinect: &mut Kinect,
+    ready: &[Isometry3<f64>],
+    certified: &QueryOptions,
+    nearest: &str,
+) {
+    let c = kinect.query(ready, certified);
+    let d = kinect.query(ready, &QueryOptions::default());
     for (link, reference) in [
         ("panda_link0", 0.0979),
         ("panda_link1", 0.1428),
@@ -100,10 +159,6 @@ fn kinect_panda_reference_distances() {
             lo - 1e-3 <= reference && reference <= hi + 1e-3,
             "{link}: [{lo}, {hi}] does not hold {reference}"
         );
-        // With the default range, a link farther than it is bounded from below, correctly.
-        let d = engine
-            .query(&points, &sensor, &ready, &QueryOptions::default())
-            .unwrap();
         let l = d.links.iter().find(|l| l.link == link).unwrap();
         let lower = l.lower_m.unwrap();
         assert!(
@@ -111,14 +166,21 @@ fn kinect_panda_reference_distances() {
             "{link}: lower {lower} above {reference}"
         );
         match (l.distance_m, l.farther_than_m) {
-            (Some(_), None) => assert!(reference <= 0.32 + 1e-3 || link == n.link),
+            (Some(_), None) => assert!(reference <= 0.32 + 1e-3 || link == nearest),
             (None, Some(t)) => assert!(t <= hi + 1e-6 && reference > 0.32 - 1e-3, "{link}: > {t}"),
             other => panic!("{link}: {other:?}"),
         }
     }
+}
 
-    let reach = pose("reach_table");
-    let r = engine.query(&points, &sensor, &reach, &exact).unwrap();
+/// `reach_table`, exact: the nearest point is SCENARIO.md's on the left finger, and the
+/// global-only query (one shared bound) gives the same exact answer; its options.
+fn reach_table_nearest_is_the_reference(
+    kinect: &mut Kinect,
+    reach: &[Isometry3<f64>],
+    exact: &QueryOptions,
+) -> QueryOptions {
+    let r = kinect.query(reach, exact);
     let n = r.nearest.as_ref().unwrap();
     assert_eq!(n.link, "panda_leftfinger");
     assert!(
@@ -132,25 +194,26 @@ fn kinect_panda_reference_distances() {
         "{:?}",
         n.point_root
     );
-    // The global-only query (one shared bound) gives the same exact answer.
     let global = QueryOptions {
         per_link: false,
         ..exact.clone()
     };
-    let g = engine.query(&points, &sensor, &reach, &global).unwrap();
+    let g = kinect.query(reach, &global);
     assert_eq!(g.nearest.as_ref().unwrap().distance_m, n.distance_m);
+    global
+}
 
-    // The GPU backend on the real scene (lavapipe in CI): the same distances within 1e-5 m
-    // (rounding of the square root only), per link too, and the same stage counts before
-    // pruning; as runs and as the organized image (tiles), with the minima in 64-bit atomics
-    // (where the adapter has them) and in the portable path. Its pruning is the CPU's: the same
-    // blocks culled within 2×, and with 64-bit atomics no more than 2.5× the CPU's nodes
-    // expanded (measured 0.9–1.95× here, every link measured to any range; 1.0–2.15× with
-    // packets, which expand a node for all eight points of a packet; the portable path's
-    // arg-min pass descends again, about 1.6× more).
-    if !common::has_gpu(&mut engine) {
-        return;
-    }
+/// The GPU backend on the real scene: the same distances within 1e-5 m (rounding of the square
+/// root only), per link too, and the same stage counts before pruning; as runs and as the
+/// organized image (tiles), with the minima in 64-bit atomics (where the adapter has them) and
+/// in the portable path. Its pruning is the CPU's: the same blocks culled within 2×, and with
+/// 64-bit atomics no more than 2.5× the CPU's nodes expanded (measured 0.9–1.95× here, every
+/// link measured to any range; 1.0–2.15× with packets, which expand a node for all eight points
+/// of a packet; the portable path's arg-min pass descends again, about 1.6× more).
+fn gpu_agrees_on_the_real_scene(
+    kinect: &mut Kinect,
+    cases: &[(&Vec<Isometry3<f64>>, &QueryOptions)],
+) {
     // Both fast paths, then the portable one (neither 64-bit atomics nor subgroups), each point
     // descending on its own; then the fast paths with the sub-blocks' points in packets.
     for (int64_atomics, subgroups, packets) in [
@@ -158,72 +221,87 @@ fn kinect_panda_reference_distances() {
         (false, false, false),
         (true, true, true),
     ] {
-        use ist_monitor::query::layout::Minima;
-        let gpu = engine
+        let gpu = (kinect.engine)
             .gpu_with(ist_monitor::query::gpu::GpuOptions {
                 int64_atomics,
                 subgroups,
                 packets,
             })
             .unwrap();
-        let (minima, reduce) = (gpu.minima, gpu.reduce);
-        for (joints, options) in [(&ready, &certified), (&reach, &exact), (&reach, &global)] {
+        let path = format!("{:?} {:?} packets {packets}", gpu.minima, gpu.reduce);
+        let packed = gpu.minima == Minima::Packed64;
+        for &(joints, options) in cases {
             for width in [None, Some(640)] {
-                let on = |backend| QueryOptions {
-                    backend,
-                    ..options.clone()
-                };
-                let c = engine
-                    .query_image(&points, width, &sensor, joints, &on(Backend::Cpu))
-                    .unwrap();
-                let cw = engine.last_work();
-                let g = engine
-                    .query_image(&points, width, &sensor, joints, &on(Backend::Gpu))
-                    .unwrap();
-                let gw = engine.last_work();
-                let what = format!(
-                    "{:?} width {width:?} {minima:?} {reduce:?} packets {packets}",
-                    options.mode
-                );
-                assert_eq!(g.backend, Backend::Gpu);
-                let (cn, gn) = (c.nearest.unwrap(), g.nearest.unwrap());
-                assert!(
-                    (cn.distance_m - gn.distance_m).abs() < 1e-5,
-                    "{what}: {cn:?} {gn:?}"
-                );
-                assert_eq!(cn.link, gn.link, "{what}");
-                for (a, b) in c.links.iter().zip(&g.links) {
-                    let close = |x: Option<f64>, y: Option<f64>| match (x, y) {
-                        (Some(x), Some(y)) => (x - y).abs() < 1e-5,
-                        (x, y) => x == y,
-                    };
-                    assert!(close(a.distance_m, b.distance_m), "{what}: {a:?} {b:?}");
-                }
-                assert_eq!(
-                    (
-                        c.counts.invalid,
-                        c.counts.outside_roi,
-                        c.counts.self_filtered
-                    ),
-                    (
-                        g.counts.invalid,
-                        g.counts.outside_roi,
-                        g.counts.self_filtered
-                    ),
-                    "{what}"
-                );
-                eprintln!("{what}: CPU {cw:?}\n{what}: GPU {gw:?}");
-                assert_eq!(cw.blocks, gw.blocks, "{what}");
-                let within_2x = |a: u64, b: u64| a <= 2 * b && b <= 2 * a;
-                assert!(
-                    within_2x(cw.blocks_culled, gw.blocks_culled),
-                    "{what}: {cw:?} {gw:?}"
-                );
-                if minima == Minima::Packed64 {
-                    assert!(2 * gw.nodes <= 5 * cw.nodes, "{what}: {cw:?} {gw:?}");
-                }
+                let what = format!("{:?} width {width:?} {path}", options.mode);
+                gpu_agrees_with_cpu_on(kinect, joints, options, width, packed, &what);
             }
         }
+    }
+}
+
+/// One query of [`gpu_agrees_on_the_real_scene`] on both backends.
+fn gpu_agrees_with_cpu_on(
+    kinect: &mut Kinect,
+    joints: &[Isometry3<f64>],
+    options: &QueryOptions,
+    width: Option<usize>,
+    packed: bool,
+    what: &str,
+) {
+    let on = |backend| QueryOptions {
+        backend,
+        ..options.clone()
+    };
+    let Kinect {
+        engine,
+        points,
+        sensor,
+        ..
+    } = kinect;
+    let c = engine
+        .query_image(points, width, sensor, joints, &on(Backend::Cpu))
+        .unwrap();
+    let cw = engine.last_work();
+    let g = engine
+        .query_image(points, width, sensor, joints, &on(Backend::Gpu))
+        .unwrap();
+    let gw = engine.last_work();
+    assert_eq!(g.backend, Backend::Gpu);
+    let (cn, gn) = (c.nearest.unwrap(), g.nearest.unwrap());
+    assert!(
+        (cn.distance_m - gn.distance_m).abs() < 1e-5,
+        "{what}: {cn:?} {gn:?}"
+    );
+    assert_eq!(cn.link, gn.link, "{what}");
+    for (a, b) in c.links.iter().zip(&g.links) {
+        let close = |x: Option<f64>, y: Option<f64>| match (x, y) {
+            (Some(x), Some(y)) => (x - y).abs() < 1e-5,
+            (x, y) => x == y,
+        };
+        assert!(close(a.distance_m, b.distance_m), "{what}: {a:?} {b:?}");
+    }
+    assert_eq!(
+        (
+            c.counts.invalid,
+            c.counts.outside_roi,
+            c.counts.self_filtered
+        ),
+        (
+            g.counts.invalid,
+            g.counts.outside_roi,
+            g.counts.self_filtered
+        ),
+        "{what}"
+    );
+    eprintln!("{what}: CPU {cw:?}\n{what}: GPU {gw:?}");
+    assert_eq!(cw.blocks, gw.blocks, "{what}");
+    let within_2x = |a: u64, b: u64| a <= 2 * b && b <= 2 * a;
+    assert!(
+        within_2x(cw.blocks_culled, gw.blocks_culled),
+        "{what}: {cw:?} {gw:?}"
+    );
+    if packed {
+        assert!(2 * gw.nodes <= 5 * cw.nodes, "{what}: {cw:?} {gw:?}");
     }
 }
 

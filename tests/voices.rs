@@ -237,12 +237,16 @@ fn two_camera_info_writers_are_a_fault_of_the_depth_source() {
             .collect::<Vec<u8>>()
             .into(),
     };
+    // The camera's pose, the joints and the camera's own CameraInfo at `t`.
+    let inputs = |m: &mut Monitor, t: i64| {
+        camera_pose(m, t, 0.0, CAMERA);
+        joints(m, &names, t, 0.0, CAMERA);
+        m.on_camera_info_from(0, &info(t, f), CAMERA).unwrap();
+    };
     let mut kinds = Vec::new();
     for k in 0..4 {
         let t = T0 + k * 100 * MS;
-        camera_pose(&mut m, t, 0.0, CAMERA);
-        joints(&mut m, &names, t, 0.0, CAMERA);
-        m.on_camera_info_from(0, &info(t, f), CAMERA).unwrap();
+        inputs(&mut m, t);
         if k >= 2 {
             m.on_camera_info_from(0, &info(t, 3.0 * f), INTRUDER)
                 .unwrap();
@@ -265,9 +269,7 @@ fn two_camera_info_writers_are_a_fault_of_the_depth_source() {
     let mut kinds = Vec::new();
     for k in 4..20 {
         let t = T0 + k * 100 * MS;
-        camera_pose(&mut m, t, 0.0, CAMERA);
-        joints(&mut m, &names, t, 0.0, CAMERA);
-        m.on_camera_info_from(0, &info(t, f), CAMERA).unwrap();
+        inputs(&mut m, t);
         let matched = if k < 16 {
             both.clone()
         } else {

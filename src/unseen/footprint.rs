@@ -294,11 +294,15 @@ pub fn judge(
     // 3. The scan: for the verdict alone, by tiles where the pyramids are given and the
     // footprint is known to hold a ray; else pixel by pixel.
     let tiles = pyramids.filter(|_| need == Need::Verdict && central != Ray::Outside);
-    let counts = match tiles.and_then(|pyr| by_tiles(px, &pyr.free, &ball, rect)) {
-        Some(counts) => counts,
-        None => scan(o, px, &ball, rect),
-    };
-    match counts {
+    if let Some(ruled_out) = tiles.and_then(|pyr| by_tiles(px, &pyr.free, &ball, rect)) {
+        // The footprint holds the central pixel's ray, which does not rule the ball out.
+        return if ruled_out {
+            Seen::Free
+        } else {
+            Seen::Hidden(Why::Unknown)
+        };
+    }
+    match scan(o, px, &ball, rect) {
         Some(counts) => hidden(counts, need),
         None => Seen::Free,
     }
@@ -314,11 +318,11 @@ struct Counts {
 }
 
 impl Counts {
-    fn add(&mut self, ray: Ray, n: u32) {
+    fn add(&mut self, ray: Ray) {
         match ray {
-            Ray::Robot => self.robot += n,
-            Ray::Returned => self.returned += n,
-            Ray::Dark => self.dark += n,
+            Ray::Robot => self.robot += 1,
+            Ray::Returned => self.returned += 1,
+            Ray::Dark => self.dark += 1,
             Ray::Outside | Ray::Free => {}
         }
     }
@@ -348,10 +352,9 @@ fn hidden(counts: Counts, need: Need) -> Seen {
     Seen::Hidden(why)
 }
 
-/// The verdict alone by the tiles of the `free` pyramid (`tiles`): `None` where a ray rules
-/// the ball out, else `Some` (the footprint holds the central pixel's ray, which does not);
-/// `None` from the function itself where the window is too small for tiles.
-fn by_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<Option<Counts>> {
+/// Whether a ray rules the ball out, by the tiles of the `free` pyramid (`tiles`); `None`
+/// where the window is too small for tiles.
+fn by_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<bool> {
     let inner = ball.min_proj + 1e-4 * ball.l;
     let p = ball.p;
     let tiles = Tiles {
@@ -360,17 +363,13 @@ fn by_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<Opti
         entry: ball.l - ball.r - ROUNDING_M,
         beyond: ball.l + ROUNDING_M,
     };
-    let ruled_out = tiles.rule_out(
+    tiles.rule_out(
         |q| {
             let d = px.rays[q];
             d[0] * p[0] + d[1] * p[1] + d[2] * p[2] >= inner
         },
         |q| ball.ray(px, q) == Ray::Free,
-    )?;
-    Some((!ruled_out).then_some(Counts {
-        returned: 1,
-        ..Counts::default()
-    }))
+    )
 }
 
 /// Every pixel of `rect` tested against `ball` (see [`judge`]): `None` at the first ray that
@@ -401,7 +400,7 @@ fn scan(o: &Optics, px: &Pixels, ball: &Ball, rect: Rect) -> Option<Counts> {
         for u in u0..=u1 {
             match ball.ray(px, row + u) {
                 Ray::Free => return None,
-                ray => counts.add(ray, 1),
+                ray => counts.add(ray),
             }
         }
     }

@@ -26,23 +26,6 @@ pub struct Pyramids {
     pub robot: Pyramid,
 }
 
-/// One level's extremes as a reader takes them, row-major, `width` texels a row.
-#[derive(Debug, Clone, Copy)]
-pub struct Texels<'a> {
-    pub min: &'a [f32],
-    pub max: &'a [f32],
-    pub width: usize,
-}
-
-impl Texels<'_> {
-    /// The extremes of texel `(i, j)`.
-    #[inline]
-    pub fn at(&self, i: usize, j: usize) -> (f32, f32) {
-        let t = j * self.width + i;
-        (self.min[t], self.max[t])
-    }
-}
-
 /// One level above the image: `width × height` texels.
 #[derive(Debug, Clone, Default)]
 struct Level {
@@ -142,22 +125,14 @@ impl Pyramid {
         }
     }
 
-    /// Level `k` (`k = 0`: the image): its minima and maxima and its width in texels; `None`
+    /// Level `k`'s maxima (`k = 0`: the image), row-major, and its width in texels; `None`
     /// above the top.
-    pub fn level(&self, k: usize) -> Option<Texels<'_>> {
+    pub fn maxima(&self, k: usize) -> Option<(&[f32], usize)> {
         match k {
-            0 => Some(Texels {
-                min: &self.base,
-                max: &self.base,
-                width: self.width,
-            }),
+            0 => Some((&self.base, self.width)),
             k => {
                 let level = self.levels.get(k - 1)?;
-                Some(Texels {
-                    min: &level.min,
-                    max: &level.max,
-                    width: level.width,
-                })
+                Some((&level.max, level.width))
             }
         }
     }

@@ -53,7 +53,7 @@ impl Tiles<'_> {
         if k == 0 {
             return None;
         }
-        let texels = self.free.level(k)?;
+        let (maxima, across_level) = self.free.maxima(k)?;
         let (width, height) = (self.free.width(), self.free.height());
         let (j0, j1) = (rect.v0 >> k, rect.v1 >> k);
         let (i0, i1) = (rect.u0 >> k, rect.u1 >> k);
@@ -64,7 +64,7 @@ impl Tiles<'_> {
         let mut each = 0u128;
         for j in j0..=j1 {
             for i in i0..=i1 {
-                let (_, most) = texels.at(i, j);
+                let most = maxima[j * across_level + i];
                 if most <= self.entry {
                     continue;
                 }

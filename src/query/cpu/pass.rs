@@ -86,8 +86,8 @@ pub(super) struct Pass<'a> {
     pub(super) tiling: Tiling,
     pub(super) mode: Mode,
     pub(super) per_link: bool,
-    /// `QueryOptions::per_link_range_m`, at least every link's own range (`PosedLink::range`,
-    /// which `threshold` reads): the bound of the tests that look at every link at once.
+    /// The largest of the links' ranges (`PosedLink::range`, which `threshold` reads): the
+    /// bound of the tests that look at every link at once.
     pub(super) per_link_range: f32,
     /// The largest surface gap of the links.
     pub(super) max_gap: f32,

@@ -46,7 +46,7 @@ pub(in crate::query) fn run(
         points,
         mode: options.mode,
         per_link: options.per_link,
-        per_link_range: options.per_link_range_m,
+        per_link_range: bounds.posed.iter().map(|p| p.range).fold(0.0, f32::max),
         max_gap: bounds.posed.iter().map(|p| p.gap).fold(0.0, f32::max),
         padding: options.self_filter_padding_m.unwrap_or(f32::NEG_INFINITY),
         grids,
