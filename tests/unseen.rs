@@ -18,8 +18,8 @@ use ist_monitor::cloud::depth::PinholeCamera;
 use ist_monitor::ist::{InnerSphere, IstNode};
 use ist_monitor::query::QueryLink;
 use ist_monitor::unseen::{
-    judge_cell, padded_spheres, BallSize, Batch, CellSeen, Lattice, Need, PlacedView, PreparedView,
-    RangeView, RobotBody, RobotImage, Search, DEFAULT_DETECTION_CAPABILITY_M,
+    judge_cell, padded_spheres, BallSize, Batch, CellSeen, Lattice, Measure, Need, PlacedView,
+    PreparedView, RangeView, RobotBody, RobotImage, Search, DEFAULT_DETECTION_CAPABILITY_M,
     DEFAULT_RANGE_NOISE_M, DEFAULT_RESOLUTION_M,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -446,6 +446,16 @@ proptest! {
         prop_assert_eq!(&whole.near, &lazy.near);
         let per_link = size.distance(found.per_link[0]);
         prop_assert!(per_link <= truth && per_link >= unseen - 1e-12, "per link {per_link}");
+        // The monitor's best-first measure gives what the brute-force batch gives.
+        let best_first = searching(&lattice, &robot, &views, &size, false, &mut |s| {
+            let m = Measure::new(&robot.link, &[Isometry3::identity()], s.robot.bounds(),
+                f64::INFINITY, size.margin_m);
+            s.run::<()>(|c, need, needs| Ok(m.batch(c, need, needs))).unwrap()
+        });
+        let d = best_first.lower_m.map(|l| size.distance(l)).unwrap_or(f64::NAN);
+        prop_assert!((d - unseen).abs() < 1e-5, "best first {d}, brute force {unseen}");
+        let d = size.distance(best_first.per_link[0]);
+        prop_assert!((d - per_link).abs() < 1e-5, "per link: best first {d}, brute force {per_link}");
         if !robot_hides_ball {
             // With the robot's shadow apart.
             let found = search(&lattice, &robot, &views, &size, true);

@@ -12,7 +12,8 @@
 //! - an organized cloud's view keeps its source's minimum range;
 //! - the pass's time is in the frame's processing and the speed factor's reaction time, and a
 //!   frame later than the latency budget is a fault under `protect`;
-//! - between the thresholds, the speed factor holds each link to its unseen distance.
+//! - between the thresholds, the speed factor holds each link to its unseen distance;
+//! - the hidden places measured best first (certified) agree with the engine's exact query.
 
 mod common;
 
@@ -518,4 +519,46 @@ fn protect_releases_only_on_the_frames_own_pass() {
     let (first, _) = f.first.as_ref().expect("the seen outputs went first");
     assert_eq!(first.level, Level::Error, "a body seen near stops at once");
     assert!(first.safety_stop.data && f.outputs.safety_stop.data);
+}
+
+/// The hidden places' distances in certified mode (the pass measures them best first,
+/// `unseen::Measure`) and in exact mode (the engine's query, refined on the meshes): per link,
+/// the exact distance is at least the certified lower bound and within the link's h above it
+/// (the pass's one rule either way; a dark ball 15 cm from the arm, the robot's shadow counted).
+#[test]
+fn the_best_first_measure_and_the_engine_agree_per_link() {
+    let camera = front();
+    let (model, trees) = common::demo_trees();
+    let mut scene = Scene::arm(&model);
+    scene.balls.push(([0.25, 0.0, 0.45], 0.05, true));
+    let points = scene.render(&camera);
+    let per_link = |mode: &str| {
+        let (mut m, _) = monitor(
+            &camera,
+            &[
+                ("unobserved", "report"),
+                ("mode", mode),
+                ("per_link_range", "0.5"),
+            ],
+        );
+        frame(&mut m, &camera, &points);
+        let facts = m.unseen().unwrap().outcome.as_ref().unwrap().clone();
+        facts.per_link
+    };
+    let (certified, exact) = (per_link("certified"), per_link("exact"));
+    assert_eq!(certified.len(), exact.len());
+    let mut measured = 0;
+    for ((name, c), (other, e)) in certified.iter().zip(&exact) {
+        assert_eq!(name, other);
+        let h = (trees.iter().find(|t| &t.link == name)).map_or(0.0, |t| t.quality.gap_m);
+        assert!(e + 1e-5 >= *c, "{name}: exact {e} below certified {c}");
+        if c.is_finite() {
+            measured += 1;
+            assert!(
+                *e <= c + h + 1e-4,
+                "{name}: exact {e} above certified {c} + h {h}"
+            );
+        }
+    }
+    assert!(measured >= 3, "{certified:?}");
 }

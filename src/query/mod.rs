@@ -89,7 +89,7 @@ mod result;
 mod self_grid;
 mod work;
 
-pub use descent::valid as is_valid_point;
+pub use descent::{nearest_sphere, valid as is_valid_point};
 pub use engine::Engine;
 pub use error::QueryError;
 pub use layout::MAX_LINKS;

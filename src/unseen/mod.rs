@@ -32,7 +32,8 @@
 //! 3. the search (`search`): blocks of centres in the order of their bound from the robot
 //!    (`robot`), only those that can be nearer than the best distance found, a block that one
 //!    view sees wholly free skipped; the caller's certified distance over the hidden centres,
-//!    wave by wave;
+//!    wave by wave ([`Measure`]: the pairs of centre and link best first, a link's tree
+//!    descended only where its cheaper bounds say it may matter);
 //! 4. the causes of the nearest hidden place and of those kept for markers
 //!    ([`Search::name_causes`]);
 //! 5. [`BallSize::distance`]: that distance less `R + d/2` (the hidden ball's nearest point is
@@ -58,7 +59,7 @@
 //! pixels at a surface; measured by `ist_monitor bench monitor` (docs/unobserved.md).
 //!
 //! Files: `error`, `lattice`, `ball`, `view` and `fit`, `camera`, `prepared` and `pyramid`,
-//! `robot`, `footprint` and `tiles`, `cell`, `search`.
+//! `robot`, `footprint` and `tiles`, `cell`, `search`, `measure`.
 
 mod ball;
 mod camera;
@@ -67,6 +68,7 @@ mod error;
 mod fit;
 mod footprint;
 mod lattice;
+mod measure;
 mod prepared;
 mod pyramid;
 mod robot;
@@ -81,8 +83,9 @@ pub use error::UnseenError;
 pub use fit::{fit_pinhole, MAX_RESIDUAL_PX, MIN_FIT_POINTS};
 pub use footprint::{judge, Cause, Need, Pixels, Seen, Why, ROUNDING_M};
 pub use lattice::{centre_at, Lattice, DEFAULT_RESOLUTION_M, MAX_CELLS};
+pub use measure::{Batch, Measure};
 pub use prepared::{unit_rays, PreparedView, RobotImage};
 pub use pyramid::{Pyramid, Pyramids};
 pub use robot::{link_bounds, padded_spheres, place, LinkBound, PaddedSphere, RobotBody};
-pub use search::{fused_cause, Batch, Counts, Found, Search, Spot, BLOCK};
+pub use search::{fused_cause, Counts, Found, Search, Spot, BLOCK};
 pub use view::{RangeView, DEFAULT_RANGE_NOISE_M};

@@ -66,6 +66,24 @@ impl LinkBound {
             .fold(f32::INFINITY, f32::min)
             - self.gap_m
     }
+
+    /// Whether [`LinkBound::lower_bound_below`]`(p, limit)` is below `limit`: some cover (or,
+    /// without covers, the bounding sphere) comes within `limit` of `p`, tested on squared
+    /// distances (no square root), the bounding sphere first.
+    #[inline]
+    pub fn may_be_within(&self, p: [f32; 3], limit: f32) -> bool {
+        let within = |c: [f32; 3], r: f32| {
+            let reach = limit + r + self.gap_m;
+            reach > 0.0 && distance2(p, c) < reach * reach
+        };
+        within(self.centre, self.radius)
+            && (self.covers.is_empty() || self.covers.iter().any(|&(c, r)| within(c, r)))
+    }
+}
+
+#[inline]
+fn distance2(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
 }
 
 #[inline]

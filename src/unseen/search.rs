@@ -38,7 +38,9 @@
 //! Cost: per block examined a projection of its corners and a few pyramid reads per view; per
 //! centre judged one read for free space, a footprint's pixels at a surface or a shadow's rim;
 //! per wave one distance query over the hidden centres that can lower a best still open, each
-//! link measured only below its own best still open (a link whose best is final, not at all).
+//! link measured only below its own best still open (a link whose best is final, not at all;
+//! the monitor's: `measure`). A centre's test against the bests is squared (no square root),
+//! its bound for the markers' order taken only where it is hidden.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -51,6 +53,7 @@ use super::camera::{half_window, Rect};
 use super::cell::{judge_cell, CellSeen, PlacedView};
 use super::footprint::{judge, Cause, Need, Seen, Why, PAIR, ROUNDING_M};
 use super::lattice::{centre_at, Lattice};
+use super::measure::Batch;
 use super::prepared::PreparedView;
 use super::robot::{LinkBound, RobotBody};
 
@@ -78,18 +81,6 @@ pub struct Search<'a> {
     pub per_link_range_m: Option<f64>,
     /// Most centres kept for the markers.
     pub markers: usize,
-}
-
-/// The caller's certified distance over a batch of root-frame points.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Batch {
-    /// The least certified lower bound (m), `None` when none lies within the query's reach.
-    pub lower_m: Option<f64>,
-    /// The batch index of the point it was found at.
-    pub nearest: Option<usize>,
-    /// Per link (the engine's order), the least lower bound over the batch (m; a bound it
-    /// exceeds where the query measured it no farther). Empty without per-link minima.
-    pub per_link: Vec<f64>,
 }
 
 /// One hidden centre and why.
@@ -193,19 +184,26 @@ impl Needs {
             || (self.links.iter().enumerate()).any(|(l, &n)| f64::from(link_bound(l)) < n)
     }
 
-    /// The bound of root-frame point `p` from the robot (the links' covers where they may
-    /// matter), where it may lower a best still open; `None` where it cannot.
-    fn nearer(&self, links: &[LinkBound], p: [f32; 3]) -> Option<f32> {
+    /// Whether root-frame point `p` may lower a best still open (the links' bounding spheres,
+    /// then their covers, squared: no square root; a final link not looked at).
+    fn wants_point(&self, links: &[LinkBound], p: [f32; 3]) -> bool {
         let any = self.counted.max(self.shadow);
-        let mut near = f32::INFINITY;
-        let mut wanted = false;
-        for (l, link) in links.iter().enumerate() {
+        (links.iter().enumerate()).any(|(l, link)| {
             let need = self.links.get(l).map_or(any, |&n| n.max(any));
-            let b = link.lower_bound_below(p, need as f32);
-            near = near.min(b);
-            wanted |= self.links.get(l).is_some_and(|&n| f64::from(b) < n);
-        }
-        (wanted || f64::from(near) < any).then_some(near)
+            need > f64::NEG_INFINITY && link.may_be_within(p, need as f32)
+        })
+    }
+
+    /// The bound of root-frame point `p` from the robot (the links' covers where they may
+    /// matter): the markers' order.
+    fn near(&self, links: &[LinkBound], p: [f32; 3]) -> f32 {
+        let any = self.counted.max(self.shadow);
+        (links.iter().enumerate())
+            .map(|(l, link)| {
+                let need = self.links.get(l).map_or(any, |&n| n.max(any));
+                link.lower_bound_below(p, need as f32)
+            })
+            .fold(f32::INFINITY, f32::min)
     }
 }
 
@@ -237,9 +235,8 @@ struct BlockOut {
 
 impl Search<'_> {
     /// The search (see the module doc); `measure` is the caller's distance over a batch, given
-    /// the largest distance still worth measuring exactly and, per link (empty: every link
-    /// alike), the distance below which that link's minimum is still worth measuring (−∞: it
-    /// is final).
+    /// the distance below which the nearest (over every link) is still worth measuring and,
+    /// per link (empty: none), the distance below which that link's minimum is (−∞: final).
     pub fn run<E>(
         &self,
         mut measure: impl FnMut(&[[f32; 3]], f64, &[f64]) -> Result<Batch, E>,
@@ -345,8 +342,7 @@ impl Search<'_> {
             }
             if !counted.is_empty() {
                 let centres: Vec<[f32; 3]> = counted.iter().map(|h| h.centre).collect();
-                let measured = needs.links.iter().copied().fold(needs.counted, f64::max);
-                let batch = measure(&centres, measured, &needs.links)?;
+                let batch = measure(&centres, needs.counted, &needs.links)?;
                 found.counts.batches += 1;
                 if let Some(lower) = batch.lower_m.filter(|&l| l < best) {
                     best = lower;
@@ -516,9 +512,9 @@ impl Search<'_> {
                         out.dropped += 1;
                         continue;
                     }
-                    let Some(near) = needs.nearer(links, centre) else {
+                    if !needs.wants_point(links, centre) {
                         continue;
-                    };
+                    }
                     out.judged += 1;
                     if let CellSeen::Hidden { shadow } =
                         judge_cell(placed, [i, j, k], &self.size, need, &known, true)
@@ -526,7 +522,7 @@ impl Search<'_> {
                         out.hidden.push(Hidden {
                             centre,
                             counted: !shadow,
-                            near,
+                            near: needs.near(links, centre),
                         });
                     }
                 }

@@ -6,8 +6,9 @@
 //! 2. **The robot**: the centres whose ball meets an inner sphere (the spheres its view was
 //!    prepared with at the same poses, else placed now), and each link's bounding sphere.
 //! 3. **The search** (`unseen::Search`) over every live view, the exclusion volumes that apply
-//!    to every source placed at the stamp, with the engine's certified lower bound over the
-//!    hidden centres (certified mode at least, no self-filter), per link as configured.
+//!    to every source placed at the stamp, with the certified lower bound over the hidden
+//!    centres, per link as configured: measured best first (`unseen::Measure`), or in exact
+//!    mode by the engine's query (refined on the meshes; no self-filter).
 //! 4. **The causes** of the nearest hidden place and of those kept for the markers: each view's
 //!    robot image rendered in the rows their tests read (where the search did not need it
 //!    whole: `unseen::prepared`), then each view's word on them.
@@ -21,10 +22,10 @@ use std::time::Instant;
 use nalgebra::{Isometry3, Point3};
 
 use crate::cloud::exclusion::Placed;
-use crate::query::{Engine, Outcome, QueryLink, QueryResult};
+use crate::query::{Engine, Mode, Outcome, QueryLink, QueryResult};
 use crate::robot::Kinematics;
 use crate::tf::{self, TfBuffer};
-use crate::unseen::{BallSize, Batch, Lattice, PreparedView, RobotBody, Search};
+use crate::unseen::{BallSize, Batch, Lattice, Measure, PreparedView, RobotBody, Search};
 
 use super::error::UnseenFault;
 use super::facts::{Unseen, UnseenFacts};
@@ -119,11 +120,22 @@ impl UnseenSpace {
         let mut options = query.clone();
         let gaps: Vec<f32> = links.iter().map(|l| l.gap_m).collect();
         let (views, verdicts) = self.live_views(&lattice);
+        // Certified: the pairs best first (`unseen::Measure`); exact: the engine, which
+        // refines its candidates on the meshes.
+        let best_first = (query.mode == Mode::Certified)
+            .then(|| Measure::new(&links, poses, robot.bounds(), max, ball.margin_m));
         let mut found = (self.search(&lattice, &views, &verdicts, &robot, &excluded, ball)).run(
             |centres, need, needs| {
+                if let Some(m) = &best_first {
+                    return Ok(m.batch(centres, need, needs));
+                }
                 // Only what may still lower a best is measured exactly: per link, its
-                // inner-sphere distance below the link's need plus its h (−∞: final, 0).
-                options.per_link_range_m = query.per_link_range_m.min(need.max(0.0) as f32);
+                // inner-sphere distance below the link's need plus its h (−∞: final, 0);
+                // without per-link needs (the robot's shadow), below the nearest's.
+                options.per_link_range_m = match needs.is_empty() {
+                    true => query.per_link_range_m.min(need.max(0.0) as f32),
+                    false => query.per_link_range_m,
+                };
                 options.link_ranges_m.clear();
                 (options.link_ranges_m).extend(
                     needs
