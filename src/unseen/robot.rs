@@ -17,7 +17,10 @@
 //!
 //! Cost: per sphere the cells of its reach's bounding cube, once a frame; a bit read a centre.
 
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+
 use nalgebra::{Isometry3, Point3};
+use rayon::prelude::*;
 
 use crate::query::QueryLink;
 
@@ -43,8 +46,10 @@ pub struct LinkBound {
 }
 
 /// Spheres of a link's tree taken as its cover: a cut about this large, the largest nodes
-/// opened first.
-pub const COVERS: usize = 16;
+/// opened first. 32 rather than 16: on the Kinect frame the search judges 3,063 cells instead
+/// of 3,368 and takes 1.25–1.29 ms instead of 1.31–1.34 (three runs alternated; squared tests
+/// make a cover cheap).
+pub const COVERS: usize = 32;
 
 impl LinkBound {
     /// A lower bound of the certified distance from `p` (root frame) to the link (m, may be
@@ -244,23 +249,40 @@ impl RobotBody {
             (lo, hi) = ([0; 3], [0; 3]);
         }
         let size: [usize; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
-        let mut bits = vec![0u64; (size[0] * size[1] * size[2]).div_ceil(64)];
-        for (a, b, c, reach) in ranges {
+        let bits: Vec<AtomicU64> = (0..(size[0] * size[1] * size[2]).div_ceil(64))
+            .map(|_| AtomicU64::new(0))
+            .collect();
+        // Spheres in parallel, each setting its cells' bits (an atomic or: two spheres may
+        // share a word).
+        ranges.par_iter().for_each(|&(a, b, c, reach)| {
             let reach2 = reach * reach;
             for k in a[2]..b[2] {
                 let dz = k as f32 + 0.5 - c[2];
                 for j in a[1]..b[1] {
                     let dy = j as f32 + 0.5 - c[1];
+                    let row = size[0] * ((j - lo[1]) + size[1] * (k - lo[2])) - lo[0];
+                    // The row's cells within reach, gathered a word at a time.
+                    let (mut word, mut mask) = (usize::MAX, 0u64);
                     for i in a[0]..b[0] {
                         let dx = i as f32 + 0.5 - c[0];
                         if dx * dx + dy * dy + dz * dz < reach2 {
-                            let n = (i - lo[0]) + size[0] * ((j - lo[1]) + size[1] * (k - lo[2]));
-                            bits[n / 64] |= 1 << (n % 64);
+                            let n = row + i;
+                            if n / 64 != word {
+                                if mask != 0 {
+                                    bits[word].fetch_or(mask, Relaxed);
+                                }
+                                (word, mask) = (n / 64, 0);
+                            }
+                            mask |= 1 << (n % 64);
                         }
+                    }
+                    if mask != 0 {
+                        bits[word].fetch_or(mask, Relaxed);
                     }
                 }
             }
-        }
+        });
+        let bits = bits.into_iter().map(AtomicU64::into_inner).collect();
         Self {
             bounds: link_bounds(links, poses),
             lo,
