@@ -20,6 +20,7 @@
 
 use nalgebra::Isometry3;
 use rayon::prelude::*;
+use wide::{f32x8, CmpGe, CmpGt, CmpLe, CmpLt};
 
 use crate::cloud::depth::{DepthView, PinholeCamera};
 use crate::cloud::RangeLimits;
@@ -134,9 +135,7 @@ impl RangeView {
             .zip(points.par_chunks(w))
             .enumerate())
         .map(|(v, (out, row))| {
-            for (o, &p) in out.iter_mut().zip(row) {
-                *o = keep(p, bounds);
-            }
+            keep_row(row, bounds, out);
             check.map_or(RowFit::default(), |c| c.row(v, row))
         })
         .reduce(RowFit::default, RowFit::and);
@@ -219,6 +218,35 @@ fn keep(p: [f32; 3], (min2, max2): (f32, f32)) -> f32 {
     }
 }
 
+/// [`keep`] over a row of points into `out`, eight at a time (SIMD).
+fn keep_row(row: &[[f32; 3]], (min2, max2): (f32, f32), out: &mut [f32]) {
+    let (lo, hi, inf) = (
+        f32x8::splat(min2),
+        f32x8::splat(max2),
+        f32x8::splat(f32::INFINITY),
+    );
+    let nan = f32x8::splat(f32::NAN);
+    let mut chunks = row.chunks_exact(8);
+    let mut outs = out.chunks_exact_mut(8);
+    for (c, o) in (&mut chunks).zip(&mut outs) {
+        let x = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][0]));
+        let y = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][1]));
+        let z = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][2]));
+        let r2 = x * x + y * y + z * z;
+        // Finite: |·| < ∞ (false for NaN and ±∞).
+        let kept = x.abs().cmp_lt(inf)
+            & y.abs().cmp_lt(inf)
+            & z.cmp_lt(inf)
+            & z.cmp_gt(f32x8::ZERO)
+            & r2.cmp_ge(lo)
+            & r2.cmp_le(hi);
+        o.copy_from_slice(&kept.blend(z, nan).to_array());
+    }
+    for (o, &p) in outs.into_remainder().iter_mut().zip(chunks.remainder()) {
+        *o = keep(p, (min2, max2));
+    }
+}
+
 fn check_count(what: &'static str, got: usize, camera: &PinholeCamera) -> Result<(), UnseenError> {
     if got as u64 == u64::from(camera.width) * u64::from(camera.height) {
         Ok(())
@@ -237,6 +265,36 @@ mod tests {
     use super::*;
     use crate::cloud::depth::{encode_depth, DepthEncoding};
     use crate::msg::Header;
+    use proptest::prelude::*;
+
+    /// A coordinate as clouds give them: finite, 0, NaN, ±∞, negative.
+    fn coordinate() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            6 => -3.0f32..3.0,
+            1 => Just(0.0f32),
+            1 => Just(f32::NAN),
+            1 => Just(f32::INFINITY),
+            1 => Just(f32::NEG_INFINITY),
+        ]
+    }
+
+    proptest! {
+        /// The row's vector form keeps what [`keep`] keeps, point by point, whatever the row's
+        /// length (its tail past the last eight included).
+        #[test]
+        fn keep_row_is_keep(
+            row in prop::collection::vec([coordinate(), coordinate(), coordinate()], 0..40),
+            min in prop::sample::select(vec![0.0f32, 0.5, 1.0]),
+            max in prop::sample::select(vec![2.0f32, 4.0, f32::INFINITY]),
+        ) {
+            let bounds = (min * min, max * max);
+            let mut out = vec![0.0; row.len()];
+            keep_row(&row, bounds, &mut out);
+            for (p, o) in row.iter().zip(&out) {
+                prop_assert_eq!(o.to_bits(), keep(*p, bounds).to_bits(), "{:?}", p);
+            }
+        }
+    }
 
     fn camera() -> PinholeCamera {
         PinholeCamera {
