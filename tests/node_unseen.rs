@@ -325,6 +325,17 @@ fn a_dark_person_raises_the_nodes_stop_through_unseen_space() {
         .map(|m| msg::decode(&m.data).unwrap())
         .collect();
     assert_unobserved_status(&diagnostics, last);
+
+    // (4) The recorder reads `~/closest_points`, which the node tells from discovery: the
+    // hidden places nearest the arm are drawn there (they are left out while nobody reads it).
+    let drawn = (on("closest_points").iter())
+        .map(|m| msg::decode::<msg::MarkerArray>(&m.data).unwrap())
+        .filter(|a| {
+            (a.markers.iter())
+                .any(|k| k.ns == "unseen" && k.action == msg::Marker::ADD && !k.points.is_empty())
+        })
+        .count();
+    assert!(drawn > 0, "no hidden place drawn on {NODE}/closest_points");
 }
 
 /// The stamp match: one offset where the first and the last clouds were answered; where they

@@ -13,14 +13,15 @@
 //! - the pass's time is in the frame's processing and the speed factor's reaction time, and a
 //!   frame later than the latency budget is a fault under `protect`;
 //! - between the thresholds, the speed factor holds each link to its unseen distance;
-//! - the hidden places measured best first (certified) agree with the engine's exact query.
+//! - the hidden places measured best first (certified) agree with the engine's exact query;
+//! - the markers' hidden places only while someone reads `~/closest_points`.
 
 mod common;
 
 use ist_monitor::cloud::pointcloud2;
 use ist_monitor::config::Config;
 use ist_monitor::monitor::{Frame, Level, Monitor};
-use ist_monitor::msg::{Header, Time};
+use ist_monitor::msg::{Header, Marker, Time};
 use ist_monitor::robot::solid::Solid;
 use ist_monitor::robot::RobotModel;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -561,4 +562,38 @@ fn the_best_first_measure_and_the_engine_agree_per_link() {
         }
     }
     assert!(measured >= 3, "{certified:?}");
+}
+
+/// Nobody reading `~/closest_points` (the node tells it from discovery): the pass keeps no
+/// hidden places for the markers (a DELETE of namespace `unseen` goes out instead of the
+/// cubes), with the same unseen distance; read again, the cubes come back.
+#[test]
+fn the_markers_only_while_someone_reads_them() {
+    let camera = front();
+    let (model, _) = common::demo_trees();
+    let mut scene = Scene::arm(&model);
+    scene.balls.push(([0.25, 0.0, 0.45], 0.05, true));
+    let points = scene.render(&camera);
+    let (mut m, _) = monitor(&camera, &[("unobserved", "report")]);
+    let cubes = |f: &Frame| {
+        (f.outputs.closest_points.markers.iter())
+            .filter(|k| k.ns == "unseen" && k.action == Marker::ADD)
+            .map(|k| k.points.len())
+            .sum::<usize>()
+    };
+    let read = frame(&mut m, &camera, &points);
+    assert!(cubes(&read) > 0, "no hidden places drawn");
+    m.markers_read(Some(false));
+    let unread = frame(&mut m, &camera, &points);
+    assert_eq!(cubes(&unread), 0);
+    assert!(unread
+        .outputs
+        .closest_points
+        .markers
+        .iter()
+        .any(|k| k.ns == "unseen" && k.action == Marker::DELETE));
+    assert_eq!(unseen(&unread), unseen(&read));
+    m.markers_read(Some(true));
+    let again = frame(&mut m, &camera, &points);
+    assert_eq!(cubes(&again), cubes(&read));
 }

@@ -153,7 +153,7 @@ pub const PARAMETERS: &[ParamDecl] = &[
     p("monitored_volume.translation", "[0.0, 0.0, 0.0]", "m", "frame_from_box translation x y z (the box's centre), with monitored_volume.size"),
     p("monitored_volume.rotation", "[0.0, 0.0, 0.0, 1.0]", "", "frame_from_box rotation as a quaternion x y z w, with monitored_volume.size"),
     p("monitored_volume.margin", "0.3", "m", "without monitored_volume.size: what the default box adds to the robot's reach"),
-    p("unobserved_markers", "256", "cells", "most hidden places drawn on ~/closest_points (namespace unseen, coloured by cause), the nearest to the robot first: where a second camera would help. 0: none"),
+    p("unobserved_markers", "256", "cells", "most hidden places drawn on ~/closest_points (namespace unseen, coloured by cause), the nearest to the robot first: where a second camera would help; the node draws them only while the topic has a reader. 0: none"),
     p("static_transforms", "[]", "", "names of static transforms given here, for bags and setups without /tf_static"),
     p("<transform>.parent_frame", "~", "frame", "parent frame of the static transform"),
     p("<transform>.child_frame", "~", "frame", "child frame of the static transform"),

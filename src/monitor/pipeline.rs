@@ -252,6 +252,12 @@ impl Monitor {
         self.tf.set_matched(writers);
     }
 
+    /// Whether anyone reads `~/closest_points` now by discovery (`None`: unknown): the unseen
+    /// space's markers are made only where someone does ([`UnseenSpace::set_markers_read`]).
+    pub fn markers_read(&mut self, read: Option<bool>) {
+        self.unseen.set_markers_read(read);
+    }
+
     /// The writers that discovery matches on depth image source `source`'s CameraInfo topic
     /// now: two or more is the fault `second_publisher` of its images
     /// ([`Source::set_matched_camera`]).

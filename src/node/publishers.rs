@@ -9,15 +9,18 @@ use ros2_client::qos::{Durability, History, QosProfile};
 
 use super::error::{NodeError, Result};
 use super::ros_args::remap_topic;
-use super::transport::{Pub, RosNode};
+use super::transport::{Pub, RosNode, TopicReaders};
 use crate::config::Config;
 use crate::monitor::outputs::{visit_output_topics, OutputTopic, OutputVisitor};
 use crate::monitor::Outputs;
 use crate::msg::OwnedMessage;
 
 /// The node's publishers, one per row of the output table (`OutputTopic`), each a
-/// [`Pub<T>`] of that row's message type.
-pub(super) struct Publishers(Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>);
+/// [`Pub<T>`] of that row's message type; and who reads `~/closest_points` by discovery.
+pub(super) struct Publishers {
+    topics: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
+    markers: Option<TopicReaders>,
+}
 
 impl Publishers {
     /// A publisher for every output topic of `config`'s node, with `qos`; those published on
@@ -29,6 +32,7 @@ impl Publishers {
             config: &'a Config,
             qos: QosProfile,
             made: Vec<(OutputTopic, Box<dyn Any + Send + Sync>)>,
+            markers: Option<TopicReaders>,
         }
         impl OutputVisitor for Create<'_> {
             type Error = NodeError;
@@ -52,6 +56,9 @@ impl Publishers {
                 );
                 let p = self.node.publisher::<T>(&name, qos)?;
                 self.made.push((topic, Box::new(p)));
+                if topic == OutputTopic::ClosestPoints {
+                    self.markers = Some(self.node.subscribers::<T>(&name)?);
+                }
                 Ok(())
             }
         }
@@ -61,9 +68,18 @@ impl Publishers {
             config,
             qos,
             made: Vec::new(),
+            markers: None,
         };
         visit_output_topics(&mut create)?;
-        Ok(Self(create.made))
+        Ok(Self {
+            topics: create.made,
+            markers: create.markers,
+        })
+    }
+
+    /// Whether anyone reads `~/closest_points` now, by discovery.
+    pub(super) fn markers_read(&self) -> Option<bool> {
+        self.markers.as_ref().map(TopicReaders::any)
     }
 
     /// Publishes a frame's outputs; the node's own counts (`dropped` clouds, refused inputs)
@@ -91,7 +107,7 @@ impl Publishers {
                     return Ok(());
                 };
                 let publisher = (self.0)
-                    .0
+                    .topics
                     .iter()
                     .find(|(t, _)| *t == topic)
                     .and_then(|(_, p)| p.downcast_ref::<Pub<T>>())

@@ -324,8 +324,10 @@ impl Serving<'_> {
             }
             self.source_inputs[k].tell_writers(monitor, k, &s.name);
             if let Some((message, received, clock_ns)) = message {
-                // Who writes the joint states and TF matters to the frame's lookups alone.
+                // Who writes the joint states and TF matters to the frame's lookups alone;
+                // whether anyone reads the markers, to its unseen pass.
                 self.inputs.tell_writers(monitor);
+                monitor.markers_read(self.outputs.markers_read());
                 self.frame(monitor, k, s, &message, received, clock_ns);
                 continue;
             }

@@ -321,7 +321,50 @@ impl TopicWriters {
     }
 }
 
+/// Whether anyone subscribes to a topic now, by the transport's discovery: on DDS the remote
+/// readers that SEDP announced on the topic with its type, on zenoh the subscriptions'
+/// liveliness tokens. An output nobody reads (the unseen space's markers without RViz) need not
+/// be computed.
+pub enum TopicReaders {
+    Dds {
+        participant: ros2_client::dds::rustdds::DomainParticipant,
+        /// The topic and type as DDS names them (`rt/…`, `pkg::msg::dds_::T_`).
+        topic: String,
+        type_name: String,
+    },
+    Zenoh(ZenohWriters),
+}
+
+impl TopicReaders {
+    /// Whether a reader of the topic is discovered now.
+    pub fn any(&self) -> bool {
+        match self {
+            TopicReaders::Dds {
+                participant,
+                topic,
+                type_name,
+            } => (participant.discovered_readers().iter()).any(|r| {
+                let t = &r.subscription_topic_data;
+                t.topic_name == *topic && t.type_name() == type_name
+            }),
+            TopicReaders::Zenoh(z) => !z.writers().is_empty(),
+        }
+    }
+}
+
 impl RosNode {
+    /// Watches who subscribes to `T` on `topic` ([`TopicReaders`]).
+    pub fn subscribers<T: RosMessage>(&self, topic: &str) -> Result<TopicReaders, NodeError> {
+        match &self.inner {
+            Inner::Dds { ctx, name, .. } => Ok(TopicReaders::Dds {
+                participant: ctx.domain_participant(),
+                topic: topic_name(topic)?.to_dds_name("rt", name, ""),
+                type_name: type_name::<T>().dds_msg_type(),
+            }),
+            Inner::Zenoh(z) => z.subscribers(topic).map(TopicReaders::Zenoh),
+        }
+    }
+
     /// Watches who publishes `T` on `topic` ([`TopicWriters`]).
     pub fn publishers<T: RosMessage>(&self, topic: &str) -> Result<TopicWriters, NodeError> {
         match &self.inner {

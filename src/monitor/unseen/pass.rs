@@ -216,7 +216,7 @@ impl UnseenSpace {
             apart: self.settings.self_shadow == crate::config::SelfShadow::Apart,
             per_link_range_m: (self.query.per_link)
                 .then_some(f64::from(self.query.per_link_range_m)),
-            markers: self.settings.markers,
+            markers: self.markers(),
         }
     }
 

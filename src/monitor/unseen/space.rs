@@ -44,6 +44,9 @@ pub struct UnseenSpace {
     /// at: handed to the same frame's pass (`take_spheres`), which places them only where
     /// there are none.
     pub(super) spheres: Option<(Vec<Isometry3<f64>>, Vec<PaddedSphere>)>,
+    /// Whether anyone reads the markers (`~/closest_points`) by discovery; `None` where the
+    /// caller cannot tell (`replay`, the benches): then they are made as configured.
+    pub(super) markers_read: Option<bool>,
     pub(super) last: Option<Unseen>,
 }
 
@@ -61,6 +64,7 @@ impl UnseenSpace {
             reach_m: None,
             view_s: 0.0,
             spheres: None,
+            markers_read: None,
             last: None,
         };
         space.reconfigure(config);
@@ -170,6 +174,21 @@ impl UnseenSpace {
         self.views[source] = Some(made);
         self.gpu_cells[source] = GpuCells::default();
         self.view_s = made_s + start.elapsed().as_secs_f64();
+    }
+
+    /// Whether anyone reads the markers now (the node, by discovery): where nobody does, the
+    /// pass keeps no hidden places for them and names no causes but the nearest's.
+    pub fn set_markers_read(&mut self, read: Option<bool>) {
+        self.markers_read = read;
+    }
+
+    /// The hidden places kept for the markers: the configured count, or none while nobody
+    /// reads them.
+    pub(super) fn markers(&self) -> usize {
+        match self.markers_read {
+            Some(false) => 0,
+            _ => self.settings.markers,
+        }
     }
 
     /// The robot's spheres at `poses`, padded for the views (each grown by the self-filter

@@ -3,7 +3,8 @@
 //! <namespace>/<node>/<topic>/<type>/<hash>/<qos>`) and undeclares it when it goes, or its
 //! session does (a killed process: when the router sees the link drop). A liveliness subscriber
 //! with history on the topic's tokens keeps the set current: the source's writers from
-//! discovery, for the one-voice rule (`crate::monitor`'s `Source::set_matched`).
+//! discovery, for the one-voice rule (`crate::monitor`'s `Source::set_matched`). A subscription
+//! declares one of kind `MS` the same way: whether anyone reads an output.
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
@@ -15,7 +16,7 @@ use super::keys::mangle;
 use super::node::ZenohNode;
 use crate::node::error::{entity, NodeError};
 
-/// The publishers of one topic, kept by a liveliness subscriber.
+/// The publishers (or subscriptions) of one topic, kept by a liveliness subscriber.
 pub struct ZenohWriters {
     /// Token key → the writer's name for a report (`/namespace/node (session id)`).
     writers: Arc<Mutex<BTreeMap<String, String>>>,
@@ -34,7 +35,7 @@ impl ZenohWriters {
 /// session id; the key itself where it is not rmw_zenoh's form.
 fn writer_name(key: &str) -> String {
     let parts: Vec<&str> = key.split('/').collect();
-    if parts.len() < 10 || parts[5] != "MP" {
+    if parts.len() < 10 || !matches!(parts[5], "MP" | "MS") {
         return key.to_string();
     }
     let unmangle = |s: &str| {
@@ -56,9 +57,19 @@ impl ZenohNode {
     /// Watches the publishers of `topic` (absolute, any type): the tokens declared before are
     /// taken at once (history), later ones as they come and go.
     pub fn publishers(&self, topic: &str) -> Result<ZenohWriters, NodeError> {
+        self.entities(topic, "MP")
+    }
+
+    /// Watches the subscriptions of `topic` (absolute, any type), as [`ZenohNode::publishers`].
+    pub fn subscribers(&self, topic: &str) -> Result<ZenohWriters, NodeError> {
+        self.entities(topic, "MS")
+    }
+
+    /// The entities of kind `kind` (`MP`, `MS`) on `topic`.
+    fn entities(&self, topic: &str, kind: &str) -> Result<ZenohWriters, NodeError> {
         let topic = format!("/{}", topic.trim_matches('/'));
         let key = format!(
-            "@ros2_lv/{}/*/*/*/MP/*/*/*/{}/**",
+            "@ros2_lv/{}/*/*/*/{kind}/*/*/*/{}/**",
             self.domain,
             mangle(&topic)
         );
@@ -83,7 +94,13 @@ impl ZenohNode {
                 }
             })
             .wait()
-            .map_err(|e| entity("publishers' liveliness subscriber", &topic, e))?;
+            .map_err(|e| {
+                let what = match kind {
+                    "MP" => "publishers' liveliness subscriber",
+                    _ => "subscriptions' liveliness subscriber",
+                };
+                entity(what, &topic, e)
+            })?;
         Ok(ZenohWriters {
             writers,
             _subscriber: subscriber,
