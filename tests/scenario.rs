@@ -111,24 +111,42 @@ fn ready_nearest_is_the_reference(
     exact: &QueryOptions,
 ) -> String {
     let r = kinect.query(ready, exact);
-    let n = r.nearest.as_ref().unwrap();
     assert_eq!(r.outcome, Outcome::Nearest);
-    assert_eq!(n.link, "panda_link0");
-    assert!(
-        (n.distance_m - 0.0979).abs() < 1e-3,
-        "ready: {}",
-        n.distance_m
-    );
-    let reference = [-0.0087, 0.1782, 0.0680];
-    assert!(
-        (0..3).all(|i| (n.point_root[i] - reference[i]).abs() < 2e-3),
-        "{:?}",
-        n.point_root
+    let n = assert_nearest(
+        &r,
+        "ready",
+        "panda_link0",
+        0.0979,
+        [-0.0087, 0.1782, 0.0680],
     );
     assert_eq!(r.counts.total, 307_200);
     assert_eq!(r.counts.invalid, 73_899);
     assert_eq!(r.counts.inside, 0);
     n.link.clone()
+}
+
+/// The nearest point of `r` (pose `what`) is SCENARIO.md's: on `link`, `distance` from the
+/// robot (1 mm) at root-frame `point` (2 mm).
+fn assert_nearest<'a>(
+    r: &'a QueryResult,
+    what: &str,
+    link: &str,
+    distance: f64,
+    point: [f64; 3],
+) -> &'a ist_monitor::query::Nearest {
+    let n = r.nearest.as_ref().unwrap();
+    assert_eq!(n.link, link);
+    assert!(
+        (n.distance_m - distance).abs() < 1e-3,
+        "{what}: {}",
+        n.distance_m
+    );
+    assert!(
+        (0..3).all(|i| (n.point_root[i] - point[i]).abs() < 2e-3),
+        "{:?}",
+        n.point_root
+    );
+    n
 }
 
 /// SCENARIO.md's per-link minima for `ready` lie in the certified intervals (1 mm for the
@@ -181,18 +199,12 @@ fn reach_table_nearest_is_the_reference(
     exact: &QueryOptions,
 ) -> QueryOptions {
     let r = kinect.query(reach, exact);
-    let n = r.nearest.as_ref().unwrap();
-    assert_eq!(n.link, "panda_leftfinger");
-    assert!(
-        (n.distance_m - 0.0181).abs() < 1e-3,
-        "reach_table: {}",
-        n.distance_m
-    );
-    let reference = [0.0357, 0.6130, 0.0760];
-    assert!(
-        (0..3).all(|i| (n.point_root[i] - reference[i]).abs() < 2e-3),
-        "{:?}",
-        n.point_root
+    let n = assert_nearest(
+        &r,
+        "reach_table",
+        "panda_leftfinger",
+        0.0181,
+        [0.0357, 0.6130, 0.0760],
     );
     let global = QueryOptions {
         per_link: false,

@@ -206,6 +206,16 @@ fn front() -> Camera {
     Camera::looking([1.3, 0.15, 0.7], [0.0, 0.0, 0.45], 240, 180, 62.0)
 }
 
+/// The centre of a dark ball of 5 cm radius beside the arm, 15 cm from it.
+const DARK_BALL: [f64; 3] = [0.25, 0.0, 0.45];
+
+/// The arm with a dark ball at [`DARK_BALL`], as `camera` sees them.
+fn dark_ball_beside_the_arm(model: &RobotModel, camera: &Camera) -> Vec<[f32; 3]> {
+    let mut scene = Scene::arm(model);
+    scene.balls.push((DARK_BALL, 0.05, true));
+    scene.render(camera)
+}
+
 /// The distance from the arm (its inner spheres, less h: what the query certifies) to a ball.
 fn distance_to(model: &RobotModel, c: [f64; 3], r: f64) -> f64 {
     let (_, trees) = common::demo_trees();
@@ -436,11 +446,8 @@ fn the_pass_is_counted_and_a_late_pass_is_a_fault_under_protect() {
 fn protect_holds_the_speed_factor_to_the_unseen_distance() {
     let camera = front();
     let (model, _) = common::demo_trees();
-    let mut scene = Scene::arm(&model);
-    let c = [0.25, 0.0, 0.45];
-    scene.balls.push((c, 0.05, true));
-    let points = scene.render(&camera);
-    let truth = distance_to(&model, c, 0.05);
+    let points = dark_ball_beside_the_arm(&model, &camera);
+    let truth = distance_to(&model, DARK_BALL, 0.05);
     assert!(truth > 0.1 && truth < 0.3, "{truth}");
     let mut factors = Vec::new();
     for policy in ["report", "protect"] {
@@ -478,7 +485,7 @@ fn protect_holds_the_speed_factor_to_the_unseen_distance() {
 fn protect_releases_only_on_the_frames_own_pass() {
     let camera = front();
     let (model, _) = common::demo_trees();
-    let near = [0.25, 0.0, 0.45];
+    let near = DARK_BALL;
     let scene = |ball: Option<bool>| {
         let mut scene = Scene::arm(&model);
         if let Some(dark) = ball {
@@ -530,9 +537,7 @@ fn protect_releases_only_on_the_frames_own_pass() {
 fn the_best_first_measure_and_the_engine_agree_per_link() {
     let camera = front();
     let (model, trees) = common::demo_trees();
-    let mut scene = Scene::arm(&model);
-    scene.balls.push(([0.25, 0.0, 0.45], 0.05, true));
-    let points = scene.render(&camera);
+    let points = dark_ball_beside_the_arm(&model, &camera);
     let per_link = |mode: &str| {
         let (mut m, _) = monitor(
             &camera,
@@ -571,9 +576,7 @@ fn the_best_first_measure_and_the_engine_agree_per_link() {
 fn the_markers_only_while_someone_reads_them() {
     let camera = front();
     let (model, _) = common::demo_trees();
-    let mut scene = Scene::arm(&model);
-    scene.balls.push(([0.25, 0.0, 0.45], 0.05, true));
-    let points = scene.render(&camera);
+    let points = dark_ball_beside_the_arm(&model, &camera);
     let (mut m, _) = monitor(&camera, &[("unobserved", "report")]);
     let cubes = |f: &Frame| {
         (f.outputs.closest_points.markers.iter())
@@ -583,7 +586,7 @@ fn the_markers_only_while_someone_reads_them() {
     };
     let read = frame(&mut m, &camera, &points);
     assert!(cubes(&read) > 0, "no hidden places drawn");
-    m.markers_read(Some(false));
+    m.markers_read(|| Some(false));
     let unread = frame(&mut m, &camera, &points);
     assert_eq!(cubes(&unread), 0);
     assert!(unread
@@ -593,7 +596,7 @@ fn the_markers_only_while_someone_reads_them() {
         .iter()
         .any(|k| k.ns == "unseen" && k.action == Marker::DELETE));
     assert_eq!(unseen(&unread), unseen(&read));
-    m.markers_read(Some(true));
+    m.markers_read(|| Some(true));
     let again = frame(&mut m, &camera, &points);
     assert_eq!(cubes(&again), cubes(&read));
 }

@@ -252,10 +252,13 @@ impl Monitor {
         self.tf.set_matched(writers);
     }
 
-    /// Whether anyone reads `~/closest_points` now by discovery (`None`: unknown): the unseen
-    /// space's markers are made only where someone does ([`UnseenSpace::set_markers_read`]).
-    pub fn markers_read(&mut self, read: Option<bool>) {
-        self.unseen.set_markers_read(read);
+    /// Whether anyone reads `~/closest_points` now by discovery (`read`: `None` where unknown),
+    /// asked only where the unseen pass draws markers: they are made only where someone reads
+    /// them ([`UnseenSpace::set_markers_read`]).
+    pub fn markers_read(&mut self, read: impl FnOnce() -> Option<bool>) {
+        if self.unseen.draws_markers() {
+            self.unseen.set_markers_read(read());
+        }
     }
 
     /// The writers that discovery matches on depth image source `source`'s CameraInfo topic

@@ -327,7 +327,7 @@ impl Serving<'_> {
                 // Who writes the joint states and TF matters to the frame's lookups alone;
                 // whether anyone reads the markers, to its unseen pass.
                 self.inputs.tell_writers(monitor);
-                monitor.markers_read(self.outputs.markers_read());
+                monitor.markers_read(|| self.outputs.markers_read());
                 self.frame(monitor, k, s, &message, received, clock_ns);
                 continue;
             }

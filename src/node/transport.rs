@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use super::error::{entity, NodeError};
 use super::qos::{source_topic_qos, SOURCE_SAMPLES};
-use super::rmw_zenoh::{config_from_env, ConfigFor, ZenohNode, ZenohPub, ZenohWriters};
+use super::rmw_zenoh::{config_from_env, ConfigFor, ZenohEntities, ZenohNode, ZenohPub};
 use super::ros_args::{topic_name, type_name};
 use super::security::{zenoh_endpoints, Security, SecurityEnv, SecurityError};
 use super::socket::{self, SOCKET_BUFFER};
@@ -270,26 +270,39 @@ impl RosNode {
     }
 }
 
+/// A topic as DDS discovery names it, watched on the node's participant.
+pub struct DdsTopic {
+    participant: ros2_client::dds::rustdds::DomainParticipant,
+    /// The topic and type as DDS names them (`rt/…`, `pkg::msg::dds_::T_`).
+    topic: String,
+    type_name: String,
+}
+
+impl DdsTopic {
+    fn new<T: RosMessage>(ctx: &Context, name: &NodeName, topic: &str) -> Result<Self, NodeError> {
+        Ok(Self {
+            participant: ctx.domain_participant(),
+            topic: topic_name(topic)?.to_dds_name("rt", name, ""),
+            type_name: type_name::<T>().dds_msg_type(),
+        })
+    }
+}
+
 /// Who publishes a topic now, by the transport's discovery: on DDS the remote writers that SEDP
 /// announced on the topic with its type (named by GUID, as a message's writer is), on zenoh the
 /// publishers' liveliness tokens (named by node and session). A writer leaves when it is deleted,
 /// or when its participant's lease runs out or its zenoh session drops (a killed process).
 pub enum TopicWriters {
-    Dds {
-        participant: ros2_client::dds::rustdds::DomainParticipant,
-        /// The topic and type as DDS names them (`rt/…`, `pkg::msg::dds_::T_`).
-        topic: String,
-        type_name: String,
-    },
-    Zenoh(ZenohWriters),
+    Dds(DdsTopic),
+    Zenoh(ZenohEntities),
 }
 
 impl TopicWriters {
     /// The writers of the topic now, by name.
     pub fn writers(&self) -> Vec<String> {
         match self {
-            TopicWriters::Zenoh(z) => z.writers(),
-            TopicWriters::Dds { .. } => (self.gids().unwrap_or_default().iter())
+            TopicWriters::Zenoh(z) => z.names(),
+            TopicWriters::Dds(_) => (self.gids().unwrap_or_default().iter())
                 .map(Writer::to_string)
                 .collect(),
         }
@@ -300,15 +313,11 @@ impl TopicWriters {
     /// its messages carry.
     pub fn gids(&self) -> Option<Vec<Writer>> {
         match self {
-            TopicWriters::Dds {
-                participant,
-                topic,
-                type_name,
-            } => Some(
-                (participant.discovered_writers().iter())
+            TopicWriters::Dds(d) => Some(
+                (d.participant.discovered_writers().iter())
                     .filter(|w| {
                         let t = &w.publication_topic_data;
-                        t.topic_name == *topic && t.type_name == *type_name
+                        t.topic_name == d.topic && t.type_name == d.type_name
                     })
                     .map(|w| {
                         let gid = ros2_client::Gid::from(w.writer_proxy.remote_writer_guid);
@@ -326,28 +335,19 @@ impl TopicWriters {
 /// liveliness tokens. An output nobody reads (the unseen space's markers without RViz) need not
 /// be computed.
 pub enum TopicReaders {
-    Dds {
-        participant: ros2_client::dds::rustdds::DomainParticipant,
-        /// The topic and type as DDS names them (`rt/…`, `pkg::msg::dds_::T_`).
-        topic: String,
-        type_name: String,
-    },
-    Zenoh(ZenohWriters),
+    Dds(DdsTopic),
+    Zenoh(ZenohEntities),
 }
 
 impl TopicReaders {
     /// Whether a reader of the topic is discovered now.
     pub fn any(&self) -> bool {
         match self {
-            TopicReaders::Dds {
-                participant,
-                topic,
-                type_name,
-            } => (participant.discovered_readers().iter()).any(|r| {
+            TopicReaders::Dds(d) => (d.participant.discovered_readers().iter()).any(|r| {
                 let t = &r.subscription_topic_data;
-                t.topic_name == *topic && t.type_name() == type_name
+                t.topic_name == d.topic && *t.type_name() == d.type_name
             }),
-            TopicReaders::Zenoh(z) => !z.writers().is_empty(),
+            TopicReaders::Zenoh(z) => !z.names().is_empty(),
         }
     }
 }
@@ -356,11 +356,9 @@ impl RosNode {
     /// Watches who subscribes to `T` on `topic` ([`TopicReaders`]).
     pub fn subscribers<T: RosMessage>(&self, topic: &str) -> Result<TopicReaders, NodeError> {
         match &self.inner {
-            Inner::Dds { ctx, name, .. } => Ok(TopicReaders::Dds {
-                participant: ctx.domain_participant(),
-                topic: topic_name(topic)?.to_dds_name("rt", name, ""),
-                type_name: type_name::<T>().dds_msg_type(),
-            }),
+            Inner::Dds { ctx, name, .. } => {
+                DdsTopic::new::<T>(ctx, name, topic).map(TopicReaders::Dds)
+            }
             Inner::Zenoh(z) => z.subscribers(topic).map(TopicReaders::Zenoh),
         }
     }
@@ -368,11 +366,9 @@ impl RosNode {
     /// Watches who publishes `T` on `topic` ([`TopicWriters`]).
     pub fn publishers<T: RosMessage>(&self, topic: &str) -> Result<TopicWriters, NodeError> {
         match &self.inner {
-            Inner::Dds { ctx, name, .. } => Ok(TopicWriters::Dds {
-                participant: ctx.domain_participant(),
-                topic: topic_name(topic)?.to_dds_name("rt", name, ""),
-                type_name: type_name::<T>().dds_msg_type(),
-            }),
+            Inner::Dds { ctx, name, .. } => {
+                DdsTopic::new::<T>(ctx, name, topic).map(TopicWriters::Dds)
+            }
             Inner::Zenoh(z) => z.publishers(topic).map(TopicWriters::Zenoh),
         }
     }

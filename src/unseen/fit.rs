@@ -145,46 +145,46 @@ impl FitCheck {
         })
     }
 
-    /// Row `v`'s points, eight at a time (SIMD, no division: for `z > 0`,
-    /// `|fx·x/z + cx − u| ≤ L` is `|fx·x + (cx − u)·z| ≤ L·z`).
+    /// Row `v`'s points, eight at a time ([`FitCheck::eight`]); the last eight filled with
+    /// points that did not return.
     #[inline]
     pub fn row(&self, v: usize, row: &[[f32; 3]]) -> RowFit {
-        let limit = f32x8::splat(MAX_RESIDUAL_PX as f32);
-        let (fx, fy) = (f32x8::splat(self.fx), f32x8::splat(self.fy));
-        let dy = f32x8::splat(self.cy - v as f32);
-        let zero = f32x8::ZERO;
-        let lanes = f32x8::from([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
         let (mut bad, mut valid) = (0u32, 0u32);
         let mut chunks = row.chunks_exact(8);
         for (k, c) in (&mut chunks).enumerate() {
-            let x = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][0]));
-            let y = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][1]));
-            let z = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][2]));
-            let dx = f32x8::splat(self.cx - (8 * k) as f32) - lanes;
-            // NaN and ±∞ fail every comparison below but `z > 0` for +∞: finite is |·| < ∞.
-            let inf = f32x8::splat(f32::INFINITY);
-            let returned =
-                x.abs().cmp_lt(inf) & y.abs().cmp_lt(inf) & z.cmp_lt(inf) & z.cmp_gt(zero);
-            let within = limit * z;
-            let fits =
-                (fx * x + dx * z).abs().cmp_le(within) & (fy * y + dy * z).abs().cmp_le(within);
-            valid += returned.move_mask().count_ones();
-            bad += (returned & !fits).move_mask().count_ones();
+            let (b, n) = self.eight(8 * k, v, c.try_into().expect("eight points"));
+            (bad, valid) = (bad + b, valid + n);
         }
-        let start = row.len() - chunks.remainder().len();
-        let (limit, dy) = (MAX_RESIDUAL_PX as f32, self.cy - v as f32);
-        for (u, &[x, y, z]) in chunks.remainder().iter().enumerate() {
-            let returned = x.is_finite() & y.is_finite() & z.is_finite() & (z > 0.0);
-            let du = (self.fx * x + (self.cx - (start + u) as f32) * z).abs();
-            let dv = (self.fy * y + dy * z).abs();
-            let within = limit * z;
-            valid += u32::from(returned);
-            bad += u32::from(returned & !((du <= within) & (dv <= within)));
+        let tail = chunks.remainder();
+        if !tail.is_empty() {
+            let c = std::array::from_fn(|i| tail.get(i).copied().unwrap_or([f32::NAN; 3]));
+            let (b, n) = self.eight(row.len() - tail.len(), v, &c);
+            (bad, valid) = (bad + b, valid + n);
         }
         RowFit {
             ok: bad == 0,
             valid: valid as usize,
         }
+    }
+
+    /// Pixels `u..u + 8` of row `v` (SIMD, no division: for `z > 0`, `|fx·x/z + cx − u| ≤ L`
+    /// is `|fx·x + (cx − u)·z| ≤ L·z`): how many returned and do not fit, how many returned.
+    #[inline(always)]
+    fn eight(&self, u: usize, v: usize, c: &[[f32; 3]; 8]) -> (u32, u32) {
+        let limit = f32x8::splat(MAX_RESIDUAL_PX as f32);
+        let (zero, inf) = (f32x8::ZERO, f32x8::splat(f32::INFINITY));
+        let lanes = f32x8::from([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+        let lane = |a: usize| f32x8::from(std::array::from_fn::<f32, 8, _>(|i| c[i][a]));
+        let (x, y, z) = (lane(0), lane(1), lane(2));
+        let dx = f32x8::splat(self.cx - u as f32) - lanes;
+        let dy = f32x8::splat(self.cy - v as f32);
+        // Finite: |·| < ∞ (false for NaN and ±∞).
+        let returned = x.abs().cmp_lt(inf) & y.abs().cmp_lt(inf) & z.cmp_lt(inf) & z.cmp_gt(zero);
+        let within = limit * z;
+        let fits = (f32x8::splat(self.fx) * x + dx * z).abs().cmp_le(within)
+            & (f32x8::splat(self.fy) * y + dy * z).abs().cmp_le(within);
+        let bad = (returned & !fits).move_mask().count_ones();
+        (bad, returned.move_mask().count_ones())
     }
 
     /// The camera, where it fits by every row's [`FitCheck::row`].

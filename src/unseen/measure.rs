@@ -30,7 +30,6 @@
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
-
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 use nalgebra::Isometry3;
@@ -177,18 +176,13 @@ impl<'a> Measure<'a> {
             open(overall.min(all)).max(open(own.min(best)))
         };
         // Beyond the bounding sphere's reach of what is wanted: not a pair (squared first).
-        let reach = open(overall).max(open(own)) + b.radius + b.gap_m;
-        if reach.is_nan() || reach <= 0.0 {
-            return f32::INFINITY;
-        }
+        let first = open(overall).max(open(own));
         let mut heap: BinaryHeap<Pair> = (centres.iter().enumerate())
-            .filter_map(|(i, &p)| {
-                let d2 = distance2(p, b.centre);
-                (d2 < reach * reach).then(|| Pair {
-                    bound: d2.sqrt() - b.radius - b.gap_m,
-                    centre: i as u32,
-                    stage: Stage::Sphere,
-                })
+            .filter(|(_, &p)| b.sphere_within(p, first))
+            .map(|(i, &p)| Pair {
+                bound: b.sphere_bound(p),
+                centre: i as u32,
+                stage: Stage::Sphere,
             })
             .collect();
         let mut best = f32::INFINITY;
@@ -199,12 +193,8 @@ impl<'a> Measure<'a> {
             }
             let p = centres[pair.centre as usize];
             if pair.stage == Stage::Sphere && !b.covers.is_empty() {
-                let covers = (b.covers.iter())
-                    .map(|(c, r)| distance(p, *c) - r)
-                    .fold(f32::INFINITY, f32::min)
-                    - b.gap_m;
                 // Two lower bounds: the larger holds.
-                let bound = covers.max(pair.bound);
+                let bound = b.covers_bound(p).max(pair.bound);
                 if bound < limit {
                     heap.push(Pair {
                         bound,
@@ -226,17 +216,6 @@ impl<'a> Measure<'a> {
         }
         best
     }
-}
-
-#[inline]
-fn distance2(a: [f32; 3], b: [f32; 3]) -> f32 {
-    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
-}
-
-#[inline]
-fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
-    let d2: f32 = (0..3).map(|k| (a[k] - b[k]).powi(2)).sum();
-    d2.sqrt()
 }
 
 #[cfg(test)]
@@ -273,7 +252,7 @@ mod tests {
         let n = spheres.len() as f32;
         let c: [f32; 3] = std::array::from_fn(|k| spheres.iter().map(|s| s.0[k]).sum::<f32>() / n);
         let r = (spheres.iter())
-            .map(|s| distance(s.0, c) + s.1)
+            .map(|s| (0..3).map(|k| (s.0[k] - c[k]).powi(2)).sum::<f32>().sqrt() + s.1)
             .fold(0.0f32, f32::max);
         (c, r * 1.001 + 1e-5)
     }

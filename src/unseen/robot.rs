@@ -62,10 +62,22 @@ impl LinkBound {
     /// The same, from the bounding sphere alone where that bound is already at least `limit`.
     #[inline]
     pub fn lower_bound_below(&self, p: [f32; 3], limit: f32) -> f32 {
-        let coarse = distance(p, self.centre) - self.radius - self.gap_m;
+        let coarse = self.sphere_bound(p);
         if coarse >= limit || limit == f32::INFINITY || self.covers.is_empty() {
             return coarse;
         }
+        self.covers_bound(p)
+    }
+
+    /// The lower bound from the bounding sphere alone.
+    #[inline]
+    pub fn sphere_bound(&self, p: [f32; 3]) -> f32 {
+        distance(p, self.centre) - self.radius - self.gap_m
+    }
+
+    /// The lower bound from the covers (+∞ without covers).
+    #[inline]
+    pub fn covers_bound(&self, p: [f32; 3]) -> f32 {
         (self.covers.iter())
             .map(|(c, r)| distance(p, *c) - r)
             .fold(f32::INFINITY, f32::min)
@@ -77,12 +89,22 @@ impl LinkBound {
     /// distances (no square root), the bounding sphere first.
     #[inline]
     pub fn may_be_within(&self, p: [f32; 3], limit: f32) -> bool {
-        let within = |c: [f32; 3], r: f32| {
-            let reach = limit + r + self.gap_m;
-            reach > 0.0 && distance2(p, c) < reach * reach
-        };
-        within(self.centre, self.radius)
-            && (self.covers.is_empty() || self.covers.iter().any(|&(c, r)| within(c, r)))
+        self.sphere_within(p, limit)
+            && (self.covers.is_empty()
+                || (self.covers.iter()).any(|&(c, r)| self.reaches(p, c, r, limit)))
+    }
+
+    /// Whether [`LinkBound::sphere_bound`]`(p)` is below `limit` (squared: no square root).
+    #[inline]
+    pub fn sphere_within(&self, p: [f32; 3], limit: f32) -> bool {
+        self.reaches(p, self.centre, self.radius, limit)
+    }
+
+    /// Whether the sphere `(c, r)` of the link, grown by its h, comes within `limit` of `p`.
+    #[inline]
+    fn reaches(&self, p: [f32; 3], c: [f32; 3], r: f32, limit: f32) -> bool {
+        let reach = limit + r + self.gap_m;
+        reach > 0.0 && distance2(p, c) < reach * reach
     }
 }
 

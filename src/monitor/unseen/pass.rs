@@ -118,7 +118,6 @@ impl UnseenSpace {
         let excluded = |c: [f32; 3]| volumes.iter().any(|v| v.contains(c));
         let max = f64::from(query.max_distance_m);
         let mut options = query.clone();
-        let gaps: Vec<f32> = links.iter().map(|l| l.gap_m).collect();
         let (views, verdicts) = self.live_views(&lattice);
         // Certified: the pairs best first (`unseen::Measure`); exact: the engine, which
         // refines its candidates on the meshes.
@@ -138,10 +137,7 @@ impl UnseenSpace {
                 };
                 options.link_ranges_m.clear();
                 (options.link_ranges_m).extend(
-                    needs
-                        .iter()
-                        .zip(&gaps)
-                        .map(|(&n, &h)| (n as f32 + h).max(0.0)),
+                    (needs.iter().zip(links.iter())).map(|(&n, l)| (n as f32 + l.gap_m).max(0.0)),
                 );
                 engine
                     .query(centres, &Isometry3::identity(), poses, &options)

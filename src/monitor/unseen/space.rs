@@ -182,6 +182,11 @@ impl UnseenSpace {
         self.markers_read = read;
     }
 
+    /// Whether the pass runs and draws markers (`unobserved_markers` above 0).
+    pub fn draws_markers(&self) -> bool {
+        self.enabled() && self.settings.markers > 0
+    }
+
     /// The hidden places kept for the markers: the configured count, or none while nobody
     /// reads them.
     pub(super) fn markers(&self) -> usize {

@@ -17,17 +17,17 @@ use super::node::ZenohNode;
 use crate::node::error::{entity, NodeError};
 
 /// The publishers (or subscriptions) of one topic, kept by a liveliness subscriber.
-pub struct ZenohWriters {
-    /// Token key → the writer's name for a report (`/namespace/node (session id)`).
-    writers: Arc<Mutex<BTreeMap<String, String>>>,
+pub struct ZenohEntities {
+    /// Token key → the entity's name for a report (`/namespace/node (session id)`).
+    names: Arc<Mutex<BTreeMap<String, String>>>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
 }
 
-impl ZenohWriters {
-    /// The publishers declared on the topic now, by name.
-    pub fn writers(&self) -> Vec<String> {
-        let writers = self.writers.lock().unwrap_or_else(|e| e.into_inner());
-        writers.values().cloned().collect()
+impl ZenohEntities {
+    /// The entities declared on the topic now, by name.
+    pub fn names(&self) -> Vec<String> {
+        let names = self.names.lock().unwrap_or_else(|e| e.into_inner());
+        names.values().cloned().collect()
     }
 }
 
@@ -56,25 +56,25 @@ fn writer_name(key: &str) -> String {
 impl ZenohNode {
     /// Watches the publishers of `topic` (absolute, any type): the tokens declared before are
     /// taken at once (history), later ones as they come and go.
-    pub fn publishers(&self, topic: &str) -> Result<ZenohWriters, NodeError> {
+    pub fn publishers(&self, topic: &str) -> Result<ZenohEntities, NodeError> {
         self.entities(topic, "MP")
     }
 
     /// Watches the subscriptions of `topic` (absolute, any type), as [`ZenohNode::publishers`].
-    pub fn subscribers(&self, topic: &str) -> Result<ZenohWriters, NodeError> {
+    pub fn subscribers(&self, topic: &str) -> Result<ZenohEntities, NodeError> {
         self.entities(topic, "MS")
     }
 
     /// The entities of kind `kind` (`MP`, `MS`) on `topic`.
-    fn entities(&self, topic: &str, kind: &str) -> Result<ZenohWriters, NodeError> {
+    fn entities(&self, topic: &str, kind: &str) -> Result<ZenohEntities, NodeError> {
         let topic = format!("/{}", topic.trim_matches('/'));
         let key = format!(
             "@ros2_lv/{}/*/*/*/{kind}/*/*/*/{}/**",
             self.domain,
             mangle(&topic)
         );
-        let writers = Arc::new(Mutex::new(BTreeMap::new()));
-        let kept = writers.clone();
+        let names = Arc::new(Mutex::new(BTreeMap::new()));
+        let kept = names.clone();
         let subscriber = self
             .session
             .liveliness()
@@ -82,14 +82,14 @@ impl ZenohNode {
             .history(true)
             .callback(move |sample| {
                 let key = sample.key_expr().as_str().to_string();
-                let mut writers = kept.lock().unwrap_or_else(|e| e.into_inner());
+                let mut names = kept.lock().unwrap_or_else(|e| e.into_inner());
                 match sample.kind() {
                     SampleKind::Put => {
                         let name = writer_name(&key);
-                        writers.insert(key, name);
+                        names.insert(key, name);
                     }
                     SampleKind::Delete => {
-                        writers.remove(&key);
+                        names.remove(&key);
                     }
                 }
             })
@@ -101,8 +101,8 @@ impl ZenohNode {
                 };
                 entity(what, &topic, e)
             })?;
-        Ok(ZenohWriters {
-            writers,
+        Ok(ZenohEntities {
+            names,
             _subscriber: subscriber,
         })
     }

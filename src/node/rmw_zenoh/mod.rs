@@ -62,7 +62,7 @@ mod service;
 mod subscribe;
 
 pub use config::{config_from_env, rmw_zenoh_config, zenoh_router, ConfigFor, ZENOH_ROUTER};
-pub use graph::ZenohWriters;
+pub use graph::ZenohEntities;
 pub use keys::qos_key;
 pub use node::ZenohNode;
 pub use publish::ZenohPub;
