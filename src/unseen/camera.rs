@@ -32,6 +32,8 @@ pub struct Optics {
     /// `cos κ`, `sin κ`.
     cos_k: f32,
     sin_k: f32,
+    /// The intrinsics in f64, for [`unit_ray`].
+    camera: crate::cloud::depth::PinholeCamera,
 }
 
 /// A cone's half angle `α` as the tests use it: its sine and cosine; `tan α` bounds `α` from
@@ -78,7 +80,15 @@ impl Optics {
             pixel_angle: HALF_PIXEL / f,
             cos_k: (HALF_PIXEL / f).cos(),
             sin_k: (HALF_PIXEL / f).sin(),
+            camera: *camera,
         }
+    }
+
+    /// Pixel `(u, v)`'s unit ray, as [`unit_ray`] gives it: the value the view's ray array holds
+    /// there, computed instead of read (a read far from the last one misses the caches).
+    #[inline]
+    pub fn ray(&self, u: usize, v: usize) -> [f32; 3] {
+        unit_ray(&self.camera, u, v)
     }
 
     /// `(cos κ, sin κ)`, as the GPU's copy of the test takes them (`shaders/cell.wgsl`).
@@ -105,6 +115,30 @@ impl Optics {
             sin,
             cos: ball.cos * self.cos_k + ball.sin * self.sin_k,
         })
+    }
+}
+
+/// The unit ray through the centre of pixel `(u, v)` of `camera`, camera frame: computed in f64,
+/// rounded once.
+#[inline]
+pub fn unit_ray(camera: &crate::cloud::depth::PinholeCamera, u: usize, v: usize) -> [f32; 3] {
+    let x = (u as f64 - camera.cx) / camera.fx;
+    let y = (v as f64 - camera.cy) / camera.fy;
+    let n = (x * x + y * y + 1.0).sqrt();
+    [(x / n) as f32, (y / n) as f32, (1.0 / n) as f32]
+}
+
+/// The unit tests' camera: 64 × 48 pixels, a focal length of 50 pixels, the principal point in
+/// the middle.
+#[cfg(test)]
+pub(super) fn test_camera() -> crate::cloud::depth::PinholeCamera {
+    crate::cloud::depth::PinholeCamera {
+        width: 64,
+        height: 48,
+        fx: 50.0,
+        fy: 50.0,
+        cx: 31.5,
+        cy: 23.5,
     }
 }
 

@@ -161,7 +161,24 @@ enum Ray {
 impl Ball {
     #[inline]
     fn ray(&self, px: &Pixels, q: usize) -> Ray {
+        self.ray_along(px, q, px.rays[q])
+    }
+
+    /// Whether pixel `q`'s ray rules the ball out: [`Ball::ray`] is `Ray::Free`, without asking
+    /// why not where it is not.
+    #[inline]
+    fn rules_out(&self, px: &Pixels, q: usize) -> bool {
         let d = px.rays[q];
+        let proj = d[0] * self.p[0] + d[1] * self.p[1] + d[2] * self.p[2];
+        let s2 = self.s2_max - (self.l2 - proj * proj).max(0.0);
+        let g = px.free[q];
+        let diff = proj - g;
+        proj >= self.min_proj && s2 > 0.0 && (g >= proj || diff * diff < s2)
+    }
+
+    /// [`Ball::ray`] with pixel `q`'s unit ray `d` given.
+    #[inline]
+    fn ray_along(&self, px: &Pixels, q: usize, d: [f32; 3]) -> Ray {
         let proj = d[0] * self.p[0] + d[1] * self.p[1] + d[2] * self.p[2];
         if proj < self.min_proj {
             return Ray::Outside;
@@ -197,6 +214,8 @@ pub struct InView {
     pub u: f32,
     pub v: f32,
     pub centre: usize,
+    /// That pixel's column and row.
+    pub pixel: (usize, usize),
 }
 
 /// The ball of radius `r` at camera-frame `p` where the view may see it; `None` where it is
@@ -222,6 +241,7 @@ pub fn in_view(o: &Optics, p: [f32; 3], r: f32) -> Option<InView> {
         u,
         v,
         centre: vc as usize * o.width + uc as usize,
+        pixel: (uc as usize, vc as usize),
     })
 }
 
@@ -243,6 +263,7 @@ pub fn judge(
         u,
         v,
         centre,
+        pixel,
     }) = in_view(o, p, r)
     else {
         return OUTSIDE;
@@ -255,8 +276,9 @@ pub fn judge(
         min_proj: l * alpha.cos,
         s2_max: r * r,
     };
-    // 1. The pixel nearest the centre's projection.
-    let central = ball.ray(px, centre);
+    // 1. The pixel nearest the centre's projection (its ray computed: the first read of a
+    // centre's pixels is one far from the last centre's).
+    let central = ball.ray_along(px, centre, o.ray(pixel.0, pixel.1));
     if central == Ray::Free {
         return Seen::Free;
     }
@@ -368,7 +390,7 @@ fn by_tiles(px: &Pixels, free: &Pyramid, ball: &Ball, rect: Rect) -> Option<bool
             let d = px.rays[q];
             d[0] * p[0] + d[1] * p[1] + d[2] * p[2] >= inner
         },
-        |q| ball.ray(px, q) == Ray::Free,
+        |q| ball.rules_out(px, q),
     )
 }
 
@@ -413,15 +435,7 @@ mod tests {
     use crate::cloud::depth::PinholeCamera;
 
     fn optics() -> Optics {
-        let camera = PinholeCamera {
-            width: 64,
-            height: 48,
-            fx: 50.0,
-            fy: 50.0,
-            cx: 31.5,
-            cy: 23.5,
-        };
-        Optics::new(&camera, 0.0, f32::INFINITY)
+        Optics::new(&super::super::camera::test_camera(), 0.0, f32::INFINITY)
     }
 
     /// A test image's unit rays, free distances and robot image, owned.
@@ -454,9 +468,11 @@ mod tests {
         };
         for v in 0..o.height {
             for u in 0..o.width {
-                let d = [(u as f32 - o.cx) / o.fx, (v as f32 - o.cy) / o.fy, 1.0f32];
-                let n = (d[0] * d[0] + d[1] * d[1] + 1.0).sqrt();
-                image.rays.push([d[0] / n, d[1] / n, 1.0 / n]);
+                // The view's rays (`prepared::unit_rays`), which the central pixel's test
+                // computes again.
+                let d = o.ray(u, v);
+                let n = 1.0 / d[2];
+                image.rays.push(d);
                 let depth = z(u, v);
                 image.free.push(if depth.is_nan() {
                     -1.0

@@ -69,6 +69,7 @@ mod fit;
 mod footprint;
 mod lattice;
 mod measure;
+mod needs;
 mod prepared;
 mod pyramid;
 mod robot;

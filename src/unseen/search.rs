@@ -54,6 +54,7 @@ use super::cell::{judge_cell, CellSeen, PlacedView};
 use super::footprint::{judge, Cause, Need, Seen, Why, PAIR, ROUNDING_M};
 use super::lattice::{centre_at, Lattice};
 use super::measure::Batch;
+use super::needs::Needs;
 use super::prepared::PreparedView;
 use super::robot::{LinkBound, RobotBody};
 
@@ -156,54 +157,6 @@ impl Ord for Cells {
     /// The least bound first out of the (max-)heap.
     fn cmp(&self, other: &Self) -> Ordering {
         other.bound.total_cmp(&self.bound)
-    }
-}
-
-/// The bests still open: what a centre must be nearer than to be worth examining.
-#[derive(Debug, Clone)]
-struct Needs {
-    counted: f64,
-    shadow: f64,
-    links: Vec<f64>,
-}
-
-impl Needs {
-    /// The largest need: nothing whose bound is at least this is needed.
-    fn stop(&self) -> f64 {
-        self.links
-            .iter()
-            .copied()
-            .fold(self.counted.max(self.shadow), f64::max)
-    }
-
-    /// Whether a place `bound` from the robot, `link_bounds` from each link, may lower one.
-    fn wants(&self, bound: f32, link_bound: impl Fn(usize) -> f32) -> bool {
-        let b = f64::from(bound);
-        b < self.counted
-            || b < self.shadow
-            || (self.links.iter().enumerate()).any(|(l, &n)| f64::from(link_bound(l)) < n)
-    }
-
-    /// Whether root-frame point `p` may lower a best still open (the links' bounding spheres,
-    /// then their covers, squared: no square root; a final link not looked at).
-    fn wants_point(&self, links: &[LinkBound], p: [f32; 3]) -> bool {
-        let any = self.counted.max(self.shadow);
-        (links.iter().enumerate()).any(|(l, link)| {
-            let need = self.links.get(l).map_or(any, |&n| n.max(any));
-            need > f64::NEG_INFINITY && link.may_be_within(p, need as f32)
-        })
-    }
-
-    /// The bound of root-frame point `p` from the robot (the links' covers where they may
-    /// matter): the markers' order.
-    fn near(&self, links: &[LinkBound], p: [f32; 3]) -> f32 {
-        let any = self.counted.max(self.shadow);
-        (links.iter().enumerate())
-            .map(|(l, link)| {
-                let need = self.links.get(l).map_or(any, |&n| n.max(any));
-                link.lower_bound_below(p, need as f32)
-            })
-            .fold(f32::INFINITY, f32::min)
     }
 }
 
@@ -502,6 +455,7 @@ impl Search<'_> {
                 BlockSeen::Mixed => known.push(None),
             }
         }
+        let wanted = needs.in_block(links, b.middle, b.rho);
         let mut out = BlockOut::default();
         for k in b.lo[2]..b.hi[2] {
             for j in b.lo[1]..b.hi[1] {
@@ -512,7 +466,7 @@ impl Search<'_> {
                         out.dropped += 1;
                         continue;
                     }
-                    if !needs.wants_point(links, centre) {
+                    if !wanted.point(centre) {
                         continue;
                     }
                     out.judged += 1;
