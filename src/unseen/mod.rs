@@ -30,8 +30,10 @@
 //! 2. the footprint test (`footprint`), per view and ball; the cell's verdict over the views
 //!    (`cell`);
 //! 3. the search (`search`): blocks of centres in the order of their bound from the robot
-//!    (`robot`), only those that can be nearer than the best distance found, a block that one
-//!    view sees wholly free skipped; the caller's certified distance over the hidden centres,
+//!    (`robot`), only those that can be nearer than the best distance found (`needs`: the
+//!    links and covers that may bring a block's centres within a best still open, once a
+//!    block), a block that one view sees wholly free skipped; the caller's certified distance
+//!    over the hidden centres,
 //!    wave by wave ([`Measure`]: the pairs of centre and link best first, a link's tree
 //!    descended only where its cheaper bounds say it may matter);
 //! 4. the causes of the nearest hidden place and of those kept for markers
@@ -59,7 +61,7 @@
 //! pixels at a surface; measured by `ist_monitor bench monitor` (docs/unobserved.md).
 //!
 //! Files: `error`, `lattice`, `ball`, `view` and `fit`, `camera`, `prepared` and `pyramid`,
-//! `robot`, `footprint` and `tiles`, `cell`, `search`, `measure`.
+//! `robot`, `footprint` and `tiles`, `cell`, `search` and `needs`, `measure`.
 
 mod ball;
 mod camera;
