@@ -33,14 +33,15 @@
 //! pixel to lie inside it, is **outside** the view.
 //!
 //! **The order of the tests**, each a shortcut that never changes the verdict of the full scan:
-//! the pixel nearest the centre's projection (one read rules out most free space); then, with
-//! the view's pyramids and where that pixel lies in the footprint (a footprint that holds no
-//! pixel's ray is outside the view), the window's largest free distance against `l − r` (a ball
-//! behind a surface is hidden whatever the pixels, with [`ROUNDING_M`] to spare for the f32
-//! sums) and the robot's; then the scan of the window, every pixel tested exactly, which stops at the
-//! first ray that rules the ball out. Where only the verdict is asked (the search, the shadow
-//! counted), the scan goes by **tiles** (`tiles`), the free pyramid's texels about a quarter
-//! of the window's side: a tile whose largest free distance is at most `l − r` is skipped whole, and
+//! the pixel nearest the centre's projection (one read, its ray computed: it rules out most
+//! free space); then, with the view's pyramids and where that pixel lies in the footprint (a
+//! footprint that holds no pixel's ray is outside the view), the window's largest free
+//! distance against `l − r` (a ball behind a surface is hidden whatever the pixels, with
+//! [`ROUNDING_M`] to spare for the f32 sums) and the robot's; then the scan of the window,
+//! every pixel tested exactly, which stops at the first ray that rules the ball out. Where only
+//! the verdict is asked (the search, the shadow counted), the scan goes by **tiles**
+//! (`tiles`), the free pyramid's texels about a quarter of the window's side: a tile whose
+//! largest free distance is at most `l − r` is skipped whole, and
 //! one wholly inside the footprint (its corners' rays in the cone: the cone's trace on the
 //! image is convex) whose largest free distance reaches `l` rules the ball out at once (that
 //! pixel passes `l ≥ d·p`); only the other tiles' pixels are tested

@@ -25,8 +25,9 @@
 //!
 //! Cost: one pass over the pixels for the free distances and their 2 × 2 maxima (bands of rows,
 //! each reading the row below it again), the two pyramids built side by side (4/3 of a pass
-//! each), and per sphere its image's pixels (all of them, or those of the rows asked for), in
-//! parallel (rayon).
+//! each; the maxima's pyramid for its minima alone), and per sphere its image's pixels (all of
+//! them, or those of the rows asked for), in parallel (rayon); the robot's image blanked again
+//! where the last frame rendered it (the whole image where that was a quarter of it or more).
 
 use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;

@@ -9,9 +9,14 @@
 //! maximum read is at least the true one and the minimum at most, which is the side each
 //! shortcut needs (`footprint`).
 //!
-//! Cost: a third of the image's pixels to build, rows in parallel (where only some rows of an
-//! image filled with one value were written, the texels over them: `fill`, `build_rows`); up to
-//! 25 reads a query.
+//! An image whose maxima are read only at its pixels (the 2 × 2 maxima of the free distances)
+//! keeps its levels' minima alone ([`Pyramid::build_minima`]); a maximum over a wider
+//! rectangle is then +∞, "or more" as the contract allows.
+//!
+//! Cost: a third of the image's pixels to build, rows in parallel where a level holds at least
+//! 16,384 texels and on one thread below (a parallel pass costs more to start than a small
+//! level's work); where only some rows of an image filled with one value were written, the
+//! texels over them (`fill`, `build_rows`); up to 25 reads a query.
 
 use rayon::prelude::*;
 

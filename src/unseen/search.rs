@@ -39,8 +39,9 @@
 //! centre judged one read for free space, a footprint's pixels at a surface or a shadow's rim;
 //! per wave one distance query over the hidden centres that can lower a best still open, each
 //! link measured only below its own best still open (a link whose best is final, not at all;
-//! the monitor's: `measure`). A centre's test against the bests is squared (no square root),
-//! its bound for the markers' order taken only where it is hidden.
+//! the monitor's: `measure`). A centre's test against the bests is squared (no square root), on
+//! the covers that may reach its block (`needs`), its bound for the markers' order taken only
+//! where it is hidden.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
