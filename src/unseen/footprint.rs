@@ -169,31 +169,30 @@ impl Ball {
     /// why not where it is not.
     #[inline]
     fn rules_out(&self, px: &Pixels, q: usize) -> bool {
-        let d = px.rays[q];
+        self.through(px.rays[q])
+            .is_some_and(|(proj, s2)| passes(proj, s2, px.free[q]))
+    }
+
+    /// Along unit ray `d`: its projection on the centre and `r² − perp²`, where its pixel lies
+    /// in the footprint and the ray meets the ball (`None`: outside).
+    #[inline]
+    fn through(&self, d: [f32; 3]) -> Option<(f32, f32)> {
         let proj = d[0] * self.p[0] + d[1] * self.p[1] + d[2] * self.p[2];
+        if proj < self.min_proj {
+            return None;
+        }
         let s2 = self.s2_max - (self.l2 - proj * proj).max(0.0);
-        let g = px.free[q];
-        let diff = proj - g;
-        proj >= self.min_proj && s2 > 0.0 && (g >= proj || diff * diff < s2)
+        (s2 > 0.0).then_some((proj, s2))
     }
 
     /// [`Ball::ray`] with pixel `q`'s unit ray `d` given.
     #[inline]
     fn ray_along(&self, px: &Pixels, q: usize, d: [f32; 3]) -> Ray {
-        let proj = d[0] * self.p[0] + d[1] * self.p[1] + d[2] * self.p[2];
-        if proj < self.min_proj {
+        let Some((proj, s2)) = self.through(d) else {
             return Ray::Outside;
-        }
-        let s2 = self.s2_max - (self.l2 - proj * proj).max(0.0);
-        if s2 <= 0.0 {
-            return Ray::Outside;
-        }
+        };
         let g = px.free[q];
-        if g >= proj {
-            return Ray::Free;
-        }
-        let diff = proj - g;
-        if diff * diff < s2 {
+        if passes(proj, s2, g) {
             return Ray::Free;
         }
         if px.robot[q] <= proj - s2.sqrt() {
@@ -204,6 +203,14 @@ impl Ball {
             Ray::Dark
         }
     }
+}
+
+/// Whether a ray with free distance `g` passes the entry `proj − √s2` into the ball: `g ≥ proj`,
+/// or `(proj − g)² < s2` (no square root).
+#[inline]
+fn passes(proj: f32, s2: f32, g: f32) -> bool {
+    let diff = proj - g;
+    g >= proj || diff * diff < s2
 }
 
 /// A ball the view may see: its centre's distance (and square), its footprint's half angle,

@@ -15,7 +15,7 @@
 //! is wanted and none is tested (a large need: the first waves, a scene where nothing is found
 //! hidden). All on squared distances, no square root.
 
-use super::robot::LinkBound;
+use super::robot::{distance2, LinkBound};
 
 /// What the f32 sums of a block's middle may lose (m): a cover within this much more than its
 /// reach plus `ρ` is kept for the block.
@@ -86,7 +86,7 @@ impl Needs {
             // The sphere (c, r) grown by h comes within `need` of p: |p − c| < need + r + h. It
             // may for some centre of the block where |middle − c| < reach + ρ, and does for
             // every one where |middle − c| < reach − ρ (squared; room for the f32 sums).
-            let reach = |r: f32| need + r + link.gap_m;
+            let reach = |r: f32| link.reach(r, need);
             let within = |c: [f32; 3], d: f32| d > 0.0 && distance2(middle, c) < d * d;
             let near = |c: [f32; 3], r: f32| reach(r) > 0.0 && within(c, reach(r) + rho + SLACK_M);
             let whole = |c: [f32; 3], r: f32| within(c, reach(r) - rho - SLACK_M);
@@ -145,11 +145,6 @@ impl Wanted {
                     })
             })
     }
-}
-
-#[inline]
-fn distance2(a: [f32; 3], b: [f32; 3]) -> f32 {
-    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
 }
 
 #[cfg(test)]

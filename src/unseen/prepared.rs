@@ -245,6 +245,7 @@ impl PreparedView {
                     c,
                     l2,
                     rho2: rho * rho,
+                    // From `rho2`'s root, as the entries `render` takes from `rho2`.
                     nearest: (l - (rho * rho).sqrt()).max(0.0),
                     rect,
                 })
@@ -278,8 +279,7 @@ impl PreparedView {
                     base[v * w + c0..=v * w + c1].fill(f32::INFINITY);
                 }
             }
-            let rows: Vec<bool> = (0..h).map(|v| self.rendered[v / BAND].is_some()).collect();
-            robot.build_rows(&rows);
+            robot.build_rows(&band_rows(&self.rendered, h));
         }
         self.rendered = vec![None; bands];
     }
@@ -299,9 +299,13 @@ impl PreparedView {
         let robot = self.pyramids.robot.base_mut(o.width, o.height);
         render(&o, &self.rays, &self.shapes, robot, &todo);
         (self.rendered.iter_mut().zip(&todo)).for_each(|(r, t)| *r = union(*r, *t));
-        let rows: Vec<bool> = (0..o.height).map(|v| todo[v / BAND].is_some()).collect();
-        self.pyramids.robot.build_rows(&rows);
+        self.pyramids.robot.build_rows(&band_rows(&todo, o.height));
     }
+}
+
+/// Per row of an image `height` rows high, whether its band of `bands` has columns.
+fn band_rows(bands: &[Columns], height: usize) -> Vec<bool> {
+    (0..height).map(|v| bands[v / BAND].is_some()).collect()
 }
 
 /// The robot's image over the columns `bands` gives each band of rows (the rest as it was: ∞

@@ -103,13 +103,21 @@ impl LinkBound {
     /// Whether the sphere `(c, r)` of the link, grown by its h, comes within `limit` of `p`.
     #[inline]
     fn reaches(&self, p: [f32; 3], c: [f32; 3], r: f32, limit: f32) -> bool {
-        let reach = limit + r + self.gap_m;
+        let reach = self.reach(r, limit);
         reach > 0.0 && distance2(p, c) < reach * reach
+    }
+
+    /// How far from its centre a sphere of radius `r` of the link, grown by its h, comes within
+    /// `limit` of a point: `limit + r + h`.
+    #[inline]
+    pub(super) fn reach(&self, r: f32, limit: f32) -> f32 {
+        limit + r + self.gap_m
     }
 }
 
+/// The squared distance between two points.
 #[inline]
-fn distance2(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(super) fn distance2(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|k| (a[k] - b[k]).powi(2)).sum()
 }
 
