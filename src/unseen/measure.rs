@@ -28,7 +28,6 @@
 //! Cost: per pair one distance (the bounding sphere), per pair within reach one per cover, per pair
 //! that may matter a descent; a heap over the pairs within reach.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
@@ -37,6 +36,7 @@ use rayon::prelude::*;
 
 use crate::query::{nearest_sphere, QueryLink};
 
+use super::least::Least;
 use super::robot::{LinkBound, Rigid32};
 
 /// The caller's certified distance over a batch of root-frame points.
@@ -72,34 +72,8 @@ enum Stage {
     Covers,
 }
 
-/// A centre of the batch with a lower bound of its certified distance from one link.
-#[derive(Debug, Clone, Copy)]
-struct Pair {
-    bound: f32,
-    centre: u32,
-    stage: Stage,
-}
-
-impl PartialEq for Pair {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
-    }
-}
-
-impl Eq for Pair {}
-
-impl PartialOrd for Pair {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Pair {
-    /// The least bound first out of the (max-)heap.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.bound.total_cmp(&self.bound)
-    }
-}
+/// A centre of the batch (its index) and the stage its lower bound from one link came from.
+type Pair = Least<(u32, Stage)>;
 
 impl<'a> Measure<'a> {
     /// `links` at `poses` (`root_from_link`, indexed by each link's `pose_index`), `bounds`
@@ -181,8 +155,7 @@ impl<'a> Measure<'a> {
             .filter(|(_, &p)| b.sphere_within(p, first))
             .map(|(i, &p)| Pair {
                 bound: b.sphere_bound(p),
-                centre: i as u32,
-                stage: Stage::Sphere,
+                item: (i as u32, Stage::Sphere),
             })
             .collect();
         let mut best = f32::INFINITY;
@@ -191,15 +164,15 @@ impl<'a> Measure<'a> {
             if pair.bound >= limit {
                 break;
             }
-            let p = centres[pair.centre as usize];
-            if pair.stage == Stage::Sphere && !b.covers.is_empty() {
+            let (centre, stage) = pair.item;
+            let p = centres[centre as usize];
+            if stage == Stage::Sphere && !b.covers.is_empty() {
                 // Two lower bounds: the larger holds.
                 let bound = b.covers_bound(p).max(pair.bound);
                 if bound < limit {
                     heap.push(Pair {
                         bound,
-                        stage: Stage::Covers,
-                        ..pair
+                        item: (centre, Stage::Covers),
                     });
                 }
                 continue;
@@ -209,7 +182,7 @@ impl<'a> Measure<'a> {
                 let lower = (d - link.gap_m).max(0.0);
                 best = best.min(lower);
                 nearest.fetch_min(
-                    ((lower.to_bits() as u64) << 32) | u64::from(pair.centre),
+                    ((lower.to_bits() as u64) << 32) | u64::from(centre),
                     Relaxed,
                 );
             }

@@ -61,7 +61,8 @@
 //! pixels at a surface; measured by `ist_monitor bench monitor` (docs/unobserved.md).
 //!
 //! Files: `error`, `lattice`, `ball`, `view` and `fit`, `camera`, `prepared` and `pyramid`,
-//! `robot`, `footprint` and `tiles`, `cell`, `search` and `needs`, `measure`.
+//! `robot`, `footprint` and `tiles`, `cell`, `search` and `needs`, `measure`, `least` (the
+//! best-first heaps' entry).
 
 mod ball;
 mod camera;
@@ -70,6 +71,7 @@ mod error;
 mod fit;
 mod footprint;
 mod lattice;
+mod least;
 mod measure;
 mod needs;
 mod prepared;

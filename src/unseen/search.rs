@@ -43,7 +43,6 @@
 //! the covers that may reach its block (`needs`), its bound for the markers' order taken only
 //! where it is hidden.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use nalgebra::Isometry3;
@@ -54,6 +53,7 @@ use super::camera::{half_window, Rect};
 use super::cell::{judge_cell, CellSeen, PlacedView};
 use super::footprint::{judge, Cause, Need, Seen, Why, PAIR, ROUNDING_M};
 use super::lattice::{centre_at, Lattice};
+use super::least::Least;
 use super::measure::Batch;
 use super::needs::Needs;
 use super::prepared::PreparedView;
@@ -140,24 +140,36 @@ struct Cells {
     block: bool,
 }
 
-impl PartialEq for Cells {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
-    }
+/// The boxes not yet examined, the least bound first: the boxes in `all`, their bounds with
+/// their index there in `heap` (a pop moves 8 bytes; the boxes themselves stay put).
+#[derive(Default)]
+struct Queue {
+    all: Vec<Cells>,
+    heap: BinaryHeap<Least<u32>>,
 }
 
-impl Eq for Cells {}
-
-impl PartialOrd for Cells {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
+impl Queue {
+    fn push(&mut self, c: Cells) {
+        let item = self.all.len() as u32;
+        self.heap.push(Least {
+            bound: c.bound,
+            item,
+        });
+        self.all.push(c);
     }
-}
 
-impl Ord for Cells {
-    /// The least bound first out of the (max-)heap.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.bound.total_cmp(&self.bound)
+    /// The least bound of the boxes left.
+    fn least(&self) -> Option<f32> {
+        self.heap.peek().map(|l| l.bound)
+    }
+
+    fn pop(&mut self) -> Option<Cells> {
+        (self.heap.pop()).map(|l| self.all[l.item as usize])
+    }
+
+    /// The boxes left, in no order.
+    fn rest(&self) -> impl Iterator<Item = &Cells> + '_ {
+        self.heap.iter().map(|l| &self.all[l.item as usize])
     }
 }
 
@@ -207,14 +219,13 @@ impl Search<'_> {
         let dims = self.lattice.dims();
         let nb = dims.map(|n| n.div_ceil(BLOCK));
         let ns = nb.map(|n| n.div_ceil(BLOCK));
-        let mut heap: BinaryHeap<Cells> = (0..ns[0] * ns[1] * ns[2])
-            .map(|s| {
-                let ijk = [s % ns[0], (s / ns[0]) % ns[1], s / (ns[0] * ns[1])];
-                let lo = ijk.map(|x| x * BLOCK * BLOCK);
-                let hi = std::array::from_fn(|a| (lo[a] + BLOCK * BLOCK).min(dims[a]));
-                self.cells(lo, hi, false, origin, &steps, links)
-            })
-            .collect();
+        let mut heap = Queue::default();
+        for s in 0..ns[0] * ns[1] * ns[2] {
+            let ijk = [s % ns[0], (s / ns[0]) % ns[1], s / (ns[0] * ns[1])];
+            let lo = ijk.map(|x| x * BLOCK * BLOCK);
+            let hi = std::array::from_fn(|a| (lo[a] + BLOCK * BLOCK).min(dims[a]));
+            heap.push(self.cells(lo, hi, false, origin, &steps, links));
+        }
         let per_link = self.per_link_range_m.is_some();
         let range = self.per_link_range_m.unwrap_or(0.0);
         let mut found = Found {
@@ -255,8 +266,8 @@ impl Search<'_> {
             let stop = needs.stop();
             let mut todo = Vec::with_capacity(wave);
             while todo.len() < wave {
-                match heap.peek() {
-                    Some(c) if f64::from(c.bound) < stop => {}
+                match heap.least() {
+                    Some(bound) if f64::from(bound) < stop => {}
                     _ => break,
                 }
                 let Some(c) = heap.pop() else { break };
@@ -319,7 +330,7 @@ impl Search<'_> {
         }
         // Every box not examined bounds what it could hold: per link, the least bound among
         // them is a certified lower bound of that link's distance there.
-        skipped.extend(heap.into_vec());
+        skipped.extend(heap.rest());
         found.counts.blocks_pruned = found.counts.blocks - examined;
         for (l, link) in links.iter().enumerate().filter(|_| per_link) {
             let least = (skipped.iter())
@@ -394,7 +405,7 @@ impl Search<'_> {
     fn split(
         &self,
         s: &Cells,
-        heap: &mut BinaryHeap<Cells>,
+        heap: &mut Queue,
         origin: [f32; 3],
         steps: &[[f32; 3]; 3],
         links: &[LinkBound],
