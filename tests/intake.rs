@@ -315,12 +315,53 @@ fn overlapping_shells_are_kept_apart() {
         // One solid (the union), decided by the flood fill; the faces of each box inside
         // the other are dropped.
         assert!(r.fill_voxel_m.is_some(), "{r:?}");
+        assert!(!r.solid_as_given(), "{r:?}");
         assert!(coincident || r.inner_triangles > 0, "{r:?}");
         assert_eq!(link.elements.len(), 1, "{r:?}");
         let tree = build(&link, 512);
         assert_inside(&tree, &[a, b]);
         assert_gap_certified(&tree, &mesh);
     }
+}
+
+/// A body and a boss beside it, two closed boxes 1 mm apart in one file (issue 56: a dual arm's
+/// links as their vendor ships them), the slot between them narrower than the flood fill's
+/// voxel (0.3 m / 256 = 1.17 mm). The slot is outside the file's solid: every sphere's centre is
+/// inside the file's own triangles by their winding number and farther than its radius from
+/// every one of them (f64, brute force), and each sphere lies in one of the boxes. The fill
+/// closed the slot, and the packing grew spheres across it.
+#[test]
+fn a_slot_between_two_closed_shells_is_not_filled() {
+    use ist_monitor::geometry::{distance_point_mesh, winding_number};
+    let dir = tempfile::tempdir().expect("tmp");
+    let body = ([0.0, 0.0, 0.0], [0.3, 0.06, 0.06]);
+    let boss = ([0.1, 0.061, 0.0], [0.2, 0.1, 0.06]);
+    let mut mesh = grid_box(body.0, body.1, 4);
+    mesh.extend(grid_box(boss.0, boss.1, 4));
+    let link = load(dir.path(), &mesh);
+    let r = report(&link);
+    assert_eq!(
+        (r.shells, r.inner_shells, r.open_shells),
+        (2, 0, 0),
+        "{r:?}"
+    );
+    // Each box a solid of its own, as the file gives it.
+    assert!(r.solid_as_given(), "{r:?}");
+    assert_eq!(link.elements.len(), 2, "{r:?}");
+    let tree = build(&link, 2048);
+    let (vertices, triangles) = &*link.intake[0].original;
+    for (i, s) in tree.spheres.iter().enumerate() {
+        let c = s.center.map(f64::from);
+        let wn = winding_number(c, vertices, triangles);
+        let clear = distance_point_mesh(c, vertices, triangles) - (s.radius as f64 - 1e-6);
+        assert!(
+            wn >= 0.5 && clear >= 0.0,
+            "sphere {i} {s:?}: winding number {wn}, {clear} m clear of the file's triangles \
+             ({r:?})"
+        );
+    }
+    assert_inside(&tree, &[body, boss]);
+    assert_gap_certified(&tree, &mesh);
 }
 
 /// A vendor's robot as it ships: the KUKA KR 3 R540 of ros-industrial/kuka_experimental

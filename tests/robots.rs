@@ -323,9 +323,10 @@ fn independent_check(urdf: &Path) -> Vec<LinkTree> {
             }
         }
         let h = tree.quality.gap_m;
-        // A closed file: its own winding number. One the intake repaired (where inside is its
-        // decision): the convex hull of the file's vertices, and no file triangle crossed.
-        let hull = (!intake.report.clean()).then(|| {
+        // A closed file (its shells apart, as it gives them): its own winding number. One the
+        // intake repaired (where inside is its decision): the convex hull of the file's
+        // vertices, and no file triangle crossed.
+        let hull = (!intake.report.solid_as_given()).then(|| {
             let points: Vec<parry3d::math::Vector> = vertices
                 .iter()
                 .map(|v| parry3d::math::Vector::new(v[0], v[1], v[2]))

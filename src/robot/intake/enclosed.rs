@@ -1,7 +1,8 @@
 //! Intake step 5 (`super`'s module doc): the solid is everything the outside cannot reach. Shells
-//! wholly inside another are dropped; several shells, or shells the repairs could not close,
-//! become one solid decided by the exterior flood fill (`robot::fill`), its surface the
-//! triangles that face the outside. Link frame, metres.
+//! wholly inside another are dropped; closed shells that lie apart (`apart`) are each a solid of
+//! their own; shells that meet, or shells the repairs could not close, become one solid decided
+//! by the exterior flood fill (`robot::fill`), its surface the triangles that face the outside.
+//! Link frame, metres.
 
 use std::collections::HashMap;
 
@@ -76,6 +77,32 @@ pub(super) fn filled(
     // The packing's solid takes it: checked here, never panicked on later.
     Solid::try_new(&mesh)?;
     Ok((mesh, facing))
+}
+
+/// Whether the closed, outward-oriented `shells` (none inside another: `drop_inner` ran) lie
+/// apart: no triangle of one meets another's surface (parry3d's intersection test, for the
+/// pairs whose boxes meet) and none holds a vertex of another. Closed surfaces that do not meet
+/// bound insides that are nested or disjoint, and a held vertex would be the nesting: so their
+/// insides are disjoint, and each shell is a solid of its own, with its exact inside test; the
+/// space between two of them, however narrow, stays outside (issue 56: a body and a boss 1 mm
+/// apart, a slot the fill's voxel cannot enter).
+pub(super) fn apart(shells: &[ClosedMesh]) -> bool {
+    let solids: Vec<Solid> = shells.iter().map(Solid::new).collect();
+    let boxes: Vec<([f32; 3], [f32; 3])> = shells.iter().map(ClosedMesh::bounds).collect();
+    let meet = |i: usize, j: usize| {
+        let ((alo, ahi), (blo, bhi)) = (boxes[i], boxes[j]);
+        if (0..3).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k]) {
+            return false;
+        }
+        let (a, b) = (&shells[i], &shells[j]);
+        let held =
+            |s: &Solid, v: &[[f32; 3]]| v.first().is_some_and(|&p| s.signed_distance(p).0 >= 0.0);
+        held(&solids[i], &b.vertices)
+            || held(&solids[j], &a.vertices)
+            || (b.triangles.iter())
+                .any(|t| solids[i].meets_triangle(t.map(|v| b.vertices[v as usize])))
+    };
+    (0..shells.len()).all(|i| (i + 1..shells.len()).all(|j| !meet(i, j)))
 }
 
 /// Drops the shells that lie wholly inside another shell (see the module doc for the test):

@@ -29,7 +29,11 @@
 //!    and none of its triangles meets the outer surface (parry3d's intersection test), so it
 //!    cannot cross it anywhere. One closed shell left is the element as it is: its inside test
 //!    is the exact one of a closed oriented mesh (pseudo-normals in the packing, the f64
-//!    winding number in `ist::validate`). Several shells, or shells the repairs could not make
+//!    winding number in `ist::validate`). So are several closed shells that lie apart (no
+//!    surface meets another's, none holds another's vertex): each an element, and the space
+//!    between them, a slot narrower than the fill's voxel included, is outside (issue 56: the
+//!    fill closed a 1 mm slot between a vendor's body and its boss, and spheres grew into it).
+//!    Shells that meet, or shells the repairs could not make
 //!    closed, manifold and oriented, are one solid decided by an exterior flood fill
 //!    (`robot::fill`): overlapping parts are their union, and the space they enclose together
 //!    (a thin wall closed at its ends by other parts) is filled, with the triangles inside the

@@ -2,7 +2,7 @@
 //! frame, metres → the closed meshes the packing takes (one per outer shell, or one filled solid),
 //! and its [`MeshReport`].
 
-use super::enclosed::{compact, drop_inner, filled};
+use super::enclosed::{apart, compact, drop_inner, filled};
 use super::holes::close_holes;
 use super::report::{MeshReport, TriangleFate};
 use super::shells::{orient, EdgeUse};
@@ -155,7 +155,9 @@ fn take_shells(
         }
     }
     let (meshes, tags): (Vec<ClosedMesh>, Vec<(u32, Vec<usize>)>) = shells.into_iter().unzip();
-    if meshes.len() == 1 && loose.is_empty() {
+    // One closed shell, or closed shells apart from each other: each a solid as it is (a slot
+    // between two of them is outside, however narrow).
+    if loose.is_empty() && (meshes.len() == 1 || apart(&meshes)) {
         for (shell, origins) in tags {
             for o in origins {
                 fates[o] = TriangleFate::Kept { shell };

@@ -59,6 +59,20 @@ impl MeshReport {
             && self.open_shells == 0
     }
 
+    /// Whether the solid is the file's own: every shell closed and outward as the file gives
+    /// it (nothing welded but identical vertices, dropped, closed, sewn or turned), none nested
+    /// in another, none filled. A clean file, or closed shells that lie apart: inside is where
+    /// the file's own winding number is 1 (an independent check takes it from the file).
+    pub fn solid_as_given(&self) -> bool {
+        MeshReport {
+            shells: self.shells.min(1),
+            ..self.clone()
+        }
+        .clean()
+            && self.inner_shells == 0
+            && self.fill_voxel_m.is_none()
+    }
+
     /// One line: what the mesh needed.
     pub fn summary(&self) -> String {
         let mut line = self.repairs();
