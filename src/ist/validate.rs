@@ -46,7 +46,7 @@ use super::measure::{measure, Accuracy, SphereIndex};
 use crate::geometry::{dist, widen, P3};
 use crate::packing::InnerSphere;
 use crate::robot::exact::ExactSolid;
-use crate::robot::LinkGeometry;
+use crate::robot::{LinkGeometry, TriangleFate};
 
 /// A failed check, naming the link, the element's source (its mesh file or primitive) and the
 /// sphere or node.
@@ -274,19 +274,38 @@ fn measure_files(
     elements_gap_m: f64,
     accuracy: Accuracy,
 ) -> Result<FileGaps, ValidationError> {
-    // Whether a point lies inside the solid at least `d` deep: a sub-triangle deeper than its
-    // reach is inside, where the solid's own surface is what bounds the distance.
-    let inside = |p: P3, d: f64| -> bool {
-        solids
-            .iter()
-            .any(|s| s.contains(p) && (d <= 0.0 || s.surface.distance(p).0 >= d))
-    };
     let mut out = FileGaps::default();
     for intake in geometry
         .intake
         .iter()
         .filter(|i| !i.report.clean() || i.report.pieces > 1)
     {
+        // A triangle the intake kept as it was (its corners welded, each by at most the weld
+        // tolerance; no crack sewn in the file) lies within that tolerance of its own
+        // elements' surface (not a convex hull's): none of its points is deeper in them than
+        // twice that.
+        let as_kept = intake.report.cracks_sewn == 0 && geometry.hull_of_volume_m3.is_none();
+        let kept_within = 2.0 * intake.report.weld_tolerance_m;
+        let kept =
+            |n: usize| as_kept && matches!(intake.fates.get(n), Some(TriangleFate::Kept { .. }));
+        let own = |e: usize| {
+            geometry
+                .elements
+                .get(e)
+                .is_some_and(|e| e.index == intake.element)
+        };
+        // Whether a point of file triangle `n` lies inside the solid at least `d` deep: a
+        // sub-triangle deeper than its reach is inside, where the solid's own surface is what
+        // bounds the distance. The depth first, and not asked of a kept triangle's own
+        // elements: the file's own points lie on the solid's surface or within rounding of it,
+        // where the inside test's rays are ambiguous and it sums every triangle's solid angle
+        // (issue 56: a 0.3 m cylinder of 6,000 slivers, CAD noise welded, validated in 537 s).
+        let inside = |n: usize, p: P3, d: f64| -> bool {
+            let shallow = d > kept_within && kept(n);
+            solids.iter().enumerate().any(|(e, s)| {
+                !(shallow && own(e)) && (d <= 0.0 || s.surface.at_least(p, d)) && s.contains(p)
+            })
+        };
         let (vertices, tris) = &*intake.original;
         // The index in the file is kept: the intake refused a file with an index out of range.
         let corners: Vec<(usize, [P3; 3])> = tris

@@ -131,6 +131,43 @@ impl ExactSurface {
         best
     }
 
+    /// Whether every triangle lies at least `d` from `p`: [`Self::distance`] `>= d`, stopping at
+    /// the first triangle nearer (a point on the surface answers at its own triangle).
+    pub fn at_least(&self, p: P3, d: f64) -> bool {
+        if self.triangles.is_empty() {
+            return true;
+        }
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let Some(n) = self
+                .nodes
+                .get(i)
+                .filter(|n| box_distance(p, n.lo, n.hi) < d)
+            else {
+                continue;
+            };
+            if n.count == 0 {
+                let (l, r) = (n.start as usize, n.start as usize + 1);
+                // Nearer child last, so it is searched first.
+                if box_distance(p, self.nodes[l].lo, self.nodes[l].hi)
+                    < box_distance(p, self.nodes[r].lo, self.nodes[r].hi)
+                {
+                    stack.extend([r, l]);
+                } else {
+                    stack.extend([l, r]);
+                }
+                continue;
+            }
+            for &t in &self.triangles[n.start as usize..(n.start + n.count) as usize] {
+                let [a, b, c] = self.corners(t);
+                if dist(p, closest_point_triangle(p, a, b, c)) < d {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// The winding number of a closed, outward-oriented surface about `p` (1 inside, 0
     /// outside), counted along a ray; see the module doc for the ambiguous cases.
     pub fn winding(&self, p: P3) -> f64 {
@@ -305,6 +342,21 @@ mod tests {
             prop_assert!((s.distance(p).0 - brute).abs() <= 1e-12);
             let w = winding_number(p, &t.vertices, &t.triangles);
             prop_assert!((s.winding(p) - w).abs() < 1e-6, "{} vs {}", s.winding(p), w);
+        }
+
+        /// `at_least` is the distance compared, on both sides of it and at it.
+        #[test]
+        fn at_least_is_the_distance_compared(
+            p in prop::array::uniform3(-0.12f64..0.12),
+            d in 0.0f64..0.1,
+            sphere in any::<bool>(),
+        ) {
+            let t = if sphere { tessellate_sphere(0.07) } else { tessellate_box([0.1, 0.06, 0.14]) };
+            let s = ExactSurface::new(&t.vertices, &t.triangles);
+            let exact = s.distance(p).0;
+            for d in [d, exact, exact.next_up(), exact.next_down()] {
+                prop_assert_eq!(s.at_least(p, d), exact >= d, "d {}, distance {}", d, exact);
+            }
         }
     }
 
