@@ -95,7 +95,20 @@ impl ExactSurface {
 
     /// Distance from `p` to the nearest triangle, and that triangle's nearest point.
     pub fn distance(&self, p: P3) -> (f64, P3) {
-        let mut best = (f64::INFINITY, p);
+        self.nearest_below(p, f64::INFINITY, f64::NEG_INFINITY)
+    }
+
+    /// Whether every triangle lies at least `d` from `p`: [`Self::distance`] `>= d`, stopping at
+    /// the first triangle nearer (a point on the surface answers at its own triangle).
+    pub fn at_least(&self, p: P3, d: f64) -> bool {
+        self.nearest_below(p, d, d).0 >= d
+    }
+
+    /// The nearest triangle's distance and point where it is below `bound` (else `(bound, p)`),
+    /// by branch and bound over the box tree, nearer child first; the walk stops at the first
+    /// triangle found below `stop`.
+    fn nearest_below(&self, p: P3, bound: f64, stop: f64) -> (f64, P3) {
+        let mut best = (bound, p);
         if self.triangles.is_empty() {
             return best;
         }
@@ -112,6 +125,9 @@ impl ExactSurface {
                     let d = dist(p, q);
                     if d < best.0 {
                         best = (d, q);
+                        if d < stop {
+                            return best;
+                        }
                     }
                 }
             } else {
@@ -129,43 +145,6 @@ impl ExactSurface {
             }
         }
         best
-    }
-
-    /// Whether every triangle lies at least `d` from `p`: [`Self::distance`] `>= d`, stopping at
-    /// the first triangle nearer (a point on the surface answers at its own triangle).
-    pub fn at_least(&self, p: P3, d: f64) -> bool {
-        if self.triangles.is_empty() {
-            return true;
-        }
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
-            let Some(n) = self
-                .nodes
-                .get(i)
-                .filter(|n| box_distance(p, n.lo, n.hi) < d)
-            else {
-                continue;
-            };
-            if n.count == 0 {
-                let (l, r) = (n.start as usize, n.start as usize + 1);
-                // Nearer child last, so it is searched first.
-                if box_distance(p, self.nodes[l].lo, self.nodes[l].hi)
-                    < box_distance(p, self.nodes[r].lo, self.nodes[r].hi)
-                {
-                    stack.extend([r, l]);
-                } else {
-                    stack.extend([l, r]);
-                }
-                continue;
-            }
-            for &t in &self.triangles[n.start as usize..(n.start + n.count) as usize] {
-                let [a, b, c] = self.corners(t);
-                if dist(p, closest_point_triangle(p, a, b, c)) < d {
-                    return false;
-                }
-            }
-        }
-        true
     }
 
     /// The winding number of a closed, outward-oriented surface about `p` (1 inside, 0

@@ -86,8 +86,7 @@ pub(super) fn filled(
 /// insides are disjoint, and each shell is a solid of its own, with its exact inside test; the
 /// space between two of them, however narrow, stays outside (issue 56: a body and a boss 1 mm
 /// apart, a slot the fill's voxel cannot enter).
-pub(super) fn apart(shells: &[ClosedMesh]) -> bool {
-    let solids: Vec<Solid> = shells.iter().map(Solid::new).collect();
+pub(super) fn apart(shells: &[ClosedMesh], solids: &[Solid]) -> bool {
     let boxes: Vec<([f32; 3], [f32; 3])> = shells.iter().map(ClosedMesh::bounds).collect();
     let meet = |i: usize, j: usize| {
         let ((alo, ahi), (blo, bhi)) = (boxes[i], boxes[j]);
@@ -106,11 +105,11 @@ pub(super) fn apart(shells: &[ClosedMesh]) -> bool {
 }
 
 /// Drops the shells that lie wholly inside another shell (see the module doc for the test):
-/// the shells kept, each with its `tag`, and the tags of those dropped.
+/// the shells kept, each with its solid and `tag`, and the tags of those dropped.
 pub(super) fn drop_inner<T>(
     mut shells: Vec<(ClosedMesh, Solid, T)>,
     report: &mut MeshReport,
-) -> (Vec<(ClosedMesh, T)>, Vec<T>) {
+) -> (Vec<(ClosedMesh, Solid, T)>, Vec<T>) {
     // Largest first: an inner shell is enclosed by a larger one.
     shells.sort_by(|a, b| b.0.volume_m3.total_cmp(&a.0.volume_m3));
     let mut kept: Vec<(ClosedMesh, Solid, T)> = Vec::new();
@@ -136,5 +135,5 @@ pub(super) fn drop_inner<T>(
             kept.push((shell, solid, tag));
         }
     }
-    (kept.into_iter().map(|(m, _, t)| (m, t)).collect(), dropped)
+    (kept, dropped)
 }

@@ -154,10 +154,17 @@ fn take_shells(
             fates[o] = TriangleFate::InnerShell { shell };
         }
     }
-    let (meshes, tags): (Vec<ClosedMesh>, Vec<(u32, Vec<usize>)>) = shells.into_iter().unzip();
+    let mut meshes = Vec::with_capacity(shells.len());
+    let mut solids = Vec::with_capacity(shells.len());
+    let mut tags: Vec<(u32, Vec<usize>)> = Vec::with_capacity(shells.len());
+    for (mesh, solid, tag) in shells {
+        meshes.push(mesh);
+        solids.push(solid);
+        tags.push(tag);
+    }
     // One closed shell, or closed shells apart from each other: each a solid as it is (a slot
     // between two of them is outside, however narrow).
-    if loose.is_empty() && (meshes.len() == 1 || apart(&meshes)) {
+    if loose.is_empty() && (meshes.len() == 1 || apart(&meshes, &solids)) {
         for (shell, origins) in tags {
             for o in origins {
                 fates[o] = TriangleFate::Kept { shell };

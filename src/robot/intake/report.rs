@@ -47,12 +47,17 @@ impl MeshReport {
     /// Whether the mesh was taken as it is (one closed shell, nothing welded but identical
     /// vertices, nothing dropped, closed or turned).
     pub fn clean(&self) -> bool {
+        self.shells <= 1 && self.untouched()
+    }
+
+    /// Whether no repair touched the file's shells: nothing welded but identical vertices,
+    /// dropped, opened, closed, sewn or turned.
+    fn untouched(&self) -> bool {
         self.welded_vertices == 0
             && self.degenerate_triangles == 0
             && self.repeated_triangles == 0
             && self.open_edges == 0
             && self.non_manifold_edges == 0
-            && self.shells <= 1
             && self.shells_reoriented == 0
             && self.empty_shells == 0
             && self.cracks_sewn == 0
@@ -64,13 +69,7 @@ impl MeshReport {
     /// in another, none filled. A clean file, or closed shells that lie apart: inside is where
     /// the file's own winding number is 1 (an independent check takes it from the file).
     pub fn solid_as_given(&self) -> bool {
-        MeshReport {
-            shells: self.shells.min(1),
-            ..self.clone()
-        }
-        .clean()
-            && self.inner_shells == 0
-            && self.fill_voxel_m.is_none()
+        self.untouched() && self.inner_shells == 0 && self.fill_voxel_m.is_none()
     }
 
     /// One line: what the mesh needed.
